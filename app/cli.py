@@ -9,11 +9,13 @@ from collections.abc import Callable, Sequence
 
 from pydantic import ValidationError
 
-from robot_io.errors import RobotIOError
+from robot_io.errors import RobotIOError, explain
 
 #: Modules that contribute subcommands: each has ``register(subparsers) -> None`` and sets
 #: ``func(args) -> int`` on its parsers.
-_COMMAND_MODULES: tuple[str, ...] = ()
+_COMMAND_MODULES: tuple[str, ...] = (
+    "robot_io.cli",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -36,7 +38,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return func(args)
     except (ValidationError, RobotIOError, ValueError) as exc:
-        print(f"handover {args.command}: error: {exc}", file=sys.stderr)
+        print(f"handover {args.command}: error: {explain(exc)}", file=sys.stderr)
         return 2
 
 

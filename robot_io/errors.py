@@ -17,3 +17,11 @@ class HandSourceError(RobotIOError):
 
 class ArmFault(RobotIOError):
     """The arm refused a command or is in a fault state (stopped, protective stop, limits)."""
+
+
+def explain(exc: Exception) -> str:
+    """One line for a user: a pydantic ValidationError becomes its messages without the preamble."""
+    errors = getattr(exc, "errors", None)
+    if callable(errors):
+        return "; ".join(str(e.get("msg", e)).removeprefix("Value error, ") for e in errors())
+    return str(exc)

@@ -1,0 +1,89 @@
+"""``handover simulate-trial``: one handover of the simulated hand with the mock arm."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+from pathlib import Path
+from typing import TypeVar
+
+from robot_io.config import load_config
+from robot_io.errors import explain
+from robot_io.simulated_hand import Scenario
+from robot_io.theta import Theta
+
+#: Summary fields printed by --json, in order.
+JSON_FIELDS = (
+    "outcome", "reason", "robot_arrival_s", "hand_arrival_s", "arrival_gap_s", "peak_speed_mps",
+    "max_tau", "deadline_misses", "cycles", "duration_s", "rate_hz", "realtime", "limited_cycles",
+    "invalid_hand_samples", "compute_us_median", "compute_us_p99",
+)
+
+
+T = TypeVar("T")
+
+
+def argument_type(parse: Callable[[str], T]) -> Callable[[str], T]:
+    """Wrap a parser so that argparse shows its message (field, value, allowed range)."""
+
+    def wrapped(text: str) -> T:
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(explain(exc)) from exc
+
+    wrapped.__name__ = parse.__name__
+    return wrapped
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "simulate-trial", help="run one handover with the simulated hand and the mock arm",
+        description="Run one handover of the simulated participant with the kinematic mock arm.")
+    parser.add_argument("--scenario", required=True, type=argument_type(Scenario.parse),
+                        help="straightforward or perturbed (Sect. V-A)")
+    parser.add_argument("--theta", required=True, type=argument_type(Theta.parse), metavar="A,DELTA,K",
+                        help="coupling θ = (a, δ, k); a in [1, 10], δ in [-1, 1], k in [0.01, 15]")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated hand")
+    parser.add_argument("--rate", type=int, choices=(125, 500), help="control rate [Hz]")
+    parser.add_argument("--realtime", action="store_true",
+                        help="run on the wall clock (default: simulated time, as fast as possible)")
+    parser.add_argument("--config", type=Path, help="TOML configuration file")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument("--plot", type=Path, metavar="FILE.png",
+                        help="write the Fig. 4 style distance plot")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from robot_io.plot import plot_trial
+    from robot_io.trial import simulate_trial
+
+    config = load_config(args.config)
+    if args.rate is not None:
+        config = config.model_copy(
+            update={"loop": config.loop.model_copy(update={"rate_hz": args.rate})})
+    record = simulate_trial(config, args.theta, args.scenario, args.seed, realtime=args.realtime)
+    summary = record.summary
+    if args.plot:
+        theta = args.theta
+        plot_trial(record.samples, config.scene.point("handover_point"), args.plot,
+                   title=f"{args.scenario.value}, a={theta.a:g} δ={theta.delta:g} k={theta.k:g}, "
+                         f"seed {args.seed}")
+    if args.json:
+        data = summary.model_dump(mode="json", include=set(JSON_FIELDS))
+        data.update(scenario=args.scenario.value, theta=args.theta.model_dump(), seed=args.seed)
+        print(json.dumps(data))
+    else:
+        def seconds(value: float | None, sign: str = "") -> str:
+            return "n/a" if value is None else f"{value:{sign}.3f} s"
+
+        print(f"{summary.outcome.value}: robot at H {seconds(summary.robot_arrival_s)}, hand at H "
+              f"{seconds(summary.hand_arrival_s)}, gap {seconds(summary.arrival_gap_s, '+')}, "
+              f"peak speed {summary.peak_speed_mps:.2f} m/s, "
+              f"max τ {summary.max_tau:.2f} s, {summary.deadline_misses} deadline misses"
+              + (f" ({summary.reason})" if summary.reason else ""))
+        if args.plot:
+            print(f"plot: {args.plot}")
+    return 0 if summary.outcome == "completed" else 1

@@ -1,0 +1,145 @@
+"""Controller configuration: pydantic models with documented defaults, loadable from one TOML file.
+
+Every default that comes from the paper says so (Table I); the others are this project's choices for a
+table-top UR5 handover and are documented in ``docs/controller.md``. Positions are in metres in the
+robot base frame.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Annotated, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from robot_io.errors import ConfigError
+
+Vec3 = tuple[float, float, float]
+Positive = Annotated[float, Field(gt=0)]
+
+
+class _Frozen(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class DMPConstants(_Frozen):
+    """Fixed DMP and coupling constants (Table I, "Fixed")."""
+
+    tau0: Positive = Field(1.0, description="τ0, uncoupled time constant [s] (Table I)")
+    alpha_x: Positive = Field(20.0, description="α_x of eq. (1); β_x = α_x/4 (Table I)")
+    alpha_s: Positive = Field(4.0, description="α_s of the phase, eq. (3) (Table I)")
+    alpha_d: Positive = Field(20.0, description="α_d of the distance filter, eq. (7) (Table I)")
+    sigma_d_a: float = Field(13.0, description="a_d of the fixed σ_d, eq. (10) (Table I)")
+    sigma_d_delta: float = Field(-0.35, description="δ_d of the fixed σ_d, eq. (10) (Table I)")
+    k_ext: float = Field(0.8, ge=0, description="gain of the external-force term (Table I)")
+    n_basis: int = Field(50, ge=2, le=500, description="Gaussian basis functions of f_nl")
+    demo_fit_duration: Positive = Field(
+        1.3, description="time span [s] of the demonstration used for the fit (reach + rest)")
+    d0_min: Positive = Field(
+        0.02, description="smallest start distance d0 [m] accepted by eq. (8) (guard against d0≈0)")
+
+    @property
+    def beta_x(self) -> float:
+        """β_x = α_x/4: critically damped transformation system (Sect. III-A)."""
+        return self.alpha_x / 4.0
+
+
+class SceneConfig(_Frozen):
+    """Table-top geometry of Fig. 1: robot start R, handover point H, hand start A, box B, place C."""
+
+    robot_start: Vec3 = Field((0.35, -0.35, 0.35), description="R: robot TCP start [m]")
+    handover_point: Vec3 = Field((0.55, 0.05, 0.30), description="H: handover point = DMP goal g [m]")
+    hand_start: Vec3 = Field((0.95, 0.10, 0.05), description="A: hand start on the desk [m]")
+    box: Vec3 = Field((0.65, 0.25, 0.15), description="B: box, about 25 cm from H [m]")
+    place: Vec3 = Field((1.00, 0.40, 0.05), description="C: where the box is put down [m]")
+
+    def point(self, name: str) -> np.ndarray:
+        return np.asarray(getattr(self, name), dtype=float)
+
+
+class SafetyLimits(_Frozen):
+    """Limits applied to every target before it reaches the arm (see ``robot_io.safety``)."""
+
+    workspace_min: Vec3 = Field((0.10, -0.60, 0.05), description="workspace box, lower corner [m]")
+    workspace_max: Vec3 = Field((0.90, 0.60, 0.80), description="workspace box, upper corner [m]")
+    max_speed: Positive = Field(1.0, description="TCP speed cap [m/s]")
+    max_acceleration: Positive = Field(5.0, description="TCP acceleration cap [m/s²]")
+
+    @model_validator(mode="after")
+    def _box_not_empty(self) -> SafetyLimits:
+        for axis, (low, high) in enumerate(zip(self.workspace_min, self.workspace_max, strict=True)):
+            if low >= high:
+                raise ConfigError(f"safety.workspace_min[{axis}] = {low} must be below "
+                                  f"workspace_max[{axis}] = {high}")
+        return self
+
+    def contains(self, point: np.ndarray) -> bool:
+        return bool(np.all(point >= self.workspace_min) and np.all(point <= self.workspace_max))
+
+
+class HandProfile(_Frozen):
+    """How the simulated participant moves; each range is drawn from uniformly per trial."""
+
+    tracker_rate_hz: Positive = Field(100.0, description="tracker sample rate (Vicon in the paper)")
+    reaction_delay_s: tuple[float, float] = Field((0.15, 0.35), description="delay after Go [s]")
+    mean_speed_mps: tuple[float, float] = Field(
+        (0.45, 0.65), description="mean hand speed of each reach [m/s] (duration = length/speed)")
+    pause_s: tuple[float, float] = Field(
+        (0.25, 0.50), description="pause to grasp the box at B and to put it down at C [s]")
+    noise_std_m: float = Field(0.0, ge=0, description="tracker noise, std per axis [m]")
+    dropout_rate: float = Field(0.0, ge=0, lt=1, description="share of tracker samples lost")
+
+    @model_validator(mode="after")
+    def _ranges_ordered(self) -> HandProfile:
+        for name in ("reaction_delay_s", "mean_speed_mps", "pause_s"):
+            low, high = getattr(self, name)
+            if not 0 <= low <= high:
+                raise ConfigError(f"hand.{name} = ({low}, {high}) must satisfy 0 ≤ low ≤ high")
+        if self.mean_speed_mps[0] <= 0:
+            raise ConfigError(f"hand.mean_speed_mps = {self.mean_speed_mps} must be > 0")
+        return self
+
+
+class LoopConfig(_Frozen):
+    """The control loop: rate, end conditions, and when the tracker counts as lost."""
+
+    rate_hz: Literal[125, 500] = Field(500, description="control rate: 125 (CB-series) or 500 Hz")
+    robot_arrival_tolerance_m: Positive = Field(0.01, description="robot 'at H' radius [m]")
+    hand_arrival_tolerance_m: Positive = Field(0.03, description="hand 'at H' radius [m]")
+    staleness_limit_s: Positive = Field(
+        0.1, description="a hand sample older than this means the tracker is lost: stop [s]")
+    timeout_s: Positive = Field(20.0, description="a trial longer than this ends as 'timeout' [s]")
+
+
+class ControllerConfig(_Frozen):
+    """Everything the controller needs; the TOML file has one table per field."""
+
+    dmp: DMPConstants = DMPConstants()
+    scene: SceneConfig = SceneConfig()
+    safety: SafetyLimits = SafetyLimits()
+    hand: HandProfile = HandProfile()
+    loop: LoopConfig = LoopConfig()
+
+    @model_validator(mode="after")
+    def _scene_in_workspace(self) -> ControllerConfig:
+        for name in ("robot_start", "handover_point"):
+            point = self.scene.point(name)
+            if not self.safety.contains(point):
+                raise ConfigError(
+                    f"scene.{name} = {tuple(point)} is outside the workspace box "
+                    f"[{self.safety.workspace_min}, {self.safety.workspace_max}]")
+        return self
+
+
+def load_config(path: Path | None = None) -> ControllerConfig:
+    """Read a TOML file (tables ``[dmp]``, ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``);
+    missing keys take their documented defaults. ``None`` gives the defaults."""
+    if path is None:
+        return ControllerConfig()
+    try:
+        data = tomllib.loads(Path(path).read_text())
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise ConfigError(f"config file {path}: {exc}") from exc
+    return ControllerConfig.model_validate(data)

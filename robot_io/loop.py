@@ -1,0 +1,243 @@
+"""The control loop of one handover (DESIGN.md §1): per cycle, read the latest hand sample → distance
+filter (6, 7) → coupling (8–10) → DMP step (1–5) → safety limiter → arm; one recorded row per cycle.
+
+The loop runs on a real or a simulated clock through the same code. It ends when the robot is at the
+handover point with the hand arrived and the robot settled, on timeout, on a stale hand source, on an
+arm fault, on request, or on any exception; in every case the arm is told to stop and the loop waits,
+boundedly, until it is at rest.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass
+from enum import StrEnum
+
+import numpy as np
+from pydantic import BaseModel
+
+from robot_io.arm import Arm, ArmState
+from robot_io.clock import Clock
+from robot_io.config import LoopConfig
+from robot_io.coupling import Coupling, HandCoupling
+from robot_io.dmp import DMP
+from robot_io.errors import ArmFault
+from robot_io.hand import HandSample, HandSource
+from robot_io.recorder import SLICES, TrialRecorder
+from robot_io.safety import SafetyLimiter
+
+log = logging.getLogger(__name__)
+
+#: Robot speed [m/s] below which a robot at the handover point counts as settled.
+SETTLE_SPEED = 0.02
+#: How long [s] the loop waits for the arm to come to rest after stop().
+STOP_CONFIRM_S = 1.0
+
+
+class Outcome(StrEnum):
+    COMPLETED = "completed"
+    TIMEOUT = "timeout"
+    TRACKER_LOST = "tracker_lost"
+    ARM_FAULT = "arm_fault"
+    STOPPED = "stopped"  # on request (experimenter's Stop)
+    ERROR = "error"
+
+
+class TrialSummary(BaseModel):
+    """What one handover came to; ``arrival_gap_s`` = robot − hand arrival (> 0: robot late)."""
+
+    outcome: Outcome
+    reason: str | None = None
+    rate_hz: float
+    realtime: bool
+    cycles: int
+    duration_s: float
+    robot_arrival_s: float | None
+    hand_arrival_s: float | None
+    arrival_gap_s: float | None
+    peak_speed_mps: float
+    max_tau: float
+    deadline_misses: int
+    limited_cycles: int
+    invalid_hand_samples: int
+    compute_us_median: float
+    compute_us_p99: float
+    last_hand_sample_s: float | None
+    stop_commanded_s: float | None
+
+
+@dataclass
+class TrialRecord:
+    summary: TrialSummary
+    samples: dict[str, np.ndarray]
+
+
+class HandoverLoop:
+    """One handover: call :meth:`run` on this thread, or :meth:`start` for a worker thread."""
+
+    def __init__(self, dmp: DMP, coupling: Coupling, hand: HandSource, arm: Arm, clock: Clock,
+                 limiter: SafetyLimiter, config: LoopConfig) -> None:
+        self.dmp, self.coupling, self.hand, self.arm = dmp, coupling, hand, arm
+        self.clock, self.limiter, self.config = clock, limiter, config
+        self._stop_requested = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.result: TrialRecord | None = None
+
+    # -- threading --------------------------------------------------------------------------------
+    def start(self) -> threading.Thread:
+        """Run the handover in a worker thread; :attr:`result` is set when it ends."""
+        self._thread = threading.Thread(target=self.run, name="handover-loop", daemon=True)
+        self._thread.start()
+        return self._thread
+
+    def request_stop(self) -> None:
+        """Stop the handover: the arm is told to stop within one cycle."""
+        self._stop_requested.set()
+
+    def join(self, timeout: float | None = None) -> TrialRecord | None:
+        if self._thread is not None:
+            self._thread.join(timeout)
+        return self.result
+
+    # -- the loop ---------------------------------------------------------------------------------
+    def run(self) -> TrialRecord:
+        cfg, clock, dt = self.config, self.clock, self.clock.period
+        goal = self.dmp.goal
+        recorder = TrialRecorder(int((cfg.timeout_s + 1.0) * cfg.rate_hz))
+        self._last: HandSample | None = None
+        self._seen_t = -np.inf
+        self._invalid = 0
+        robot_arrival = hand_arrival = None
+        outcome, reason = Outcome.TIMEOUT, f"no handover within timeout_s = {cfg.timeout_s}"
+        misses, lateness, prev_measured, started = 0, 0.0, None, False
+        clock.start()
+        try:
+            self.arm.begin_stream()
+            measured = self.arm.read_pose()
+            self.limiter.reset(measured)
+            self.dmp.reset()
+            while True:
+                t = clock.now()
+                began = time.perf_counter()
+                if self._stop_requested.is_set():
+                    outcome, reason = Outcome.STOPPED, "stop requested"
+                    break
+                if self.arm.state is ArmState.FAULT:
+                    outcome, reason = Outcome.ARM_FAULT, self.arm.fault
+                    break
+                measured = self.arm.read_pose()
+                last = self._latest_valid(t)
+                age = t - (last.t if last is not None else 0.0)
+                if age > cfg.staleness_limit_s:
+                    outcome = Outcome.TRACKER_LOST
+                    reason = (f"no valid hand sample for {age:.3f} s "
+                              f"(staleness_limit_s = {cfg.staleness_limit_s})")
+                    break
+                row = recorder.next_row()
+                row[SLICES["t"]] = t
+                row[SLICES["measured"]] = measured
+                row[SLICES["lateness_s"]] = lateness
+                if last is not None:
+                    if not started:
+                        self.coupling.reset(last.position)
+                        started = True
+                    terms = self.coupling.update(last.position)
+                    x = self.dmp.step(dt, terms)
+                    commanded, flags = self.limiter.limit(x)
+                    self.arm.command(commanded)
+                    self._record(row, last, commanded, flags)
+                    if robot_arrival is None and np.linalg.norm(measured - goal) < \
+                            cfg.robot_arrival_tolerance_m:
+                        robot_arrival = t
+                    if hand_arrival is None and np.linalg.norm(last.position - goal) < \
+                            cfg.hand_arrival_tolerance_m:
+                        hand_arrival = last.t
+                speed = 0.0 if prev_measured is None else np.linalg.norm(measured - prev_measured) / dt
+                prev_measured = measured
+                if robot_arrival is not None and hand_arrival is not None and speed < SETTLE_SPEED:
+                    outcome, reason = Outcome.COMPLETED, None
+                    break
+                if t >= cfg.timeout_s:
+                    break
+                row[SLICES["compute_s"]] = time.perf_counter() - began
+                lateness, missed = clock.wait_next_cycle()
+                misses += missed
+        except ArmFault as exc:
+            outcome, reason = Outcome.ARM_FAULT, self.arm.fault or str(exc)
+        except Exception as exc:
+            log.exception("handover loop failed")
+            outcome, reason = Outcome.ERROR, f"{type(exc).__name__}: {exc}"
+        finally:
+            stop_at = self._halt()
+        samples = recorder.columns()
+        self.result = TrialRecord(
+            self._summarise(samples, outcome, reason, robot_arrival, hand_arrival, misses, stop_at),
+            samples)
+        log.info("handover ended: %s (%s)", outcome, reason)
+        return self.result
+
+    def _latest_valid(self, t: float) -> HandSample | None:
+        """The newest valid hand sample; a new invalid one (NaN) is counted and ignored."""
+        sample = self.hand.latest(t)
+        if sample is not None and sample.t > self._seen_t:
+            self._seen_t = sample.t
+            if sample.is_valid():
+                self._last = sample
+            else:
+                self._invalid += 1
+        return self._last
+
+    def _record(self, row: np.ndarray, hand: HandSample, commanded: np.ndarray, flags) -> None:
+        dmp = self.dmp
+        row[SLICES["s"]], row[SLICES["tau"]] = dmp.s, dmp.tau
+        row[SLICES["x"]], row[SLICES["xd"]], row[SLICES["c_s"]] = dmp.x, dmp.xd, dmp.c_s
+        row[SLICES["hand"]], row[SLICES["hand_t"]] = hand.position, hand.t
+        row[SLICES["commanded"]] = commanded
+        row[SLICES["limited"]] = flags.acceleration + 2 * flags.speed + 4 * flags.workspace
+        coupling = self.coupling
+        if isinstance(coupling, HandCoupling):
+            row[SLICES["d"]], row[SLICES["d_filtered"]] = coupling.d, coupling.d_filtered
+            row[SLICES["d_rate"]], row[SLICES["c_t"]] = coupling.d_rate, coupling.c_t
+            row[SLICES["sigma_d"]], row[SLICES["sigma_j"]] = coupling.sigma_d, coupling.sigma_j
+
+    def _halt(self) -> float | None:
+        """Stop the arm (never raises) and wait, at most STOP_CONFIRM_S, until it is at rest."""
+        stop_at = self.clock.now()
+        try:
+            self.arm.stop()
+            for _ in range(int(STOP_CONFIRM_S / self.clock.period)):
+                if not self.arm.is_moving:
+                    break
+                self.clock.wait_next_cycle()
+            else:
+                log.error("arm still moving %.1f s after stop()", STOP_CONFIRM_S)
+        except Exception:
+            log.critical("stopping the arm failed", exc_info=True)
+        return stop_at
+
+    def _summarise(self, samples: dict[str, np.ndarray], outcome: Outcome, reason: str | None,
+                   robot_arrival: float | None, hand_arrival: float | None, misses: int,
+                   stop_at: float | None) -> TrialSummary:
+        cfg, dt = self.config, self.clock.period
+        measured = samples["measured"]
+        speeds = np.linalg.norm(np.diff(measured, axis=0), axis=1) / dt if len(measured) > 1 else [0]
+        compute = samples["compute_s"][np.isfinite(samples["compute_s"])] * 1e6
+        tau = samples["tau"][np.isfinite(samples["tau"])]
+        gap = None if robot_arrival is None or hand_arrival is None else robot_arrival - hand_arrival
+        return TrialSummary(
+            outcome=outcome, reason=reason, rate_hz=cfg.rate_hz,
+            realtime=bool(getattr(self.clock, "realtime", False)),
+            cycles=len(samples["t"]), duration_s=float(samples["t"][-1]) if len(samples["t"]) else 0.0,
+            robot_arrival_s=robot_arrival, hand_arrival_s=hand_arrival, arrival_gap_s=gap,
+            peak_speed_mps=float(np.nanmax(speeds)) if len(speeds) else 0.0,
+            max_tau=float(tau.max()) if len(tau) else self.dmp.constants.tau0,
+            deadline_misses=int(misses),
+            limited_cycles=int(np.count_nonzero(np.nan_to_num(samples["limited"]))),
+            invalid_hand_samples=self._invalid,
+            compute_us_median=float(np.median(compute)) if len(compute) else 0.0,
+            compute_us_p99=float(np.percentile(compute, 99)) if len(compute) else 0.0,
+            last_hand_sample_s=None if self._last is None else self._last.t,
+            stop_commanded_s=stop_at,
+        )

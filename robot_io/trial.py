@@ -1,0 +1,49 @@
+"""Assemble one handover from the configuration: DMP from R to H, coupling θ, hand, arm, clock."""
+
+from __future__ import annotations
+
+from robot_io.arm import Arm
+from robot_io.clock import Clock, RealClock, SimClock
+from robot_io.config import ControllerConfig
+from robot_io.coupling import Coupling, HandCoupling, NoCoupling
+from robot_io.dmp import DMP
+from robot_io.hand import HandSource
+from robot_io.loop import HandoverLoop, TrialRecord
+from robot_io.mock_arm import MockArm
+from robot_io.safety import SafetyLimiter
+from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.theta import Theta
+
+
+def make_clock(config: ControllerConfig, realtime: bool) -> Clock:
+    return (RealClock if realtime else SimClock)(config.loop.rate_hz)
+
+
+def make_coupling(config: ControllerConfig, theta: Theta | None, dt: float) -> Coupling:
+    """The hand coupling of eqs. (6)–(10) with θ, or no coupling at all for ``theta=None``."""
+    if theta is None:
+        return NoCoupling()
+    return HandCoupling(theta, config.scene.point("handover_point"), config.dmp, dt)
+
+
+def make_loop(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: Arm,
+              clock: Clock) -> HandoverLoop:
+    """A handover from the robot start R to the handover point H; the arm is first moved to R."""
+    start, goal = config.scene.point("robot_start"), config.scene.point("handover_point")
+    arm.move_to(start)
+    return HandoverLoop(
+        dmp=DMP.from_minimum_jerk(start, goal, config.dmp),
+        coupling=make_coupling(config, theta, clock.period),
+        hand=hand, arm=arm, clock=clock,
+        limiter=SafetyLimiter(config.safety, clock.period),
+        config=config.loop,
+    )
+
+
+def simulate_trial(config: ControllerConfig, theta: Theta | None, scenario: Scenario, seed: int,
+                   realtime: bool = False) -> TrialRecord:
+    """One handover of the simulated hand with the mock arm, on simulated (or real) time."""
+    clock = make_clock(config, realtime)
+    hand = SimulatedHand(scenario, config.scene, config.hand, seed)
+    arm = MockArm(clock, config.scene.point("robot_start"))
+    return make_loop(config, theta, hand, arm, clock).run()
