@@ -20,8 +20,16 @@ class ArmFault(RobotIOError):
 
 
 def explain(exc: Exception) -> str:
-    """One line for a user: a pydantic ValidationError becomes its messages without the preamble."""
+    """One line for a user. A pydantic ValidationError becomes ``field = value: message`` per error
+    (our own validators already say the field and value, and are kept as they are)."""
     errors = getattr(exc, "errors", None)
-    if callable(errors):
-        return "; ".join(str(e.get("msg", e)).removeprefix("Value error, ") for e in errors())
-    return str(exc)
+    if not callable(errors):
+        return str(exc)
+    parts = []
+    for error in errors():
+        message = str(error.get("msg", "")).removeprefix("Value error, ")
+        field = ".".join(str(part) for part in error.get("loc", ()))
+        if field and field.split(".")[-1] not in message:
+            message = f"{field} = {error.get('input')!r}: {message}"
+        parts.append(message)
+    return "; ".join(parts)
