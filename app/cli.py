@@ -13,7 +13,7 @@ from robot_io.errors import RobotIOError
 
 #: Modules that contribute subcommands: each has ``register(subparsers) -> None`` and sets
 #: ``func(args) -> int`` on its parsers.
-_COMMAND_MODULES: tuple[str, ...] = ()
+_COMMAND_MODULES: tuple[str, ...] = ("app.learning.cli",)
 
 
 def build_parser() -> argparse.ArgumentParser:
