@@ -15,6 +15,8 @@ from robot_io.errors import RobotIOError, explain
 #: ``func(args) -> int`` on its parsers.
 _COMMAND_MODULES: tuple[str, ...] = (
     "robot_io.cli",
+    "app.learning.cli",
+    "app.protocol.cli",
 )
 
 

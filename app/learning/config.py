@@ -1,0 +1,84 @@
+"""Configuration records of the learner, free of torch so that callers (the session engine, the
+``handover`` command) can build and validate them without importing BoTorch.
+"""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from app.learning.models import Comparison, Interaction, ParameterBox
+from app.learning.planner import BatchSchedule
+
+#: Serialisable kernel hyperparameters: raw parameter name → values (the warm start, the snapshot).
+Hyperparameters = dict[str, list[float]]
+
+
+class AcquisitionName(StrEnum):
+    """The acquisition functions the learner offers."""
+
+    QNEI = "qnei"
+    QLOGNEI = "qlognei"
+    EUBO = "eubo"
+    SOBOL = "sobol"
+
+
+class OptimizerConfig(BaseModel):
+    """How hard the acquisition function is optimised (``optimize_acqf``) and sampled (MC)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    num_restarts: int = Field(4, ge=1, description="L-BFGS-B starts; BoTorch's tutorials use 10")
+    raw_samples: int = Field(256, ge=1, description="quasi-random points that pick the starts")
+    mc_samples: int = Field(256, ge=1, description="QMC samples of the posterior for qNEI/qLogNEI")
+
+
+class ModelConfig(BaseModel):
+    """Kernel priors and fit settings of the preference GP."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    lengthscale_prior: tuple[float, float] = Field(
+        (2.4, 2.7), description="Gamma(concentration, rate) on each RBF lengthscale in unit-cube "
+        "units; mode 0.52, i.e. utilities vary over about half the box (BoTorch's choice)")
+    outputscale_range: tuple[float, float] = Field(
+        (0.01, 100.0), description="smoothed-box prior on the kernel output scale; with the probit "
+        "noise fixed at 1 this bounds how sharp preferences can be")
+    fit_max_attempts: int = Field(
+        5, ge=1, description="fit_gpytorch_mll retries from resampled priors on optimiser warnings")
+    fit_tolerance: float | None = Field(
+        None, gt=0.0, description="L-BFGS-B relative tolerance (ftol) of the hyperparameter fit; "
+        "None is SciPy's default 2.2e-9, far below what changes a suggestion")
+    warm_start: bool = Field(True, description="start each fit from the previous hyperparameters")
+    lazy_fit: bool = Field(
+        False, description="after an interaction only recompute the posterior with the current "
+        "hyperparameters; fit them before the next acquisition query instead")
+    refit_growth: float = Field(
+        0.0, ge=0.0, description="refit the hyperparameters only once the number of comparisons "
+        "has grown by this fraction since the last fit (0: whenever new comparisons arrived); "
+        "in between, the posterior is recomputed with the current hyperparameters")
+
+
+class LearnerConfig(BaseModel):
+    """Everything that defines a learner's behaviour; stored with every snapshot."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    box: ParameterBox
+    acquisition: AcquisitionName = AcquisitionName.QNEI
+    schedule: BatchSchedule = BatchSchedule()
+    model: ModelConfig = ModelConfig()
+    optimizer: OptimizerConfig = OptimizerConfig()
+    seed: int = 0
+
+
+class LearnerSnapshot(BaseModel):
+    """A learner's complete state as plain data: config, observations, fitted hyperparameters."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    config: LearnerConfig
+    interactions: list[Interaction]
+    comparisons: list[Comparison]
+    hyperparameters: Hyperparameters | None = None

@@ -1,0 +1,165 @@
+"""The session-level preference learner: data + model + acquisition + schedule, composed.
+
+Typical use by a session engine (or through :mod:`app.learning.worker` in its own process)::
+
+    learner = PreferenceLearner(LearnerConfig(box=ParameterBox.from_bounds(THETA_BOUNDS), seed=7))
+    suggestion = learner.suggest()                  # θ for interaction 0 (a Sobol point)
+    ...run the handover with suggestion.theta, collect the participant's placement...
+    comparisons = comparisons_for_newest(batch_placements)   # app.learning.scale
+    learner.observe(Interaction(interaction_id="1", theta=suggestion.theta), comparisons)
+    learner.best()                                  # θ*, posterior-mean argmax over observed points
+    learner.snapshot()                              # everything needed to rebuild it
+
+Every step is deterministic given ``LearnerConfig.seed`` and the observations.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+import torch
+
+from app.learning.acquisition import propose, sobol_points
+from app.learning.config import AcquisitionName, Hyperparameters, LearnerConfig, LearnerSnapshot
+from app.learning.data import PreferenceData
+from app.learning.errors import UnknownInteractionError
+from app.learning.models import (
+    BestPoint,
+    Comparison,
+    FitReport,
+    Interaction,
+    Slot,
+    SlotKind,
+    Suggestion,
+)
+from app.learning.preference_model import PreferenceModel
+from app.learning.rng import derive_seed, seeded
+
+logger = logging.getLogger(__name__)
+
+
+class PreferenceLearner:
+    """Turns interactions and their comparisons into the next θ and the best θ*."""
+
+    def __init__(self, config: LearnerConfig,
+                 hyperparameters: Hyperparameters | None = None) -> None:
+        self.config = config
+        self.data = PreferenceData(config.box.dim)
+        self.model = PreferenceModel(config.model, hyperparameters)
+        self.last_fit = FitReport()
+        self._interactions: list[Interaction] = []
+        self._comparisons: list[Comparison] = []
+
+    @property
+    def n_interactions(self) -> int:
+        return len(self._interactions)
+
+    def next_slot(self) -> Slot:
+        """Where the next interaction sits in the schedule."""
+        return self.config.schedule.slot(self.n_interactions)
+
+    def observe(self, interaction: Interaction,
+                comparisons: Sequence[Comparison] = ()) -> FitReport:
+        """Record one interaction and the comparisons its placement produced, then refit.
+
+        Returns the report of this update (``refitted=False`` when nothing new was learned, e.g. a
+        tie or the first interaction of a batch); :attr:`last_fit` is the last fit attempted.
+        """
+        return self.observe_many([interaction], comparisons)
+
+    def observe_many(self, interactions: Sequence[Interaction],
+                     comparisons: Sequence[Comparison]) -> FitReport:
+        """Record several interactions and comparisons (e.g. a replay) with a single update.
+
+        Comparisons may name any interaction known after ``interactions`` are added. The θ of an
+        interaction is what was actually run, which need not be the learner's suggestion. Input is
+        validated before anything is recorded, so a rejected call leaves the learner unchanged.
+        """
+        units = [self.config.box.to_unit(i.theta) for i in interactions]
+        new_ids = [i.interaction_id for i in interactions]
+        self.data.check_new_ids(new_ids)
+        known = self.data.known_ids | set(new_ids)
+        for comparison in comparisons:
+            for iid in (comparison.winner, comparison.loser):
+                if iid not in known:
+                    raise UnknownInteractionError(
+                        f"comparison names interaction_id = {iid!r}, which is not known")
+        for interaction, unit in zip(interactions, units, strict=True):
+            self.data.add_interaction(interaction.interaction_id, unit)
+            self._interactions.append(interaction)
+        added = [self.data.add_comparison(c) for c in comparisons]
+        self._comparisons.extend(comparisons)
+        if not any(added):
+            return FitReport(n_points=len(self.data.points),
+                             n_comparisons=len(self.data.comparisons))
+        fit = not self.config.model.lazy_fit and self.model.needs_fit(self.data)
+        return self._update(fit_hyperparameters=fit)
+
+    def _update(self, *, fit_hyperparameters: bool) -> FitReport:
+        with seeded(derive_seed(self.config.seed, self.n_interactions, 1)):
+            self.last_fit = self.model.update(self.data, fit_hyperparameters=fit_hyperparameters)
+        return self.last_fit
+
+    def best(self) -> BestPoint | None:
+        """θ*: the observed point with the largest posterior mean utility.
+
+        Before any model exists (no comparisons yet, e.g. only ties) it is the first point shown;
+        ``None`` before any interaction.
+        """
+        if not self.data.points:
+            return None
+        index = self.model.best_index(self.data)
+        mean = None
+        if index is None:
+            index = 0
+        else:
+            X, _ = self.data.tensors()
+            with torch.no_grad():
+                mean = float(self.model.model.posterior(X[index:index + 1]).mean)  # type: ignore[union-attr]
+        return BestPoint(theta=self.config.box.from_unit(self.data.points[index]),
+                         interaction_ids=self.data.interactions_at(index), utility_mean=mean)
+
+    def suggest(self) -> Suggestion:
+        """The θ for the next interaction of the schedule (``theta=None`` once it is done)."""
+        slot = self.next_slot()
+        if slot.kind is SlotKind.DONE:
+            return Suggestion(theta=None, slot=slot, fit=self.last_fit)
+        if slot.kind is SlotKind.BEST:
+            theta = self.best().theta  # type: ignore[union-attr]  # the initial batch precedes
+            return Suggestion(theta=theta, slot=slot, fit=self.last_fit)
+        unit = self._query(slot) if slot.kind is SlotKind.QUERY else self._sobol(slot)
+        return Suggestion(theta=self.config.box.from_unit(unit.tolist()), slot=slot,
+                          fit=self.last_fit)  # after _query, which may have refitted
+
+    def snapshot(self) -> LearnerSnapshot:
+        """Plain-data state for storage; :meth:`restore` rebuilds an equivalent learner."""
+        return LearnerSnapshot(config=self.config, interactions=list(self._interactions),
+                               comparisons=list(self._comparisons),
+                               hyperparameters=self.model.hyperparameters)
+
+    @classmethod
+    def restore(cls, snapshot: LearnerSnapshot) -> PreferenceLearner:
+        """Replay a snapshot's observations with one fit, warm-started from its hyperparameters."""
+        learner = cls(snapshot.config, snapshot.hyperparameters)
+        learner.observe_many(snapshot.interactions, snapshot.comparisons)
+        return learner
+
+    def _sobol(self, slot: Slot) -> torch.Tensor:
+        """Point ``slot.index`` of the learner's Sobol sequence (initial batch, baseline)."""
+        return sobol_points(self.config.box.dim, self.config.seed, slot.index, 1)[0]
+
+    def _query(self, slot: Slot) -> torch.Tensor:
+        acquisition = self.config.acquisition
+        model = self.model.model
+        if acquisition is AcquisitionName.SOBOL or model is None:
+            if model is None:
+                logger.info("no preference model yet (no comparisons): Sobol point for slot %d",
+                            slot.index)
+            return self._sobol(slot)
+        if self.model.needs_fit(self.data):
+            self._update(fit_hyperparameters=True)
+        best_x = torch.tensor(self.data.points[self.model.best_index(self.data)],  # type: ignore[index]
+                              dtype=torch.float64)
+        return propose(acquisition, model, best_x, self.config.optimizer,
+                       derive_seed(self.config.seed, slot.index, 2))

@@ -1,0 +1,159 @@
+"""The preference Gaussian process of eqs. (12)–(13): BoTorch's ``PairwiseGP``, probit likelihood.
+
+A zero-mean GP prior P(u) (12) over the latent utility u at the observed points, with an RBF kernel,
+and the probit likelihood of each comparison θ_r ≻ θ_c, Φ((u(θ_r) − u(θ_c))/√2), combined into the
+posterior P(u | 𝒟) (13) by BoTorch's Laplace approximation. The kernel hyperparameters (lengthscale
+per dimension, output scale) are fitted by maximising the Laplace marginal likelihood with
+``fit_gpytorch_mll``.
+
+Inputs are unit-cube coordinates (the caller normalises with the fixed parameter box), in float64.
+Warm start: the previous fit's hyperparameters are the initial values of the next fit, so the
+optimiser starts near its optimum instead of at the prior's mode; a fit that fails keeps the
+previous model, which is reported rather than raised.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import torch
+from botorch.exceptions import ModelFittingError
+from botorch.exceptions.warnings import OptimizationWarning
+from botorch.fit import fit_gpytorch_mll
+from botorch.models.likelihoods.pairwise import PairwiseProbitLikelihood
+from botorch.models.pairwise_gp import PairwiseGP, PairwiseLaplaceMarginalLogLikelihood
+from gpytorch.constraints import GreaterThan, Interval
+from gpytorch.kernels import RBFKernel, ScaleKernel
+from gpytorch.priors import GammaPrior, SmoothedBoxPrior
+from linear_operator.utils.errors import NotPSDError
+from linear_operator.utils.warnings import NumericalWarning
+
+from app.learning.config import Hyperparameters, ModelConfig
+from app.learning.data import PreferenceData
+from app.learning.expected_warnings import expected_warnings
+from app.learning.models import FitReport
+
+logger = logging.getLogger(__name__)
+
+def make_covar_module(dim: int, config: ModelConfig) -> ScaleKernel:
+    """RBF kernel, one lengthscale per dimension, scaled: k(x, x') = s·exp(−½‖(x − x')/ℓ‖²)."""
+    ls_prior = GammaPrior(*config.lengthscale_prior)
+    low, high = config.outputscale_range
+    return ScaleKernel(
+        RBFKernel(
+            ard_num_dims=dim,
+            lengthscale_prior=ls_prior,
+            lengthscale_constraint=GreaterThan(1e-4, transform=None,
+                                               initial_value=float(ls_prior.mode)),
+        ),
+        outputscale_prior=SmoothedBoxPrior(low, high),
+        outputscale_constraint=Interval(low / 2, high * 2, initial_value=1.0),
+    ).to(torch.float64)
+
+
+def hyperparameters_of(model: PairwiseGP) -> Hyperparameters:
+    """The kernel's raw parameters as plain lists (warm start of the next fit, snapshots)."""
+    return {name: param.detach().reshape(-1).tolist()
+            for name, param in model.covar_module.named_parameters()}
+
+
+def _covar_module_at(dim: int, config: ModelConfig,
+                     hyperparameters: Hyperparameters | None) -> ScaleKernel:
+    covar = make_covar_module(dim, config)
+    if hyperparameters is not None:
+        with torch.no_grad():
+            for name, param in covar.named_parameters():
+                value = torch.tensor(hyperparameters[name], dtype=param.dtype)
+                param.copy_(value.reshape(param.shape))
+    return covar
+
+
+def fit_model(data: PreferenceData, config: ModelConfig,
+              hyperparameters: Hyperparameters | None = None, *, optimize: bool = True
+              ) -> PairwiseGP:
+    """Build a ``PairwiseGP`` on ``data`` and (``optimize``) fit its kernel hyperparameters.
+
+    ``hyperparameters`` (a previous fit's :func:`hyperparameters_of`) are the starting values of the
+    fit; with ``optimize=False`` they are kept, and only the Laplace approximation of eq. (13) is
+    computed for the new data (a few milliseconds instead of a fit).
+    Raises ``ModelFittingError`` when every attempt of ``fit_gpytorch_mll`` fails.
+    """
+    X, C = data.tensors()
+    covar = _covar_module_at(data.dim, config, hyperparameters)
+    with expected_warnings(NumericalWarning, context="PairwiseGP"):
+        model = PairwiseGP(X, C, likelihood=PairwiseProbitLikelihood(), covar_module=covar)
+    if optimize:
+        mll = PairwiseLaplaceMarginalLogLikelihood(model.likelihood, model)
+        # fit_gpytorch_mll re-emits an OptimizationWarning for every attempt it retries.
+        with expected_warnings(OptimizationWarning, NumericalWarning, context="fit"):
+            options = {} if config.fit_tolerance is None else {"ftol": config.fit_tolerance}
+            fit_gpytorch_mll(mll, max_attempts=config.fit_max_attempts,
+                             optimizer_kwargs={"options": options})
+    return model.eval()
+
+
+def posterior_mean(model: PairwiseGP, X: torch.Tensor) -> torch.Tensor:
+    """Posterior mean utility E[u(x) | 𝒟] at the rows of ``X`` (unit cube)."""
+    with torch.no_grad():
+        return model.posterior(X).mean.reshape(-1)
+
+
+class PreferenceModel:
+    """The current model and its hyperparameters; a failed fit keeps the previous model.
+
+    :meth:`update` either fits the hyperparameters (warm-started from the previous fit when the
+    config says so) or keeps them and only recomputes the posterior for the new data (Laplace
+    approximation, milliseconds). :meth:`needs_fit` says when the data have grown enough since the
+    last hyperparameter fit (``ModelConfig.refit_growth``) for a fit to be due.
+    """
+
+    def __init__(self, config: ModelConfig, hyperparameters: Hyperparameters | None = None) -> None:
+        self.config = config
+        self.model: PairwiseGP | None = None
+        self.hyperparameters = hyperparameters
+        self._fitted_comparisons = 0  # comparisons at the last successful hyperparameter fit
+
+    def needs_fit(self, data: PreferenceData) -> bool:
+        """True when a hyperparameter fit is due for ``data``."""
+        m = len(data.comparisons)
+        if m == 0:
+            return False
+        if self.hyperparameters is None or self._fitted_comparisons == 0:
+            return True
+        return m > self._fitted_comparisons * (1.0 + self.config.refit_growth)
+
+    def update(self, data: PreferenceData, *, fit_hyperparameters: bool = True) -> FitReport:
+        """Update on ``data`` (no model before the first comparison); a failed fit never raises."""
+        n_points, n_comparisons = len(data.points), len(data.comparisons)
+        if n_comparisons == 0:
+            return FitReport(n_points=n_points, n_comparisons=0)
+        optimize = fit_hyperparameters or self.hyperparameters is None
+        start = time.monotonic()
+        initial = self.hyperparameters if self.config.warm_start or not optimize else None
+        try:
+            model = fit_model(data, self.config, initial, optimize=optimize)
+        except (ModelFittingError, NotPSDError) as exc:
+            message = f"{type(exc).__name__}: {exc}; keeping the previous model"
+            logger.warning("preference model update failed with %d points, %d comparisons: %s",
+                           n_points, n_comparisons, message)
+            return FitReport(refitted=True, hyperparameters_fitted=optimize, fit_failed=True,
+                             message=message, n_points=n_points, n_comparisons=n_comparisons,
+                             seconds=time.monotonic() - start)
+        self.model = model
+        self.hyperparameters = hyperparameters_of(model)
+        if optimize:
+            self._fitted_comparisons = n_comparisons
+        return FitReport(refitted=True, hyperparameters_fitted=optimize, n_points=n_points,
+                         n_comparisons=n_comparisons, seconds=time.monotonic() - start)
+
+    def best_index(self, data: PreferenceData) -> int | None:
+        """θ*: index of the observed point with the largest posterior mean (None without a model).
+
+        The previous model (after a failed fit) may not know the newest points, so the posterior
+        is evaluated at all of ``data``'s points, which any fitted model can predict.
+        """
+        if self.model is None or not data.points:
+            return None
+        X, _ = data.tensors()
+        return int(posterior_mean(self.model, X).argmax())

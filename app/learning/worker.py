@@ -1,0 +1,247 @@
+"""The learner in its own process, with a request/response interface (DESIGN.md §1).
+
+A GP fit holds the GIL for tens to hundreds of milliseconds, which would starve a 500 Hz control
+loop in the same process, so the learner runs in a worker process started with the ``spawn``
+method (torch lives only in the child, single-threaded). The caller's side,
+:class:`LearnerClient`, imports no torch::
+
+    client = LearnerClient(LearnerConfig(box=ParameterBox.from_bounds(THETA_BOUNDS), seed=7))
+    client.submit()                        # ask for the first θ
+    suggestion = client.get(timeout=2.0)   # Suggestion; a flagged fallback if the worker is late
+    ...run the handover, collect the placement...
+    client.submit([Interaction(interaction_id="1", theta=suggestion.theta)], comparisons)
+    client.pending                         # True until the reply has arrived (non-blocking)
+    client.poll()                          # the reply if it has arrived, else None
+    client.best                            # θ* from the latest reply
+    client.snapshot()                      # LearnerSnapshot for storage
+    client.close()
+
+Fallback: when ``get`` times out, the caller receives a Sobol point of the box (or the last known
+θ* if the schedule's slot is θ*), flagged ``fallback=True``; the learner keeps its state and the
+late reply is dropped. Crashes: a dead worker is detected on ``pending``/``poll``/``get`` and
+restarted with the full history replayed (one fit), up to ``max_restarts`` times; after that
+:class:`WorkerError` is raised.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing as mp
+import queue
+import time
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict
+from scipy.stats import qmc
+
+from app.learning.config import Hyperparameters, LearnerConfig, LearnerSnapshot
+from app.learning.errors import LearningError, WorkerError
+from app.learning.models import BestPoint, Comparison, Interaction, SlotKind, Suggestion
+from app.learning.rng import derive_seed
+
+logger = logging.getLogger(__name__)
+
+#: How often a waiting ``get`` checks that the worker is still alive (s).
+_LIVENESS_PERIOD = 0.2
+
+
+class ObserveRequest(BaseModel):
+    """New interactions and the comparisons their placements produced; reply: the next θ."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    request_id: int
+    interactions: list[Interaction] = []
+    comparisons: list[Comparison] = []
+
+
+class WorkerReply(BaseModel):
+    """The worker's answer to one request: a suggestion, or the error the request caused."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    request_id: int
+    suggestion: Suggestion | None = None
+    best: BestPoint | None = None
+    hyperparameters: Hyperparameters | None = None
+    error: str | None = None
+
+
+def _serve(config_json: str, replay: list[dict[str, Any]], requests: mp.Queue,
+           replies: mp.Queue) -> None:  # pragma: no cover - runs in the child process
+    """Worker process: rebuild the learner (replaying earlier requests), then answer requests."""
+    import torch
+
+    from app.learning.learner import PreferenceLearner
+
+    torch.set_num_threads(1)
+    learner = PreferenceLearner(LearnerConfig.model_validate_json(config_json))
+    earlier = [ObserveRequest.model_validate(r) for r in replay]
+    learner.observe_many([i for r in earlier for i in r.interactions],
+                         [c for r in earlier for c in r.comparisons])
+    while (message := requests.get()) is not None:
+        request = ObserveRequest.model_validate(message)
+        try:
+            learner.observe_many(request.interactions, request.comparisons)
+            reply = WorkerReply(request_id=request.request_id, suggestion=learner.suggest(),
+                                best=learner.best(),
+                                hyperparameters=learner.model.hyperparameters)
+        except LearningError as exc:
+            reply = WorkerReply(request_id=request.request_id, error=str(exc))
+        replies.put(reply.model_dump(mode="json"))
+
+
+class LearnerClient:
+    """Caller-side handle of a learner running in a worker process."""
+
+    def __init__(self, config: LearnerConfig, *, max_restarts: int = 3,
+                 start_method: str = "spawn") -> None:
+        self.config = config
+        self.max_restarts = max_restarts
+        self.restarts = 0
+        self.best: BestPoint | None = None
+        self._context = mp.get_context(start_method)
+        self._history: list[ObserveRequest] = []  # answered requests, replayed after a crash
+        self._pending: ObserveRequest | None = None
+        self._next_id = 0
+        self._n_interactions = 0
+        self._hyperparameters: Hyperparameters | None = None
+        self._ready: Suggestion | None = None
+        self._fallback_engine = qmc.Sobol(config.box.dim, scramble=True,
+                                          seed=derive_seed(config.seed, 3) % 2**32)
+        self._start([])
+
+    # -- requests ---------------------------------------------------------------------------
+    def submit(self, interactions: list[Interaction] | None = None,
+               comparisons: list[Comparison] | None = None) -> int:
+        """Send new interactions/comparisons (none: just ask for the next θ); returns at once.
+
+        A request still pending is superseded: its observations are kept, its reply dropped.
+        """
+        request = ObserveRequest(request_id=self._next_id, interactions=interactions or [],
+                                 comparisons=comparisons or [])
+        self._next_id += 1
+        if self._pending is not None:
+            self._history.append(self._pending)
+        self._pending = request
+        self._n_interactions += len(request.interactions)
+        self._requests.put(request.model_dump(mode="json"))
+        return request.request_id
+
+    @property
+    def pending(self) -> bool:
+        """True while the latest request's reply has not been collected (non-blocking)."""
+        if self._pending is not None:
+            self._collect(block=False)
+        return self._pending is not None and self._ready is None
+
+    def poll(self) -> Suggestion | None:
+        """The latest request's suggestion if it has arrived, else None; never blocks."""
+        self._collect(block=False)
+        return self._take()
+
+    def get(self, timeout: float) -> Suggestion:
+        """Wait up to ``timeout`` s for the latest request's suggestion, else the fallback."""
+        if self._pending is None and self._ready is None:
+            raise WorkerError("get() without a submitted request: call submit() first")
+        deadline = time.monotonic() + timeout
+        while self._ready is None:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                return self._fallback()
+            self._collect(block=True, timeout=min(remaining, _LIVENESS_PERIOD))
+        return self._take()  # type: ignore[return-value]
+
+    def snapshot(self) -> LearnerSnapshot:
+        """Everything submitted so far plus the latest hyperparameters, for the session store."""
+        requests = self._history + ([self._pending] if self._pending else [])
+        return LearnerSnapshot(config=self.config,
+                               interactions=[i for r in requests for i in r.interactions],
+                               comparisons=[c for r in requests for c in r.comparisons],
+                               hyperparameters=self._hyperparameters)
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Stop the worker: a polite request first, then terminate if it does not exit."""
+        if self._process.is_alive():
+            self._requests.put(None)
+            self._process.join(timeout)
+        if self._process.is_alive():
+            logger.warning("learner worker %d did not stop; terminating", self._process.pid)
+            self._process.terminate()
+            self._process.join(timeout)
+        self._requests.close()
+        self._replies.close()
+
+    def __enter__(self) -> LearnerClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def pid(self) -> int | None:
+        return self._process.pid
+
+    # -- internals --------------------------------------------------------------------------
+    def _start(self, replay: list[ObserveRequest]) -> None:
+        self._requests: mp.Queue = self._context.Queue()
+        self._replies: mp.Queue = self._context.Queue()
+        self._process = self._context.Process(
+            target=_serve, name="handover-learner", daemon=True,
+            args=(self.config.model_dump_json(), [r.model_dump(mode="json") for r in replay],
+                  self._requests, self._replies))
+        self._process.start()
+
+    def _collect(self, *, block: bool, timeout: float = 0.0) -> None:
+        """Read replies; keep the one answering the pending request; restart a dead worker."""
+        try:
+            message = self._replies.get(block=block, timeout=timeout if block else None)
+        except queue.Empty:
+            if not self._process.is_alive():
+                self._restart()
+            return
+        reply = WorkerReply.model_validate(message)
+        if reply.best is not None:
+            self.best = reply.best
+            self._hyperparameters = reply.hyperparameters
+        if self._pending is None or reply.request_id != self._pending.request_id:
+            logger.debug("dropped late reply to request %d", reply.request_id)
+            return
+        answered, self._pending = self._pending, None
+        if reply.error is not None:
+            # the worker rejected the request before changing its state: forget the request
+            self._n_interactions -= len(answered.interactions)
+            raise LearningError(reply.error)
+        self._history.append(answered)
+        assert reply.suggestion is not None
+        self._ready = reply.suggestion.model_copy(update={"worker_restarts": self.restarts})
+
+    def _take(self) -> Suggestion | None:
+        ready, self._ready = self._ready, None
+        return ready
+
+    def _restart(self) -> None:
+        if self.restarts >= self.max_restarts:
+            raise WorkerError(f"learner worker died (exit code {self._process.exitcode}) and "
+                              f"max_restarts = {self.max_restarts} restarts are used up")
+        self.restarts += 1
+        logger.warning("learner worker died (exit code %s); restart %d of %d, replaying %d "
+                       "requests", self._process.exitcode, self.restarts, self.max_restarts,
+                       len(self._history))
+        self._start(self._history)
+        if self._pending is not None:
+            self._requests.put(self._pending.model_dump(mode="json"))
+
+    def _fallback(self) -> Suggestion:
+        """A θ the caller can use now: last θ* on a θ* slot, else the next fallback Sobol point."""
+        slot = self.config.schedule.slot(self._n_interactions)
+        if slot.kind is SlotKind.BEST and self.best is not None:
+            theta = self.best.theta
+        else:
+            theta = self.config.box.from_unit(self._fallback_engine.random(1)[0].tolist())
+        logger.warning("learner reply late: fallback θ for interaction %d (%s)", slot.index,
+                       slot.kind.value)
+        if self._pending is not None:
+            self._history.append(self._pending)  # its observations stand; its reply is dropped
+            self._pending = None
+        return Suggestion(theta=theta, slot=slot, fallback=True, worker_restarts=self.restarts)
