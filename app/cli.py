@@ -10,6 +10,7 @@ from collections.abc import Callable, Sequence
 from pydantic import ValidationError
 
 from robot_io.errors import RobotIOError, explain
+from session_store.errors import StoreError
 
 #: Modules that contribute subcommands: each has ``register(subparsers) -> None`` and sets
 #: ``func(args) -> int`` on its parsers.
@@ -39,7 +40,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     func: Callable[[argparse.Namespace], int] = args.func
     try:
         return func(args)
-    except (ValidationError, RobotIOError, ValueError) as exc:
+    except (ValidationError, RobotIOError, StoreError, ValueError) as exc:
         print(f"handover {args.command}: error: {explain(exc)}", file=sys.stderr)
         return 2
 

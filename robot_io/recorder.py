@@ -4,32 +4,32 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Column groups of a trial sample row, in order, with their widths. Vectors are x, y, z.
-COLUMNS: tuple[tuple[str, int], ...] = (
-    ("t", 1),  # trial time since Go [s]
-    ("s", 1),  # DMP phase, eq. (3)
-    ("tau", 1),  # τ = τ0(1 + C_t), eq. (5) [s]
-    ("x", 3),  # DMP position [m]
-    ("xd", 3),  # DMP velocity [m/s]
-    ("hand", 3),  # latest valid hand sample [m]
-    ("hand_t", 1),  # its time stamp [s]
-    ("d", 1),  # ‖g − x_hand‖, eq. (6) [m]
-    ("d_filtered", 1),  # d̃, eq. (7) [m]
-    ("d_rate", 1),  # d̃̇, eq. (7) [m/s]
-    ("sigma_d", 1),  # σ_d(d̃/d0), eq. (10)
-    ("sigma_j", 1),  # σ_j(d̃̇), eq. (10)
-    ("c_t", 1),  # C_t, eq. (8)
-    ("c_s", 3),  # C_s, eq. (9)
-    ("commanded", 3),  # target sent to the arm after the safety limiter [m]
-    ("measured", 3),  # TCP position read from the arm [m]
-    ("limited", 1),  # safety limiter flags: 1 acceleration, 2 speed, 4 workspace
-    ("compute_s", 1),  # compute time of the cycle [s]
-    ("lateness_s", 1),  # how late the cycle started [s]
+#: Column groups of a trial sample row, in order: name, width (vectors are x, y, z), meaning.
+COLUMNS: tuple[tuple[str, int, str], ...] = (
+    ("t", 1, "trial time since Go [s]"),
+    ("s", 1, "DMP phase s, eq. (3)"),
+    ("tau", 1, "τ = τ0(1 + C_t), eq. (5) [s]"),
+    ("x", 3, "DMP position [m]"),
+    ("xd", 3, "DMP velocity [m/s]"),
+    ("hand", 3, "latest valid hand sample [m]"),
+    ("hand_t", 1, "time stamp of that hand sample [s]"),
+    ("d", 1, "hand distance to the handover point, eq. (6) [m]"),
+    ("d_filtered", 1, "filtered distance d̃, eq. (7) [m]"),
+    ("d_rate", 1, "its rate d̃̇, eq. (7) [m/s]"),
+    ("sigma_d", 1, "σ_d(d̃/d0), eq. (10)"),
+    ("sigma_j", 1, "σ_j(d̃̇), eq. (10)"),
+    ("c_t", 1, "temporal coupling C_t, eq. (8)"),
+    ("c_s", 3, "spatial coupling C_s, eq. (9)"),
+    ("commanded", 3, "target sent to the arm after the safety limiter [m]"),
+    ("measured", 3, "TCP position read from the arm [m]"),
+    ("limited", 1, "safety limiter flags: 1 acceleration, 2 speed, 4 workspace"),
+    ("compute_s", 1, "compute time of the cycle [s]"),
+    ("lateness_s", 1, "how late the cycle started [s]"),
 )
 
 SLICES: dict[str, slice] = {}
 _start = 0
-for _name, _width in COLUMNS:
+for _name, _width, _ in COLUMNS:
     SLICES[_name] = slice(_start, _start + _width)
     _start += _width
 WIDTH = _start
@@ -54,4 +54,4 @@ class TrialRecorder:
         """Named columns of the rows written so far; vectors have shape (n, 3)."""
         rows = self._rows[: self.count]
         return {name: rows[:, SLICES[name]].squeeze(axis=1) if width == 1 else rows[:, SLICES[name]]
-                for name, width in COLUMNS}
+                for name, width, _ in COLUMNS}

@@ -82,3 +82,4 @@ class LearnerSnapshot(BaseModel):
     interactions: list[Interaction]
     comparisons: list[Comparison]
     hyperparameters: Hyperparameters | None = None
+    fitted_comparisons: int = Field(0, ge=0, description="comparisons at the last hyperparameter fit")

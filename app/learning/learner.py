@@ -76,6 +76,15 @@ class PreferenceLearner:
         interaction is what was actually run, which need not be the learner's suggestion. Input is
         validated before anything is recorded, so a rejected call leaves the learner unchanged.
         """
+        if not self._record(interactions, comparisons):
+            return FitReport(n_points=len(self.data.points),
+                             n_comparisons=len(self.data.comparisons))
+        fit = not self.config.model.lazy_fit and self.model.needs_fit(self.data)
+        return self._update(fit_hyperparameters=fit)
+
+    def _record(self, interactions: Sequence[Interaction],
+                comparisons: Sequence[Comparison]) -> bool:
+        """Validate, then add the observations; True if any comparison carries information."""
         units = [self.config.box.to_unit(i.theta) for i in interactions]
         new_ids = [i.interaction_id for i in interactions]
         self.data.check_new_ids(new_ids)
@@ -90,11 +99,7 @@ class PreferenceLearner:
             self._interactions.append(interaction)
         added = [self.data.add_comparison(c) for c in comparisons]
         self._comparisons.extend(comparisons)
-        if not any(added):
-            return FitReport(n_points=len(self.data.points),
-                             n_comparisons=len(self.data.comparisons))
-        fit = not self.config.model.lazy_fit and self.model.needs_fit(self.data)
-        return self._update(fit_hyperparameters=fit)
+        return any(added)
 
     def _update(self, *, fit_hyperparameters: bool) -> FitReport:
         with seeded(derive_seed(self.config.seed, self.n_interactions, 1)):
@@ -136,13 +141,16 @@ class PreferenceLearner:
         """Plain-data state for storage; :meth:`restore` rebuilds an equivalent learner."""
         return LearnerSnapshot(config=self.config, interactions=list(self._interactions),
                                comparisons=list(self._comparisons),
-                               hyperparameters=self.model.hyperparameters)
+                               hyperparameters=self.model.hyperparameters,
+                               fitted_comparisons=self.model.fitted_comparisons)
 
     @classmethod
     def restore(cls, snapshot: LearnerSnapshot) -> PreferenceLearner:
-        """Replay a snapshot's observations with one fit, warm-started from its hyperparameters."""
+        """The learner that was stored: its observations, and its hyperparameters adopted without a
+        fit, so its next suggestions are exactly those the stored learner would have made."""
         learner = cls(snapshot.config, snapshot.hyperparameters)
-        learner.observe_many(snapshot.interactions, snapshot.comparisons)
+        learner._record(snapshot.interactions, snapshot.comparisons)
+        learner.model.restore(learner.data, snapshot.fitted_comparisons)
         return learner
 
     def _sobol(self, slot: Slot) -> torch.Tensor:

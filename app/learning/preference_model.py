@@ -33,6 +33,7 @@ from app.learning.config import Hyperparameters, ModelConfig
 from app.learning.data import PreferenceData
 from app.learning.expected_warnings import expected_warnings
 from app.learning.models import FitReport
+from app.learning.rng import derive_seed, seeded
 
 logger = logging.getLogger(__name__)
 
@@ -132,7 +133,9 @@ class PreferenceModel:
         start = time.monotonic()
         initial = self.hyperparameters if self.config.warm_start or not optimize else None
         try:
-            model = fit_model(data, self.config, initial, optimize=optimize)
+            hyperparameters = (hyperparameters_of(fit_model(data, self.config, initial))
+                               if optimize else self.hyperparameters)
+            model = self._build(data, hyperparameters)
         except (ModelFittingError, NotPSDError) as exc:
             message = f"{type(exc).__name__}: {exc}; keeping the previous model"
             logger.warning("preference model update failed with %d points, %d comparisons: %s",
@@ -140,12 +143,36 @@ class PreferenceModel:
             return FitReport(refitted=True, hyperparameters_fitted=optimize, fit_failed=True,
                              message=message, n_points=n_points, n_comparisons=n_comparisons,
                              seconds=time.monotonic() - start)
-        self.model = model
-        self.hyperparameters = hyperparameters_of(model)
+        self.model, self.hyperparameters = model, hyperparameters
         if optimize:
             self._fitted_comparisons = n_comparisons
         return FitReport(refitted=True, hyperparameters_fitted=optimize, n_points=n_points,
                          n_comparisons=n_comparisons, seconds=time.monotonic() - start)
+
+    @property
+    def fitted_comparisons(self) -> int:
+        """Comparisons at the last successful hyperparameter fit (part of a snapshot)."""
+        return self._fitted_comparisons
+
+    def restore(self, data: PreferenceData, fitted_comparisons: int) -> None:
+        """Adopt the stored hyperparameters for ``data`` without fitting: the state of a snapshot.
+
+        Without stored hyperparameters (no fit ever succeeded) a fit is attempted instead.
+        """
+        if self.hyperparameters is None:
+            self.update(data, fit_hyperparameters=True)
+            return
+        if data.comparisons:
+            self.model = self._build(data, self.hyperparameters)
+        self._fitted_comparisons = fitted_comparisons
+
+    def _build(self, data: PreferenceData, hyperparameters: Hyperparameters) -> PairwiseGP:
+        """The model in use: built from (data, hyperparameters) without optimising, under a seed
+        that depends on the data's size only (PairwiseGP perturbs its Newton start with numpy's
+        global generator). So it is a function of the data and the hyperparameters alone, and a
+        learner restored from a snapshot suggests exactly what the stored one would have."""
+        with seeded(derive_seed(len(data.points), len(data.comparisons))):
+            return fit_model(data, self.config, hyperparameters, optimize=False)
 
     def best_index(self, data: PreferenceData) -> int | None:
         """θ*: index of the observed point with the largest posterior mean (None without a model).

@@ -64,28 +64,46 @@ class WorkerReply(BaseModel):
     suggestion: Suggestion | None = None
     best: BestPoint | None = None
     hyperparameters: Hyperparameters | None = None
+    state: LearnerSnapshot | None = None
     error: str | None = None
 
 
-def _serve(config_json: str, replay: list[dict[str, Any]], requests: mp.Queue,
-           replies: mp.Queue) -> None:  # pragma: no cover - runs in the child process
-    """Worker process: rebuild the learner (replaying earlier requests), then answer requests."""
+def _next_request(requests: mp.Queue) -> dict[str, Any] | None:
+    """The next request; None to stop, also when the parent process has died (e.g. SIGKILL)."""
+    while True:
+        try:
+            return requests.get(timeout=_LIVENESS_PERIOD)
+        except queue.Empty:
+            parent = mp.parent_process()
+            if parent is not None and not parent.is_alive():
+                return None
+
+
+def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, Any]],
+           requests: mp.Queue, replies: mp.Queue) -> None:  # pragma: no cover - child process
+    """Worker process: rebuild the learner (an exact snapshot, then earlier requests replayed),
+    then answer requests."""
     import torch
 
     from app.learning.learner import PreferenceLearner
 
     torch.set_num_threads(1)
-    learner = PreferenceLearner(LearnerConfig.model_validate_json(config_json))
+    if snapshot_json is None:
+        learner = PreferenceLearner(LearnerConfig.model_validate_json(config_json))
+    else:
+        learner = PreferenceLearner.restore(LearnerSnapshot.model_validate_json(snapshot_json))
     earlier = [ObserveRequest.model_validate(r) for r in replay]
-    learner.observe_many([i for r in earlier for i in r.interactions],
-                         [c for r in earlier for c in r.comparisons])
-    while (message := requests.get()) is not None:
+    if earlier:
+        learner.observe_many([i for r in earlier for i in r.interactions],
+                             [c for r in earlier for c in r.comparisons])
+    while (message := _next_request(requests)) is not None:
         request = ObserveRequest.model_validate(message)
         try:
             learner.observe_many(request.interactions, request.comparisons)
             reply = WorkerReply(request_id=request.request_id, suggestion=learner.suggest(),
                                 best=learner.best(),
-                                hyperparameters=learner.model.hyperparameters)
+                                hyperparameters=learner.model.hyperparameters,
+                                state=learner.snapshot())
         except LearningError as exc:
             reply = WorkerReply(request_id=request.request_id, error=str(exc))
         replies.put(reply.model_dump(mode="json"))
@@ -94,22 +112,31 @@ def _serve(config_json: str, replay: list[dict[str, Any]], requests: mp.Queue,
 class LearnerClient:
     """Caller-side handle of a learner running in a worker process."""
 
-    def __init__(self, config: LearnerConfig, *, max_restarts: int = 3,
-                 start_method: str = "spawn") -> None:
+    def __init__(self, config: LearnerConfig, *, snapshot: LearnerSnapshot | None = None,
+                 max_restarts: int = 3, start_method: str = "spawn") -> None:
         self.config = config
         self.max_restarts = max_restarts
         self.restarts = 0
         self.best: BestPoint | None = None
+        #: the worker's exact state after its latest reply (what a session stores to resume)
+        self.state: LearnerSnapshot | None = snapshot
+        self._snapshot = snapshot
         self._context = mp.get_context(start_method)
         self._history: list[ObserveRequest] = []  # answered requests, replayed after a crash
         self._pending: ObserveRequest | None = None
         self._next_id = 0
-        self._n_interactions = 0
+        self._n_interactions = len(snapshot.interactions) if snapshot else 0
         self._hyperparameters: Hyperparameters | None = None
         self._ready: Suggestion | None = None
         self._fallback_engine = qmc.Sobol(config.box.dim, scramble=True,
                                           seed=derive_seed(config.seed, 3) % 2**32)
         self._start([])
+
+    @classmethod
+    def for_session(cls, config: LearnerConfig,
+                    snapshot: LearnerSnapshot | None = None) -> LearnerClient:
+        """A session's learner: fresh, or exactly as a stored snapshot left it."""
+        return cls(config, snapshot=snapshot)
 
     # -- requests ---------------------------------------------------------------------------
     def submit(self, interactions: list[Interaction] | None = None,
@@ -155,10 +182,14 @@ class LearnerClient:
     def snapshot(self) -> LearnerSnapshot:
         """Everything submitted so far plus the latest hyperparameters, for the session store."""
         requests = self._history + ([self._pending] if self._pending else [])
-        return LearnerSnapshot(config=self.config,
-                               interactions=[i for r in requests for i in r.interactions],
-                               comparisons=[c for r in requests for c in r.comparisons],
-                               hyperparameters=self._hyperparameters)
+        start = self._snapshot
+        return LearnerSnapshot(
+            config=self.config,
+            interactions=(start.interactions if start else []) + [
+                i for r in requests for i in r.interactions],
+            comparisons=(start.comparisons if start else []) + [
+                c for r in requests for c in r.comparisons],
+            hyperparameters=self._hyperparameters)
 
     def close(self, timeout: float = 5.0) -> None:
         """Stop the worker: a polite request first, then terminate if it does not exit."""
@@ -188,8 +219,9 @@ class LearnerClient:
         self._replies: mp.Queue = self._context.Queue()
         self._process = self._context.Process(
             target=_serve, name="handover-learner", daemon=True,
-            args=(self.config.model_dump_json(), [r.model_dump(mode="json") for r in replay],
-                  self._requests, self._replies))
+            args=(self.config.model_dump_json(),
+                  None if self._snapshot is None else self._snapshot.model_dump_json(),
+                  [r.model_dump(mode="json") for r in replay], self._requests, self._replies))
         self._process.start()
 
     def _collect(self, *, block: bool, timeout: float = 0.0) -> None:
@@ -204,6 +236,8 @@ class LearnerClient:
         if reply.best is not None:
             self.best = reply.best
             self._hyperparameters = reply.hyperparameters
+        if reply.state is not None:
+            self.state = reply.state
         if self._pending is None or reply.request_id != self._pending.request_id:
             logger.debug("dropped late reply to request %d", reply.request_id)
             return

@@ -1,0 +1,363 @@
+"""The study session engine: the paper's protocol as a state machine over stored events (Sect. V-C).
+
+Every action (start a trial, end it, place it on the scale, rate a validation pair, answer, pause) is
+checked against the state, written to the participant's database in one transaction (its event and its
+rows together), and only then applied to the state. A refused action writes nothing. The learner runs
+in its own process; its suggestions are stored as ``theta_planned`` events with a learner snapshot, so
+a resumed session continues with exactly the θ an uninterrupted one would have used.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel
+from scipy.stats import qmc
+
+from app.learning.config import LearnerConfig, LearnerSnapshot
+from app.learning.models import Comparison as LearnerComparison
+from app.learning.models import Interaction, ParameterBox, SlotKind, Suggestion
+from app.learning.models import Placement as ScalePlacement
+from app.learning.planner import BatchSchedule
+from app.learning.scale import comparisons_for_newest
+from app.learning.worker import LearnerClient
+from app.protocol.plan import Slot, protocol_slots
+from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
+from robot_io.loop import Outcome, TrialRecord
+from robot_io.theta import Theta
+from session_store.errors import RefusedAction
+from session_store.models import (
+    Actor,
+    Answer,
+    Comparison,
+    Event,
+    LearnerSnapshotRow,
+    Participant,
+    Placement,
+    StudyConfig,
+    ThetaOrigin,
+    Trial,
+    TrialOutcome,
+    ValidationRating,
+    utc_now,
+)
+from session_store.store import ParticipantStore
+
+log = logging.getLogger(__name__)
+
+LearnerFactory = Callable[[LearnerConfig, LearnerSnapshot | None], LearnerClient]
+ORIGIN_OF_KIND = {SlotKind.INITIAL: ThetaOrigin.SOBOL, SlotKind.BEST: ThetaOrigin.BEST,
+                  SlotKind.QUERY: ThetaOrigin.LEARNED}
+
+
+def learner_config(config: StudyConfig) -> LearnerConfig:
+    """The learner's schedule for the initial and learning phases of ``config``."""
+    unique = config.initial_trials + config.learning_batches * (config.batch_size - 1)
+    return LearnerConfig(box=ParameterBox.from_bounds(config.theta_bounds),
+                         acquisition=config.acquisition, seed=config.seed,
+                         schedule=BatchSchedule(n_initial=config.initial_trials,
+                                                q=config.batch_size, n_unique=unique))
+
+
+def hand_seed(config: StudyConfig, interaction: int) -> int:
+    """The simulated hand of an interaction: the same for every attempt at it."""
+    return int(np.random.default_rng([config.seed, interaction, 0x4A4D]).integers(2**31))
+
+
+def validation_sobol(config: StudyConfig) -> list[Theta]:
+    """The Sobol reference points of the validation pairs, in the θ box (seeded, not the learner's)."""
+    engine = qmc.Sobol(3, scramble=True, seed=np.random.default_rng([config.seed, 0x50B0]))
+    unit = engine.random(max(config.validation_batches, 1))
+    low = np.array([b[0] for b in config.theta_bounds.values()])
+    high = np.array([b[1] for b in config.theta_bounds.values()])
+    return [Theta(**dict(zip(config.theta_bounds, low + u * (high - low), strict=True)))
+            for u in unit[: config.validation_batches]]
+
+
+class TrialPlan(BaseModel):
+    trial: Trial
+    theta: Theta
+
+
+class SessionEngine:
+    """One participant's session. Create with :meth:`create`, continue with :meth:`resume`."""
+
+    def __init__(self, store: ParticipantStore, learner_factory: LearnerFactory) -> None:
+        self.store = store
+        self.participant: Participant = store.participant()
+        self.config: StudyConfig = self.participant.config
+        self.slots: list[Slot] = protocol_slots(self.config)
+        self.state: SessionState = replay(self.slots, store.events())
+        self._learner_factory = learner_factory
+        self._learner: LearnerClient | None = None
+
+    # -- lifecycle --------------------------------------------------------------------------------
+    @classmethod
+    def create(cls, study_dir: Path, code: str, config: StudyConfig,
+               learner_factory: LearnerFactory = LearnerClient.for_session) -> SessionEngine:
+        store = ParticipantStore.create(study_dir, code, config)
+        engine = cls(store, learner_factory)
+        engine._commit(Event(actor=Actor.EXPERIMENTER, kind="session_created",
+                             payload={"code": code, "config": config.model_dump(mode="json")}))
+        return engine
+
+    @classmethod
+    def resume(cls, study_dir: Path, code: str,
+               learner_factory: LearnerFactory = LearnerClient.for_session) -> SessionEngine:
+        """Reopen a session where it stopped. A trial that was running is recorded as aborted
+        (it will be repeated with the same θ); nothing already recorded changes."""
+        engine = cls(ParticipantStore.open(study_dir, code), learner_factory)
+        engine._commit(Event(actor=Actor.SYSTEM, kind="session_resumed",
+                             payload={"step": engine.state.step.value}))
+        if engine.state.running_trial is not None:
+            engine.end_trial(engine.state.running_trial, None, "session interrupted")
+        return engine
+
+    def close(self) -> None:
+        if self._learner is not None:
+            self._learner.close()
+            self._learner = None
+        self.store.close()
+
+    # -- the protocol's actions -----------------------------------------------------------------
+    def plan_next(self, timeout: float = 60.0) -> PlannedTheta:
+        """Make sure the current interaction has its θ (asking the learner if needed) and return it."""
+        slot = self._require(Step.PLAN, Step.READY)
+        if self.state.step is Step.PLAN:
+            if slot.learner_index is not None:
+                self._plan_from_learner(slot, timeout)
+            else:
+                self._plan_after_learning(timeout)
+        return self.state.planned[slot.interaction]
+
+    def start_trial(self) -> TrialPlan:
+        """Record the start of the current interaction's trial (the experimenter's Start)."""
+        slot = self._require(Step.READY)
+        if self.state.paused:
+            raise RefusedAction("start refused: the session is paused; resume it first")
+        planned = self.state.planned[slot.interaction]
+        attempt = self.state.attempts.get(slot.interaction, 0) + 1
+        theta = planned.theta
+        trial = Trial(trial_index=self.state.next_trial_index, interaction=slot.interaction,
+                      attempt=attempt, phase=slot.phase, batch=slot.batch, position=slot.position,
+                      theta_a=theta.a, theta_delta=theta.delta, theta_k=theta.k,
+                      origin=planned.origin, hand_seed=hand_seed(self.config, slot.interaction),
+                      started_at=utc_now())
+        self._commit(Event(actor=Actor.EXPERIMENTER, kind="trial_started",
+                           payload={"trial_index": trial.trial_index, "interaction": slot.interaction,
+                                    "attempt": attempt}),
+                     lambda: self.store.put_trial(trial))
+        return TrialPlan(trial=trial, theta=theta)
+
+    def end_trial(self, trial_index: int, record: TrialRecord | None,
+                  abort_reason: str | None = None) -> Trial:
+        """Record the end of the running trial with its samples. It counts as completed only if the
+        controller completed the handover and nobody aborted it; otherwise it will be repeated."""
+        if self.state.running_trial != trial_index:
+            raise RefusedAction(f"end of trial {trial_index} refused: the running trial is "
+                                f"{self.state.running_trial}")
+        trial = next(t for t in self.store.rows("trials") if t.trial_index == trial_index)
+        summary = record.summary if record is not None else None
+        completed = abort_reason is None and summary is not None and \
+            summary.outcome is Outcome.COMPLETED
+        reason = abort_reason or (None if completed else
+                                  f"{summary.outcome.value}: {summary.reason}" if summary else None)
+        update = {"ended_at": utc_now(), "reason": reason,
+                  "outcome": TrialOutcome.COMPLETED if completed else TrialOutcome.ABORTED}
+        if summary is not None:
+            update |= summary.model_dump(include={"robot_arrival_s", "hand_arrival_s",
+                                                  "arrival_gap_s", "peak_speed_mps", "max_tau",
+                                                  "deadline_misses"})
+        ended = trial.model_copy(update=update)
+
+        def write() -> None:
+            self.store.put_trial(ended)
+            if record is not None:
+                self.store.add_samples(trial_index, record.samples)
+
+        actor = Actor.EXPERIMENTER if abort_reason else Actor.SYSTEM
+        self._commit(Event(actor=actor, kind="trial_ended",
+                           payload={"trial_index": trial_index,
+                                    "outcome": ended.outcome.value, "reason": reason}), write)
+        return ended
+
+    def place(self, position: float | None = None, equal_to: int | None = None) -> list[Comparison]:
+        """The participant's placement of the last interaction on the relative scale: a position
+        in [0, 1] ("Strongly Worse" … "Strongly Better") or ``equal_to`` an earlier marker of the
+        batch. Returns the comparisons it adds (newest against every earlier one; ties none)."""
+        slot = self._require(Step.PLACE)
+        markers = {m.interaction: m for m in self.state.markers}
+        if equal_to is not None:
+            if equal_to not in markers:
+                raise RefusedAction(f"equal_to = {equal_to} is not an interaction on the scale of "
+                                    f"this batch (on the scale: {sorted(markers)})")
+            position = markers[equal_to].position
+        if position is None or not 0.0 <= position <= 1.0:
+            raise RefusedAction(f"position = {position!r} is outside the scale [0.0, 1.0]")
+        scale = [ScalePlacement(interaction_id=str(m.interaction),
+                                position=None if m.equal_to else m.position,
+                                equal_to=None if m.equal_to is None else str(m.equal_to))
+                 for m in self.state.markers]
+        scale.append(ScalePlacement(interaction_id=str(slot.interaction),
+                                    position=None if equal_to else position,
+                                    equal_to=None if equal_to is None else str(equal_to)))
+        learned = comparisons_for_newest(scale)
+        comparisons = [Comparison(batch=slot.batch, source=slot.interaction, winner=int(c.winner),
+                                  loser=int(c.loser)) for c in learned]
+        trial_index = self.state.completed_trial[slot.interaction]
+        placement = Placement(trial_index=trial_index, interaction=slot.interaction,
+                              batch=slot.batch, position=position, equal_to=equal_to)
+
+        def write() -> None:
+            self.store.add(placement)
+            for comparison in comparisons:
+                self.store.add(comparison)
+
+        self._commit(Event(actor=Actor.PARTICIPANT, kind="placement_made",
+                           payload={"trial_index": trial_index, "interaction": slot.interaction,
+                                    "position": position, "equal_to": equal_to,
+                                    "comparisons": [[c.winner, c.loser] for c in comparisons]}),
+                     write)
+        if slot.learner_index is not None:
+            if self._learner is None:
+                self._ensure_learner()  # restored from the store, which now holds this placement
+            else:
+                theta = self.state.planned[slot.interaction].theta
+                self._learner.submit([Interaction(interaction_id=str(slot.interaction),
+                                                  theta=theta.model_dump())], learned)
+        return comparisons
+
+    def rate_validation(self, rating: str) -> ValidationRating:
+        """The second interaction of a validation pair, rated against the first."""
+        slot = self._require(Step.RATE)
+        if rating not in ("better", "worse", "equal"):
+            raise RefusedAction(f"rating = {rating!r} is not one of 'better', 'worse', 'equal'")
+        learned_second = slot.origin is ThetaOrigin.BEST
+        preferred = None if rating == "equal" else (rating == "better") == learned_second
+        row = ValidationRating(batch=slot.batch, trial_index=self.state.completed_trial[
+            slot.interaction], interaction=slot.interaction, rating=rating,
+            learned_preferred=preferred)
+        self._commit(Event(actor=Actor.PARTICIPANT, kind="validation_rated",
+                           payload={"interaction": slot.interaction, "rating": rating}),
+                     lambda: self.store.add(row))
+        return row
+
+    def answer(self, question: str, value: str) -> Answer:
+        self._require(Step.ANSWER)
+        row = Answer(question=question, value=str(value))
+        if question in self.state.answers:
+            raise RefusedAction(f"{question} is already answered ({self.state.answers[question]!r})")
+        self._commit(Event(actor=Actor.PARTICIPANT, kind="answer_given",
+                           payload={"question": question, "value": row.value}),
+                     lambda: self.store.add(row))
+        return row
+
+    def pause(self, reason: str = "") -> None:
+        if self.state.paused:
+            raise RefusedAction("pause refused: the session is already paused")
+        if self.state.step is Step.RUNNING:
+            raise RefusedAction("pause refused while a trial runs: abort or finish it first")
+        self._commit(Event(actor=Actor.EXPERIMENTER, kind="paused", payload={"reason": reason}))
+
+    def resume_session(self) -> None:
+        if not self.state.paused:
+            raise RefusedAction("resume refused: the session is not paused")
+        self._commit(Event(actor=Actor.EXPERIMENTER, kind="resumed"))
+
+    # -- internals ---------------------------------------------------------------------------------
+    def _require(self, *steps: Step) -> Slot | None:
+        step = self.state.step
+        if step not in steps:
+            wanted = " or ".join(s.value for s in steps)
+            raise RefusedAction(f"refused: the session waits for '{step.value}', not '{wanted}'")
+        return self.state.slot
+
+    def _commit(self, event: Event, *writes: Callable[[], None]) -> Event:
+        with self.store.transaction():
+            stored = self.store.append_event(event)
+            for write in writes:
+                write()
+        apply(self.state, stored)
+        return stored
+
+    def _ensure_learner(self) -> LearnerClient:
+        """The learner process: fresh, or restored from the last stored snapshot plus the
+        placements made after it."""
+        if self._learner is not None:
+            return self._learner
+        config = learner_config(self.config)
+        snapshots = self.store.rows("learner_snapshots")
+        snapshot = LearnerSnapshot.model_validate_json(snapshots[-1].state) if snapshots else None
+        self._learner = self._learner_factory(config, snapshot)
+        known = {i.interaction_id for i in snapshot.interactions} if snapshot else set()
+        later = [p for p in self.store.rows("placements", order_by="interaction")
+                 if str(p.interaction) not in known
+                 and self.slots[p.interaction - 1].learner_index is not None]
+        comparisons = self.store.rows("comparisons")
+        for placement in later:
+            theta = self.state.planned[placement.interaction].theta
+            self._learner.submit(
+                [Interaction(interaction_id=str(placement.interaction), theta=theta.model_dump())],
+                [LearnerComparison(winner=str(c.winner), loser=str(c.loser))
+                 for c in comparisons if c.source == placement.interaction])
+        if not later:
+            self._learner.submit()
+        return self._learner
+
+    def _suggestion(self, timeout: float) -> tuple[Suggestion, LearnerClient]:
+        learner = self._ensure_learner()
+        return learner.get(timeout), learner
+
+    def _snapshot_row(self, learner: LearnerClient, after: int, suggestion: Suggestion
+                      ) -> LearnerSnapshotRow:
+        best = learner.best
+        return LearnerSnapshotRow(
+            after_interaction=after, theta_star_a=best.theta["a"] if best else None,
+            theta_star_delta=best.theta["delta"] if best else None,
+            theta_star_k=best.theta["k"] if best else None,
+            utility_mean=best.utility_mean if best else None,
+            fit_failed=suggestion.fit.fit_failed, message=suggestion.fit.message,
+            n_points=suggestion.fit.n_points, n_comparisons=suggestion.fit.n_comparisons,
+            state=learner.state.model_dump_json())
+
+    def _plan_from_learner(self, slot: Slot, timeout: float) -> None:
+        suggestion, learner = self._suggestion(timeout)
+        if suggestion.theta is None or suggestion.slot.index != slot.learner_index:
+            raise RefusedAction(f"learner answered for slot {suggestion.slot.index}, the session "
+                                f"needs slot {slot.learner_index}")
+        theta = Theta(**suggestion.theta)
+        origin = ORIGIN_OF_KIND[suggestion.slot.kind]
+        row = self._snapshot_row(learner, slot.interaction - 1, suggestion)
+        self._commit(Event(actor=Actor.LEARNER, kind="theta_planned",
+                           payload={"interaction": slot.interaction, **theta.model_dump(),
+                                    "origin": origin.value, "fallback": suggestion.fallback,
+                                    "fit_failed": suggestion.fit.fit_failed}),
+                     lambda: self.store.add(row))
+
+    def _plan_after_learning(self, timeout: float) -> None:
+        """θ* of the finished learning phase for the best and validation interactions, and the
+        Sobol references of validation, all planned at once."""
+        suggestion, learner = self._suggestion(timeout)
+        if learner.best is None:
+            raise RefusedAction("the learner has no θ* yet")
+        best = Theta(**learner.best.theta)
+        references = iter(validation_sobol(self.config))
+        remaining = [s for s in self.slots if s.learner_index is None
+                     and s.interaction not in self.state.planned]
+        row = self._snapshot_row(learner, remaining[0].interaction - 1, suggestion)
+        events = []
+        for slot in remaining:
+            theta = best if slot.origin is ThetaOrigin.BEST else next(references)
+            events.append(Event(actor=Actor.LEARNER, kind="theta_planned",
+                                payload={"interaction": slot.interaction, **theta.model_dump(),
+                                         "origin": slot.origin.value}))
+        with self.store.transaction():
+            self.store.add(row)
+            stored = [self.store.append_event(e) for e in events]
+        for event in stored:
+            apply(self.state, event)
+        self._learner.close()
+        self._learner = None

@@ -1,0 +1,166 @@
+"""Export a study folder as tidy tables: one file per kind of row, all participants merged, the
+participant code in every row, plus consistent copies of the .sqlite files.
+
+The dtypes of every column are documented once, in :data:`DTYPES` (rendered in ``docs/data.md``), and
+:func:`read_table` loads an exported table with them.
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import pandas as pd
+from pydantic import BaseModel
+
+from session_store.errors import StoreError
+from session_store.models import (
+    Answer,
+    Comparison,
+    Event,
+    LearnerSnapshotRow,
+    Placement,
+    Trial,
+    ValidationRating,
+)
+from session_store.schema import TABLES, columns_of, sample_column_names, sample_columns
+from session_store.store import ParticipantStore, participant_codes
+
+FORMATS = ("csv", "parquet")
+
+#: The participants table: dtype and meaning of each column.
+PARTICIPANT_COLUMNS: dict[str, tuple[str, str]] = {
+    "participant": ("string", "pseudonymous participant code"),
+    "scenario": ("string", "straightforward or perturbed (Sect. V-A)"),
+    "seed": ("Int64", "seed of the session"),
+    "created_at": ("string", "UTC ISO-8601 time the session was created"),
+    "completed": ("Int64", "completed interactions (34 for a whole session with the defaults)"),
+    "config": ("string", "the study configuration as JSON (counts, bounds, controller)"),
+}
+SNAPSHOT_EXCLUDED = {"state"}  # the learner's own JSON stays in the .sqlite file
+
+
+def _pandas_dtype(sqlite_type: type) -> str:
+    return {int: "Int64", float: "float64", str: "string"}[sqlite_type]
+
+
+def _model_dtypes(model: type[BaseModel], exclude: set[str] = frozenset()) -> dict[str, str]:
+    dtypes = {"participant": "string"}
+    for name, sqlite_type in columns_of(model).items():
+        if name in exclude:
+            continue
+        annotation = model.model_fields[name].annotation
+        dtypes[name] = "boolean" if annotation in (bool, bool | None) else _pandas_dtype(sqlite_type)
+    return dtypes
+
+
+DTYPES: dict[str, dict[str, str]] = {
+    "participants": {name: dtype for name, (dtype, _) in PARTICIPANT_COLUMNS.items()},
+    "trials": _model_dtypes(Trial),
+    "placements": _model_dtypes(Placement),
+    "comparisons": _model_dtypes(Comparison),
+    "validation_ratings": _model_dtypes(ValidationRating),
+    "answers": _model_dtypes(Answer),
+    "learner_snapshots": _model_dtypes(LearnerSnapshotRow, SNAPSHOT_EXCLUDED),
+    "events": _model_dtypes(Event),
+    "samples": {"participant": "string", "trial_index": "Int64", "cycle": "Int64"}
+    | {name: "float64" for name in sample_column_names()},
+}
+
+#: What one row of each exported table is.
+ROW_MEANING = {
+    "participants": "one participant: scenario, seed, completed interactions, study config (JSON)",
+    "trials": "one attempt at an interaction (aborted attempts included, outcome says which)",
+    "placements": "one placement on the relative scale",
+    "comparisons": "one pairwise comparison winner ≻ loser implied by a placement (eq. 11)",
+    "validation_ratings": "the second interaction of a validation pair rated against the first",
+    "answers": "one questionnaire answer (Q1–Q3)",
+    "learner_snapshots": "the learner after planning the next θ: θ*, fit status",
+    "events": "one line of the append-only event log (payload as JSON)",
+    "samples": "one control cycle of a trial (t, DMP state, hand, coupling, poses)",
+}
+
+
+def _participant_frame(store: ParticipantStore) -> pd.DataFrame:
+    participant = store.participant()
+    completed = store.db.execute("SELECT count(*) FROM trials WHERE outcome = 'completed'"
+                                 ).fetchone()[0]
+    return pd.DataFrame([{"participant": participant.code,
+                          "scenario": participant.config.scenario.value,
+                          "seed": participant.config.seed, "created_at": participant.created_at,
+                          "completed": completed, "config": participant.config.model_dump_json()}])
+
+
+def _table_frame(store: ParticipantStore, table: str) -> pd.DataFrame:
+    columns = [c for c in DTYPES[table] if c != "participant"]
+    quoted = ", ".join(f'"{c}"' for c in columns)
+    order = "trial_index, cycle" if table == "samples" else "rowid"
+    frame = pd.read_sql_query(f'SELECT {quoted} FROM "{table}" ORDER BY {order}', store.db.conn)
+    frame.insert(0, "participant", store.participant().code)
+    return frame
+
+
+def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv") -> dict[str, tuple[Path, int]]:
+    """Write every table of :data:`DTYPES` for all participants of ``study_dir`` into ``out_dir``
+    (plus ``sqlite/<code>.sqlite`` copies). Returns table → (file, rows)."""
+    if fmt not in FORMATS:
+        raise StoreError(f"format = {fmt!r} is not one of {FORMATS}")
+    codes = participant_codes(study_dir)
+    if not codes:
+        raise StoreError(f"{study_dir} holds no participant database (*.sqlite)")
+    out_dir = Path(out_dir)
+    (out_dir / "sqlite").mkdir(parents=True, exist_ok=True)
+    frames: dict[str, list[pd.DataFrame]] = {table: [] for table in DTYPES}
+    for code in codes:
+        store = ParticipantStore.open(study_dir, code)
+        try:
+            frames["participants"].append(_participant_frame(store))
+            for table in DTYPES:
+                if table != "participants":
+                    frames[table].append(_table_frame(store, table))
+            with sqlite3.connect(out_dir / "sqlite" / f"{code}.sqlite") as copy:
+                store.db.conn.backup(copy)
+        finally:
+            store.close()
+    written = {}
+    for table, parts in frames.items():
+        frame = pd.concat(parts, ignore_index=True).astype(DTYPES[table])
+        path = out_dir / f"{table}.{fmt}"
+        if fmt == "csv":
+            frame.to_csv(path, index=False)
+        else:
+            frame.to_parquet(path, index=False)
+        written[table] = (path, len(frame))
+    return written
+
+
+def read_table(out_dir: Path, table: str) -> pd.DataFrame:
+    """Load an exported table (CSV or Parquet) with its documented dtypes."""
+    out_dir = Path(out_dir)
+    if (out_dir / f"{table}.parquet").exists():
+        return pd.read_parquet(out_dir / f"{table}.parquet").astype(DTYPES[table])
+    return pd.read_csv(out_dir / f"{table}.csv", dtype=DTYPES[table], keep_default_na=True)
+
+
+def column_meaning(table: str, column: str, models: dict[str, type[BaseModel]]) -> str:
+    if column == "participant":
+        return PARTICIPANT_COLUMNS["participant"][1]
+    if table == "participants":
+        return PARTICIPANT_COLUMNS[column][1]
+    if table == "samples":
+        return {"trial_index": "the trial", "cycle": "control cycle 0…"}.get(
+            column) or sample_columns()[column]
+    return models[table].model_fields[column].description or ""
+
+
+def data_dictionary() -> str:
+    """The Markdown data dictionary of the export (``docs/data.md`` embeds it)."""
+    models: dict[str, type[BaseModel]] = {name: model for name, (model, _) in TABLES.items()}
+    lines = []
+    for table, dtypes in DTYPES.items():
+        lines += [f"### `{table}`", "", ROW_MEANING[table], "", "| column | dtype | meaning |",
+                  "| --- | --- | --- |"]
+        for column, dtype in dtypes.items():
+            lines.append(f"| `{column}` | {dtype} | {column_meaning(table, column, models)} |")
+        lines.append("")
+    return "\n".join(lines)

@@ -1,0 +1,277 @@
+"""Pydantic models of everything a study session stores: one per table of the participant database.
+
+Times in stored rows are UTC ISO-8601 strings; positions in metres; θ as its three components.
+The data dictionary of the export is ``docs/data.md``.
+"""
+
+from __future__ import annotations
+
+import re
+from datetime import UTC, datetime
+from enum import StrEnum
+from typing import Annotated, Any, ClassVar, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from robot_io.config import ControllerConfig
+from robot_io.simulated_hand import Scenario
+from robot_io.theta import THETA_BOUNDS, Theta
+from session_store.errors import UnsafeParticipantCode
+
+#: A participant code is pseudonymous and becomes a file name: letters, digits, '-' and '_' only.
+CODE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
+
+
+def utc_now() -> str:
+    return datetime.now(UTC).isoformat(timespec="microseconds")
+
+
+def check_participant_code(code: str) -> str:
+    """Return ``code`` if it is a safe file name, else raise UnsafeParticipantCode saying why."""
+    if not isinstance(code, str) or not CODE_PATTERN.fullmatch(code):
+        shown = code if isinstance(code, str) and len(code) <= 40 else f"{str(code)[:40]}…"
+        raise UnsafeParticipantCode(
+            f"participant code {shown!r} is not allowed: use 1 to 64 letters, digits, '-' or '_', "
+            "starting with a letter or digit (a pseudonym, never a name)")
+    return code
+
+
+class _Row(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+# -- the study --------------------------------------------------------------------------------------
+class Phase(StrEnum):
+    """The protocol's phases in order (Sect. V-C)."""
+
+    INITIAL = "initial"  # random (Sobol) interactions that initialise the model
+    LEARNING = "learning"  # batches that open with θ* followed by new queries
+    BEST = "best"  # one interaction with the learned θ*
+    QUESTIONNAIRE = "questionnaire"  # Q1–Q3
+    VALIDATION = "validation"  # pairs: learned θ* vs a Sobol point, in random order, blind
+    DONE = "done"
+
+
+class ThetaOrigin(StrEnum):
+    SOBOL = "sobol"  # a quasi-random point (initial batch, validation reference)
+    LEARNED = "learned"  # a new query of the acquisition function
+    BEST = "best"  # θ*, the best point observed so far (learning batches, best, validation)
+
+
+class StudyConfig(_Row):
+    """One participant's session plan: the paper's protocol by default (Sect. V-C)."""
+
+    scenario: Scenario
+    seed: int = Field(0, description="seeds the learner, the Sobol points, the order of validation "
+                                     "pairs and, with --auto, the simulated participant and hand")
+    initial_trials: int = Field(5, ge=2, le=50, description="random interactions (paper: 5)")
+    batch_size: int = Field(5, ge=2, le=10, description="q, interactions per learning batch (paper: 5)")
+    learning_batches: int = Field(4, ge=0, le=50, description="learning batches (paper: 4)")
+    best_trials: int = Field(1, ge=0, le=5, description="interactions with θ* after learning (paper: 1)")
+    validation_batches: int = Field(4, ge=0, le=20, description="validation pairs (paper: 4)")
+    acquisition: Literal["qnei", "qlognei", "eubo"] = Field("qnei", description="paper: qNEI")
+    theta_bounds: dict[str, tuple[float, float]] = Field(
+        default_factory=lambda: dict(THETA_BOUNDS), description="Θ of Table I")
+    controller: ControllerConfig = ControllerConfig()
+
+    @field_validator("theta_bounds")
+    @classmethod
+    def _bounds_within_table_i(cls, bounds: dict[str, tuple[float, float]]) -> dict:
+        if set(bounds) != set(THETA_BOUNDS):
+            raise ValueError(f"theta_bounds must name {sorted(THETA_BOUNDS)}, not {sorted(bounds)}")
+        for name, (low, high) in bounds.items():
+            safe_low, safe_high = THETA_BOUNDS[name]
+            if not safe_low <= low < high <= safe_high:
+                raise ValueError(f"theta_bounds.{name} = [{low}, {high}] must lie within the safe "
+                                 f"range [{safe_low}, {safe_high}] with low < high")
+        return bounds
+
+    @property
+    def interactions(self) -> int:
+        """Completed interactions of a full session: 5 + 20 + 1 + 8 = 34 with the defaults."""
+        return (self.initial_trials + self.batch_size * self.learning_batches + self.best_trials
+                + 2 * self.validation_batches)
+
+
+class Participant(_Row):
+    code: str
+    created_at: str = Field(default_factory=utc_now)
+    config: StudyConfig
+
+    @field_validator("code")
+    @classmethod
+    def _safe(cls, code: str) -> str:
+        return check_participant_code(code)
+
+
+# -- what happens ---------------------------------------------------------------------------------
+class TrialOutcome(StrEnum):
+    COMPLETED = "completed"
+    ABORTED = "aborted"
+
+
+class Trial(_Row):
+    """One attempt at one interaction of the protocol. An aborted attempt is repeated, never rated;
+    ``interaction`` (1-based over the session) is unique among completed trials."""
+
+    trial_index: int = Field(ge=1, description="1-based over all attempts of the session")
+    interaction: int = Field(ge=1, description="the protocol's interaction this attempt is for "
+                                               "(1–34 with the paper's counts)")
+    attempt: int = Field(ge=1, description="1 for the first attempt, 2… after aborted ones")
+    phase: Phase = Field(description="initial, learning, best or validation")
+    batch: int = Field(ge=0, description="batch within the phase: 0 for the initial batch, "
+                                         "1… for learning, best and validation")
+    position: int = Field(ge=1, description="1-based position within the batch (j of eq. 16)")
+    theta_a: float = Field(description="θ: steepness a of σ_j, eq. (10) (a_d in Tables II–III)")
+    theta_delta: float = Field(description="θ: offset δ of σ_j, eq. (10) (δ_d in Tables II–III)")
+    theta_k: float = Field(description="θ: coupling gain k = k_t = k_s, eqs. (8)–(9)")
+    origin: ThetaOrigin = Field(description="sobol (random), learned (new query) or best (θ*)")
+    hand_seed: int = Field(description="seed of the simulated hand (same for every attempt)")
+    started_at: str = Field(description="UTC ISO-8601 time of Start")
+    ended_at: str | None = Field(None, description="UTC ISO-8601 time the trial ended")
+    outcome: TrialOutcome | None = Field(None, description="completed, or aborted (repeated, "
+                                                           "never rated); empty while running")
+    reason: str | None = Field(None, description="why it was aborted")
+    robot_arrival_s: float | None = Field(None, description="robot at the handover point, "
+                                                            "seconds after Go")
+    hand_arrival_s: float | None = Field(None, description="hand at the handover point, "
+                                                           "seconds after Go")
+    arrival_gap_s: float | None = Field(None, description="robot − hand arrival [s]; > 0: robot "
+                                                          "late")
+    peak_speed_mps: float | None = Field(None, description="peak TCP speed [m/s]")
+    max_tau: float | None = Field(None, description="largest τ = τ0(1 + C_t) of the trial [s]")
+    deadline_misses: int | None = Field(None, description="control cycles that missed their "
+                                                          "deadline (real time only)")
+
+    @property
+    def theta(self) -> Theta:
+        return Theta(a=self.theta_a, delta=self.theta_delta, k=self.theta_k)
+
+
+class Placement(_Row):
+    """Where the participant put an interaction on the refreshing relative scale (Sect. III-C).
+
+    ``position`` runs from 0 ("Strongly Worse") to 1 ("Strongly Better"); dropping the marker on an
+    earlier one of the batch means "equal" and sets ``equal_to`` (and that marker's position).
+    """
+
+    trial_index: int = Field(description="the completed trial that was placed")
+    interaction: int = Field(description="its interaction")
+    batch: int = Field(description="its batch (the scale is cleared after every batch)")
+    position: float = Field(ge=0.0, le=1.0, description="0 = Strongly Worse … 1 = Strongly "
+                                                        "Better; only the order carries meaning")
+    equal_to: int | None = Field(None, description="interaction it was dropped on (= equal)")
+    placed_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time of Confirm")
+
+
+class Comparison(_Row):
+    """θ of ``winner`` ≻ θ of ``loser`` (eq. 11), from the placement of interaction ``source``."""
+
+    batch: int = Field(description="batch of both interactions")
+    source: int = Field(description="interaction whose placement made this comparison")
+    winner: int = Field(description="interaction preferred (θ^r of eq. 11)")
+    loser: int = Field(description="interaction not preferred (θ^c of eq. 11)")
+
+    @model_validator(mode="after")
+    def _distinct(self) -> Comparison:
+        if self.winner == self.loser:
+            raise ValueError(f"winner = loser = {self.winner}: an interaction cannot beat itself")
+        return self
+
+
+class ValidationRating(_Row):
+    """The second interaction of a validation pair rated against the first (Sect. V-C)."""
+
+    batch: int = Field(description="validation pair 1…")
+    trial_index: int = Field(description="trial of the second interaction of the pair")
+    interaction: int = Field(description="the second interaction of the pair")
+    rating: Literal["better", "worse", "equal"] = Field(
+        description="the second interaction against the first")
+    learned_preferred: bool | None = Field(
+        description="the learned θ* was preferred; None when rated equal")
+    rated_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
+
+
+# -- questionnaire ----------------------------------------------------------------------------------
+class Question(_Row):
+    id: str
+    text: str
+    answers: tuple[str, ...]
+    numeric: bool  # answers are 1..n on a Likert scale
+
+
+QUESTIONS: tuple[Question, ...] = (
+    Question(id="Q1", text="It was easy to remember the interactions within the batch.",
+             answers=("Not at all", "2", "3", "4", "Perfectly"), numeric=True),
+    Question(id="Q2", text="Did you feel that the robot was constantly improving?",
+             answers=("Yes", "No", "Maybe"), numeric=False),
+    Question(id="Q3", text="Relative to the last set of parameters tried, how much did you perceive "
+                           "that the robot was coordinating with you?",
+             answers=("Not at all", "2", "3", "4", "Perfectly"), numeric=True),
+)
+QUESTION_BY_ID: dict[str, Question] = {q.id: q for q in QUESTIONS}
+
+
+class Answer(_Row):
+    """An answer to Q1–Q3: 1–5 for Q1 and Q3, "Yes"/"No"/"Maybe" for Q2."""
+
+    question: str = Field(description="Q1, Q2 or Q3 (Sect. V-C)")
+    value: str = Field(description="1–5 for Q1 and Q3 (Not at all … Perfectly), Yes/No/Maybe "
+                                   "for Q2")
+    answered_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
+
+    @model_validator(mode="after")
+    def _allowed(self) -> Answer:
+        question = QUESTION_BY_ID.get(self.question)
+        if question is None:
+            raise ValueError(f"question = {self.question!r} is not one of {sorted(QUESTION_BY_ID)}")
+        allowed = ([str(i) for i in range(1, len(question.answers) + 1)] if question.numeric
+                   else list(question.answers))
+        if self.value not in allowed:
+            raise ValueError(f"answer to {self.question} = {self.value!r} is not one of {allowed}")
+        return self
+
+
+# -- learner and events ---------------------------------------------------------------------------
+class LearnerSnapshotRow(_Row):
+    """The learner after an update: θ*, its fit, and the state needed to resume it exactly."""
+
+    after_interaction: int = Field(description="interactions observed when the next θ was planned")
+    theta_star_a: float | None = Field(description="θ*: a (posterior-mean argmax over observed)")
+    theta_star_delta: float | None = Field(description="θ*: δ")
+    theta_star_k: float | None = Field(description="θ*: k")
+    utility_mean: float | None = Field(description="posterior mean utility at θ*")
+    fit_failed: bool = Field(description="the last fit failed and the previous model was kept")
+    message: str | None = Field(description="the fit's error, if any")
+    n_points: int = Field(description="distinct θ observed")
+    n_comparisons: int = Field(description="comparisons in the data")
+    state: str = Field(description="the learner's own JSON snapshot (hyperparameters, warm start)")
+    created_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
+
+
+class Actor(StrEnum):
+    SYSTEM = "system"
+    EXPERIMENTER = "experimenter"
+    PARTICIPANT = "participant"
+    LEARNER = "learner"
+
+
+class Event(_Row):
+    """One line of the append-only log: who did what, when. Replaying the log rebuilds the state."""
+
+    KINDS: ClassVar[tuple[str, ...]] = (
+        "session_created", "session_resumed", "theta_planned", "trial_started", "trial_ended",
+        "placement_made", "validation_rated", "answer_given", "paused", "resumed")
+
+    seq: int | None = Field(None, description="position in the log, 1…")
+    at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
+    actor: Actor = Field(description="system, experimenter, participant or learner")
+    kind: Annotated[str, Field(min_length=1, description="what happened (see docs/data.md)")]
+    payload: dict[str, Any] = Field(default_factory=dict, description="details, as JSON")
+
+    @field_validator("kind")
+    @classmethod
+    def _known(cls, kind: str) -> str:
+        if kind not in cls.KINDS:
+            raise ValueError(f"event kind = {kind!r} is not one of {list(cls.KINDS)}")
+        return kind

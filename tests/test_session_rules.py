@@ -1,0 +1,157 @@
+"""Bad input is refused with a clear message and writes nothing; the store refuses bad files;
+a session resumes where it stopped."""
+
+from __future__ import annotations
+
+import sqlite3
+
+import pytest
+from pydantic import ValidationError
+from session_helpers import drive_until, new_engine, short_config
+
+from app.protocol.engine import SessionEngine
+from app.protocol.state import Step
+from robot_io.simulated_hand import Scenario
+from robot_io.trial import simulate_trial
+from session_store.errors import (
+    CorruptStoreError,
+    RefusedAction,
+    SchemaVersionError,
+    StoreError,
+    UnsafeParticipantCode,
+)
+from session_store.models import StudyConfig
+from session_store.store import ParticipantStore
+
+
+@pytest.fixture
+def engine(tmp_path):
+    engine = new_engine(tmp_path)
+    yield engine
+    engine.close()
+
+
+def snapshot(engine: SessionEngine) -> dict:
+    return engine.store.counts()
+
+
+@pytest.mark.parametrize("code", ["../x", "", "a" * 300, "a/b", ".hidden", "P 01", "Bob\x00"])
+def test_unsafe_participant_codes_are_refused_and_nothing_is_written(tmp_path, code):
+    with pytest.raises(UnsafeParticipantCode, match="is not allowed"):
+        SessionEngine.create(tmp_path / "study", code, short_config())
+    assert not (tmp_path / "study").exists() or not any((tmp_path / "study").iterdir())
+    assert not (tmp_path / "x.sqlite").exists()
+
+
+def test_a_placement_for_an_aborted_trial_is_refused(engine):
+    drive_until(engine, Step.READY)
+    plan = engine.start_trial()
+    engine.end_trial(plan.trial.trial_index, None, "experimenter abort")
+    before = snapshot(engine)
+    with pytest.raises(RefusedAction, match="waits for 'ready', not 'place'"):
+        engine.place(position=0.5)
+    assert snapshot(engine) == before
+    aborted = engine.store.rows("trials")[-1]
+    assert aborted.outcome == "aborted" and aborted.reason == "experimenter abort"
+    # the aborted interaction is repeated with the same θ and the same simulated hand
+    again = engine.start_trial()
+    assert again.trial.interaction == plan.trial.interaction and again.trial.attempt == 2
+    assert again.theta == plan.theta and again.trial.hand_seed == plan.trial.hand_seed
+
+
+def test_a_failed_handover_counts_as_aborted_and_is_repeated(engine):
+    drive_until(engine, Step.READY)
+    plan = engine.start_trial()
+    config = engine.config.controller.model_copy(update={
+        "loop": engine.config.controller.loop.model_copy(update={"timeout_s": 0.3})})
+    record = simulate_trial(config, plan.theta, engine.config.scenario, plan.trial.hand_seed)
+    ended = engine.end_trial(plan.trial.trial_index, record)
+    assert ended.outcome == "aborted" and ended.reason.startswith("timeout")
+    assert engine.state.step is Step.READY and engine.state.completed == 0
+    assert len(engine.store.samples(plan.trial.trial_index)) == record.summary.cycles
+
+
+@pytest.mark.parametrize("position,equal_to,message", [
+    (1.5, None, r"position = 1.5 is outside the scale \[0.0, 1.0\]"),
+    (-0.1, None, r"position = -0.1 is outside the scale"),
+    (None, None, r"position = None is outside the scale"),
+    (None, 42, r"equal_to = 42 is not an interaction on the scale of this batch"),
+])
+def test_bad_placements_are_refused_and_nothing_is_written(engine, position, equal_to, message):
+    drive_until(engine, Step.PLACE)
+    before = snapshot(engine)
+    with pytest.raises(RefusedAction, match=message):
+        engine.place(position=position, equal_to=equal_to)
+    assert snapshot(engine) == before
+
+
+@pytest.mark.parametrize("question,value,message", [
+    ("Q1", "7", r"answer to Q1 = '7' is not one of \['1', '2', '3', '4', '5'\]"),
+    ("Q2", "Sometimes", r"answer to Q2 = 'Sometimes' is not one of \['Yes', 'No', 'Maybe'\]"),
+    ("Q4", "1", r"question = 'Q4' is not one of"),
+])
+def test_answers_out_of_range_are_refused_and_nothing_is_written(engine, question, value, message):
+    drive_until(engine, Step.ANSWER)
+    before = snapshot(engine)
+    with pytest.raises(ValidationError, match=message):
+        engine.answer(question, value)
+    assert snapshot(engine) == before
+    engine.answer("Q1", "4")
+    with pytest.raises(RefusedAction, match="Q1 is already answered"):
+        engine.answer("Q1", "5")
+
+
+def test_pause_blocks_the_next_trial_until_resumed(engine):
+    drive_until(engine, Step.READY)
+    engine.pause("participant needs a break")
+    with pytest.raises(RefusedAction, match="paused"):
+        engine.start_trial()
+    engine.resume_session()
+    assert engine.start_trial().trial.interaction == 1
+
+
+def test_a_session_resumed_mid_trial_records_the_abort_and_repeats_it(tmp_path):
+    engine = new_engine(tmp_path)
+    drive_until(engine, Step.READY)
+    plan = engine.start_trial()
+    engine.close()  # the process dies here, mid-trial
+    resumed = SessionEngine.resume(tmp_path, "S01")
+    try:
+        first = resumed.store.rows("trials")[0]
+        assert first.outcome == "aborted" and first.reason == "session interrupted"
+        assert resumed.state.step is Step.READY
+        assert resumed.start_trial().theta == plan.theta
+        kinds = [e.kind for e in resumed.store.events()]
+        assert kinds.count("session_resumed") == 1
+    finally:
+        resumed.close()
+
+
+def test_creating_an_existing_participant_is_refused(tmp_path):
+    new_engine(tmp_path).close()
+    with pytest.raises(StoreError, match="already has a database"):
+        new_engine(tmp_path)
+
+
+def test_a_database_of_a_newer_schema_is_refused(tmp_path):
+    new_engine(tmp_path).close()
+    with sqlite3.connect(tmp_path / "S01.sqlite") as conn:
+        conn.execute("PRAGMA user_version = 99")
+    with pytest.raises(SchemaVersionError, match=r"schema version 99.*update handover-lab"):
+        ParticipantStore.open(tmp_path, "S01")
+
+
+def test_a_corrupt_or_foreign_file_is_refused(tmp_path):
+    (tmp_path / "C01.sqlite").write_bytes(b"this is not a database" * 100)
+    with pytest.raises(CorruptStoreError, match="not a readable SQLite database"):
+        ParticipantStore.open(tmp_path, "C01")
+    with sqlite3.connect(tmp_path / "F01.sqlite") as conn:
+        conn.execute("CREATE TABLE cats (name TEXT)")
+    with pytest.raises(SchemaVersionError, match="not a handover-lab database"):
+        ParticipantStore.open(tmp_path, "F01")
+
+
+def test_study_config_refuses_bounds_outside_table_i():
+    with pytest.raises(ValidationError, match=r"theta_bounds.k = \[0.01, 20.0\] must lie within"):
+        StudyConfig(scenario=Scenario.PERTURBED, theta_bounds={"a": (1, 10), "delta": (-1, 1),
+                                                                "k": (0.01, 20.0)})
