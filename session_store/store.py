@@ -57,9 +57,13 @@ class ParticipantStore:
             result = self.db.execute("PRAGMA quick_check").fetchone()[0]
         except sqlite3.DatabaseError as exc:
             raise CorruptStoreError(f"{self.path} is not a readable SQLite database: {exc}") from exc
-        if result != "ok":
-            raise CorruptStoreError(f"{self.path} fails SQLite's integrity check: {result}")
-        self._migrate()
+        try:
+            if result != "ok":
+                raise CorruptStoreError(f"{self.path} fails SQLite's integrity check: {result}")
+            self._migrate()
+        except BaseException:
+            self.db.close()
+            raise
 
     # -- opening --------------------------------------------------------------------------------
     @classmethod

@@ -155,3 +155,33 @@ def test_study_config_refuses_bounds_outside_table_i():
     with pytest.raises(ValidationError, match=r"theta_bounds.k = \[0.01, 20.0\] must lie within"):
         StudyConfig(scenario=Scenario.PERTURBED, theta_bounds={"a": (1, 10), "delta": (-1, 1),
                                                                 "k": (0.01, 20.0)})
+
+
+def test_forward_migrations_run_once_and_a_failing_one_changes_nothing(tmp_path, monkeypatch):
+    from session_store import schema, store
+
+    new_engine(tmp_path).close()
+
+    def add_notes(db) -> None:
+        db["trials"].add_column("notes", str)
+
+    monkeypatch.setattr(store, "MIGRATIONS", {**schema.MIGRATIONS, 2: add_notes})
+    monkeypatch.setattr(store, "SCHEMA_VERSION", 2)
+    migrated = ParticipantStore.open(tmp_path, "S01")
+    assert migrated.db.execute("PRAGMA user_version").fetchone()[0] == 2
+    assert "notes" in migrated.db["trials"].columns_dict
+    migrated.close()
+    ParticipantStore.open(tmp_path, "S01").close()  # already at 2: nothing runs again
+
+    def broken(db) -> None:
+        db["trials"].add_column("half_done", str)
+        raise RuntimeError("migration bug")
+
+    monkeypatch.setattr(store, "MIGRATIONS", {**schema.MIGRATIONS, 2: add_notes, 3: broken})
+    monkeypatch.setattr(store, "SCHEMA_VERSION", 3)
+    with pytest.raises(RuntimeError, match="migration bug"):
+        ParticipantStore.open(tmp_path, "S01")
+    with sqlite3.connect(tmp_path / "S01.sqlite") as conn:
+        assert conn.execute("PRAGMA user_version").fetchone()[0] == 2
+        columns = [row[1] for row in conn.execute("PRAGMA table_info(trials)")]
+    assert "half_done" not in columns
