@@ -173,7 +173,7 @@ def load_study(study_dir: Path, tables: Collection[str] = tuple(DTYPES), *,
             if not skip_unreadable:
                 raise
             path = Path(study_dir) / f"{code}{SUFFIX}"
-            log.warning("skipping %s: %s", path, exc)
+            log.info("skipping %s: %s", path, exc)
             unreadable[path] = str(exc)
     if not parts:
         raise StoreError(f"{study_dir} holds no readable participant database: "

@@ -24,10 +24,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from app.analysis.report import build_report
+    from app.analysis.report_page import unreadable_text
 
     report = build_report(args.study, args.out, args.benchmark)
     for path, reason in report.unreadable.items():
-        print(f"warning: {path} left out: {reason}", file=sys.stderr)
+        print(f"warning: {unreadable_text(path, reason)}", file=sys.stderr)
     if report.incomplete:
         print(f"warning: incomplete sessions, left out of the tests: {', '.join(report.incomplete)}",
               file=sys.stderr)

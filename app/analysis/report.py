@@ -136,7 +136,7 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
                                 generated=datetime.now(UTC).isoformat(timespec="seconds")))
     incomplete = analysis.status.loc[~analysis.status["complete"], "participant"].tolist()
     if incomplete:
-        log.warning("incomplete sessions (reported, left out of the tests): %s", incomplete)
+        log.info("incomplete sessions (reported, left out of the tests): %s", incomplete)
     return Report(html=html, tables=tables, figures=figures, tests=analysis.tests,
                   incomplete=incomplete, unreadable=unreadable)
 

@@ -23,7 +23,8 @@ SCORE_RULE = (
     "'equal' counts as not preferred (it stays in the denominator), as in the paper, where every "
     "score is a multiple of 25 % of 4 pairs. * : a missed pair compared two θ with which the robot "
     f"arrived within {INDISTINCT_ARRIVAL_S * 1000:.0f} ms of each other (practically identical "
-    "controllers, as the paper's *75 in Table II). † : incomplete session, left out of the tests.")
+    "controllers, as the paper's *75 in Table II). † : incomplete session, left out of the tests "
+    "(its θ* is the learner's best so far).")
 ALTERNATIVE_TEXT = {"greater": "one-sided (above)", "less": "one-sided (below)",
                     "two-sided": "two-sided"}
 
@@ -46,8 +47,13 @@ def _participant_text(row: pd.Series) -> str:
     return row["participant"] + ("" if row["complete"] else " †")
 
 
+def unreadable_text(path: str, reason: str) -> str:
+    """Why a database was left out, naming the file once."""
+    return f"not read, left out: {reason if path in reason else f'{path}: {reason}'}"
+
+
 def problems(analysis: StudyAnalysis, unreadable: Mapping[str, str]) -> str:
-    lines = [f"{path} was not read: {reason}" for path, reason in unreadable.items()]
+    lines = [unreadable_text(path, reason) for path, reason in unreadable.items()]
     lines += [f"{row['participant']}: {_status_text(row)}; shown below, left out of the tests"
               for _, row in analysis.status.iterrows() if not row["complete"]]
     if not lines:

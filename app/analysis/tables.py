@@ -79,11 +79,9 @@ def validation_pairs(trials: pd.DataFrame, validation_ratings: pd.DataFrame) -> 
     learned = done[done["origin"] == "best"].set_index(["participant", "batch"])
     sobol = done[done["origin"] == "sobol"].set_index(["participant", "batch"])
     pairs = validation_ratings.set_index(["participant", "batch"])[["rating", "learned_preferred"]]
-    pairs = pairs.join(learned[["interaction", *THETA_COLUMNS, "robot_arrival_s"]])
-    pairs = pairs.join(sobol[["interaction", *THETA_COLUMNS, "robot_arrival_s"]], rsuffix="_sobol")
-    pairs = pairs.rename(columns={"interaction": "interaction_learned",
-                                  "robot_arrival_s": "robot_arrival_s_learned",
-                                  **{c: f"{c}_learned" for c in THETA_COLUMNS}})
+    columns = ["interaction", *THETA_COLUMNS, "robot_arrival_s"]
+    for side, rows in (("learned", learned), ("sobol", sobol)):
+        pairs = pairs.join(rows[columns].rename(columns=lambda c, s=side: f"{c}_{s}"))
     pairs["learned_first"] = pairs["interaction_learned"] < pairs["interaction_sobol"]
     gap = (pairs["robot_arrival_s_learned"] - pairs["robot_arrival_s_sobol"]).abs()
     pairs["indistinct"] = gap < INDISTINCT_ARRIVAL_S
