@@ -1,5 +1,6 @@
 """Export a study folder as tidy tables: one file per kind of row, all participants merged, the
-participant code in every row, plus consistent copies of the .sqlite files.
+participant code in every row, plus consistent copies of the .sqlite files. :func:`load_study` gives
+the same tables in memory (the analysis reads a study folder through it).
 
 The dtypes of every column are documented once, in :data:`DTYPES` (rendered in ``docs/data.md``), and
 :func:`read_table` loads an exported table with them.
@@ -7,8 +8,12 @@ The dtypes of every column are documented once, in :data:`DTYPES` (rendered in `
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import sqlite3
+from collections.abc import Collection, Iterator
 from pathlib import Path
+from typing import NamedTuple
 
 import pandas as pd
 from pydantic import BaseModel
@@ -24,7 +29,9 @@ from session_store.models import (
     ValidationRating,
 )
 from session_store.schema import TABLES, columns_of, sample_column_names, sample_columns
-from session_store.store import ParticipantStore, participant_codes
+from session_store.store import SUFFIX, ParticipantStore, participant_codes
+
+log = logging.getLogger(__name__)
 
 FORMATS = ("csv", "parquet")
 
@@ -91,13 +98,87 @@ def _participant_frame(store: ParticipantStore) -> pd.DataFrame:
                           "completed": completed, "config": participant.config.model_dump_json()}])
 
 
-def _table_frame(store: ParticipantStore, table: str) -> pd.DataFrame:
+def _table_frame(store: ParticipantStore, table: str,
+                 sample_phases: Collection[str] | None = None) -> pd.DataFrame:
     columns = [c for c in DTYPES[table] if c != "participant"]
     quoted = ", ".join(f'"{c}"' for c in columns)
     order = "trial_index, cycle" if table == "samples" else "rowid"
-    frame = pd.read_sql_query(f'SELECT {quoted} FROM "{table}" ORDER BY {order}', store.db.conn)
+    where, params = "", []
+    if table == "samples" and sample_phases is not None:
+        marks = ", ".join("?" for _ in sample_phases)
+        where = f" WHERE trial_index IN (SELECT trial_index FROM trials WHERE phase IN ({marks}))"
+        params = list(sample_phases)
+    frame = pd.read_sql_query(f'SELECT {quoted} FROM "{table}"{where} ORDER BY {order}',
+                              store.db.conn, params=params)
     frame.insert(0, "participant", store.participant().code)
     return frame
+
+
+def participant_tables(store: ParticipantStore, tables: Collection[str] = tuple(DTYPES),
+                       sample_phases: Collection[str] | None = None) -> dict[str, pd.DataFrame]:
+    """The tidy ``tables`` of one participant's database (``samples`` only of trials in
+    ``sample_phases`` when given: the samples are by far the largest table)."""
+    return {table: _participant_frame(store) if table == "participants"
+            else _table_frame(store, table, sample_phases) for table in tables}
+
+
+@contextlib.contextmanager
+def _opened(study_dir: Path, code: str) -> Iterator[ParticipantStore]:
+    store = ParticipantStore.open(study_dir, code)
+    try:
+        yield store
+    finally:
+        store.close()
+
+
+def _study_codes(study_dir: Path) -> list[str]:
+    codes = participant_codes(study_dir)
+    if not codes:
+        raise StoreError(f"{study_dir} holds no participant database (*.sqlite)")
+    return codes
+
+
+def _merged(parts: list[dict[str, pd.DataFrame]], tables: Collection[str]) -> dict[str, pd.DataFrame]:
+    """Concatenate per-participant tables and apply the documented dtypes."""
+    return {table: pd.concat([part[table] for part in parts], ignore_index=True).astype(DTYPES[table])
+            for table in tables}
+
+
+class StudyTables(NamedTuple):
+    """All participants' tidy tables, and the databases that could not be read (path → why)."""
+
+    tables: dict[str, pd.DataFrame]
+    unreadable: dict[Path, str]
+
+
+def load_study(study_dir: Path, tables: Collection[str] = tuple(DTYPES), *,
+               sample_phases: Collection[str] | None = None,
+               skip_unreadable: bool = False) -> StudyTables:
+    """The tidy tables of a study folder in memory, as :func:`export_study` writes them and
+    :func:`read_table` reads them back.
+
+    A database that cannot be opened (another schema version, corrupt, not ours) raises its
+    :class:`StoreError`; with ``skip_unreadable`` it is left out and listed in ``unreadable`` with
+    the error's message instead. An empty folder, or one in which nothing is readable, raises.
+    """
+    unknown = set(tables) - set(DTYPES)
+    if unknown:
+        raise StoreError(f"tables = {sorted(unknown)} are not among {list(DTYPES)}")
+    parts, unreadable = [], {}
+    for code in _study_codes(study_dir):
+        try:
+            with _opened(study_dir, code) as store:
+                parts.append(participant_tables(store, tables, sample_phases))
+        except StoreError as exc:
+            if not skip_unreadable:
+                raise
+            path = Path(study_dir) / f"{code}{SUFFIX}"
+            log.info("skipping %s: %s", path, exc)
+            unreadable[path] = str(exc)
+    if not parts:
+        raise StoreError(f"{study_dir} holds no readable participant database: "
+                         + "; ".join(unreadable.values()))
+    return StudyTables(_merged(parts, tables), unreadable)
 
 
 def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv") -> dict[str, tuple[Path, int]]:
@@ -105,26 +186,17 @@ def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv") -> dict[str, 
     (plus ``sqlite/<code>.sqlite`` copies). Returns table → (file, rows)."""
     if fmt not in FORMATS:
         raise StoreError(f"format = {fmt!r} is not one of {FORMATS}")
-    codes = participant_codes(study_dir)
-    if not codes:
-        raise StoreError(f"{study_dir} holds no participant database (*.sqlite)")
+    codes = _study_codes(study_dir)
     out_dir = Path(out_dir)
     (out_dir / "sqlite").mkdir(parents=True, exist_ok=True)
-    frames: dict[str, list[pd.DataFrame]] = {table: [] for table in DTYPES}
+    parts = []
     for code in codes:
-        store = ParticipantStore.open(study_dir, code)
-        try:
-            frames["participants"].append(_participant_frame(store))
-            for table in DTYPES:
-                if table != "participants":
-                    frames[table].append(_table_frame(store, table))
+        with _opened(study_dir, code) as store:
+            parts.append(participant_tables(store))
             with sqlite3.connect(out_dir / "sqlite" / f"{code}.sqlite") as copy:
                 store.db.conn.backup(copy)
-        finally:
-            store.close()
     written = {}
-    for table, parts in frames.items():
-        frame = pd.concat(parts, ignore_index=True).astype(DTYPES[table])
+    for table, frame in _merged(parts, DTYPES).items():
         path = out_dir / f"{table}.{fmt}"
         if fmt == "csv":
             frame.to_csv(path, index=False)

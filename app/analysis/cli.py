@@ -1,0 +1,38 @@
+"""``handover report``: the paper's tables, statistics and figures from a study folder."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``report`` to the ``handover`` command."""
+    parser = subparsers.add_parser(
+        "report", help="tables, statistics and figures of a study (paper Sect. VI)",
+        description="Write a self-contained HTML report (Tables II-IV, the sign and Mann-Whitney "
+                    "tests of Sect. VI, Fig. 4, learning curves; Fig. 3 with --benchmark), the "
+                    "tables as CSV and the figures as PNG and SVG.")
+    parser.add_argument("study", type=Path, help="study folder (one .sqlite per participant)")
+    parser.add_argument("--out", type=Path, default=Path("out/report"),
+                        help="output folder (default out/report)")
+    parser.add_argument("--benchmark", type=Path, default=None,
+                        help="a `handover benchmark-pl` output folder: adds Fig. 3")
+    parser.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from app.analysis.report import build_report
+    from app.analysis.report_page import unreadable_text
+
+    report = build_report(args.study, args.out, args.benchmark)
+    for path, reason in report.unreadable.items():
+        print(f"warning: {unreadable_text(path, reason)}", file=sys.stderr)
+    if report.incomplete:
+        print(f"warning: incomplete sessions, left out of the tests: {', '.join(report.incomplete)}",
+              file=sys.stderr)
+    for test in report.tests:
+        print(f"{test.name}: {test.summary()}")
+    print(f"report: {report.html} ({len(report.tables)} tables, {len(report.figures)} figures)")
+    return 0

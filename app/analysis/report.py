@@ -1,0 +1,142 @@
+"""``handover report``: a study folder → the paper's tables (CSV), figures (PNG + SVG) and one
+self-contained HTML page (Sect. VI, Tables II–IV, Fig. 4; Fig. 3 from a benchmark-pl folder).
+
+Reading is tolerant in one way only: a database that cannot be opened (another schema version, a
+corrupt or foreign file) is left out, named with the reason at the top of the report and logged as a
+warning, and the other participants are reported. An empty folder, or one with nothing readable, is an
+error. A participant whose session stopped mid-protocol is reported with what they did and marked
+incomplete; the statistical tests use complete sessions only.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import pandas as pd
+from pydantic import BaseModel
+
+from app.analysis import figures as fig
+from app.analysis.benchmark import draw_benchmark_figure3
+from app.analysis.report_page import render_page
+from app.analysis.stats import StatTest, paper_tests
+from app.analysis.tables import (
+    session_status,
+    study_configs,
+    survey_table,
+    theta_star,
+    validation_pairs,
+    validation_scores,
+)
+from app.analysis.trajectories import validation_distances
+from session_store.export import load_study
+
+log = logging.getLogger(__name__)
+
+#: The export tables the report reads (samples of the validation trials only: Fig. 4).
+REPORT_TABLES = ("participants", "trials", "validation_ratings", "answers", "learner_snapshots",
+                 "events", "samples")
+TABLE_FILES = {"straightforward": "table2_straightforward", "perturbed": "table3_perturbed"}
+LEARNING_PHASES = ("initial", "learning", "best")
+
+
+@dataclass(frozen=True)
+class StudyAnalysis:
+    """Everything the report shows, computed from a study's tidy tables."""
+
+    tables: dict[str, pd.DataFrame]
+    status: pd.DataFrame
+    pairs: pd.DataFrame
+    scores: pd.DataFrame
+    survey: pd.DataFrame
+    tests: list[StatTest]
+    distances: pd.DataFrame
+
+    @classmethod
+    def of(cls, tables: dict[str, pd.DataFrame]) -> StudyAnalysis:
+        status = session_status(tables["participants"], tables["events"])
+        pairs = validation_pairs(tables["trials"], tables["validation_ratings"])
+        scores = validation_scores(pairs, theta_star(tables["learner_snapshots"]), status)
+        survey = survey_table(tables["answers"], status)
+        distances = validation_distances(tables["participants"], tables["trials"], tables["samples"])
+        return cls(tables, status, pairs, scores, survey, paper_tests(scores, survey), distances)
+
+
+class Report(BaseModel):
+    """What ``build_report`` wrote, and the problems it reported."""
+
+    html: Path
+    tables: dict[str, Path]
+    figures: dict[str, fig.FigureFiles]
+    tests: list[StatTest]
+    incomplete: list[str]
+    unreadable: dict[str, str]
+
+
+def tests_frame(tests: list[StatTest]) -> pd.DataFrame:
+    """The tests as a table (``groups`` as JSON)."""
+    return pd.DataFrame([t.model_dump() | {"groups": json.dumps(t.groups)} for t in tests])
+
+
+def write_tables(analysis: StudyAnalysis, directory: Path) -> dict[str, Path]:
+    """The report's tables as CSV files under ``directory``."""
+    directory.mkdir(parents=True, exist_ok=True)
+    frames = {"sessions": analysis.status, "validation_pairs": analysis.pairs,
+              "table4_survey": analysis.survey, "statistics": tests_frame(analysis.tests)}
+    for scenario, name in TABLE_FILES.items():
+        frames[name] = analysis.scores[analysis.scores["scenario"] == scenario]
+    paths = {}
+    for name, frame in frames.items():
+        paths[name] = directory / f"{name}.csv"
+        frame.to_csv(paths[name], index=False)
+    return paths
+
+
+def draw_participant_figures(analysis: StudyAnalysis, directory: Path) -> dict[str, fig.FigureFiles]:
+    """Fig. 4 and the learning curve of every participant that has the data for them."""
+    configs = study_configs(analysis.tables["participants"])
+    trials = analysis.tables["trials"]
+    learning = trials[(trials["outcome"] == "completed") & trials["phase"].isin(LEARNING_PHASES)]
+    snapshots = analysis.tables["learner_snapshots"]
+    scores = analysis.scores.set_index("participant")
+    drawn = {}
+    for code, config in configs.items():
+        title = f"{code} ({config.scenario.value})"
+        mine = analysis.distances[analysis.distances["participant"] == code]
+        if not mine.empty:
+            star = scores.loc[code]
+            theta = fig.theta_text(star["theta_a"], star["theta_delta"], star["theta_k"])
+            drawn[f"fig4-{code}"] = fig.save(fig.draw_fig4(mine, f"Fig. 4, {title}", theta),
+                                             directory, f"fig4-{code}")
+        if (snapshots["participant"] == code).any():
+            curve = fig.draw_learning_curve(learning[learning["participant"] == code],
+                                            snapshots[snapshots["participant"] == code], config,
+                                            f"Learning curve, {title}")
+            drawn[f"learning-{code}"] = fig.save(curve, directory, f"learning-{code}")
+    return drawn
+
+
+def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = None) -> Report:
+    """Analyse ``study_dir`` and write ``report.html``, ``tables/*.csv`` and ``figures/*`` under
+    ``out_dir`` (plus Fig. 3 when ``benchmark_dir`` is a benchmark-pl result folder)."""
+    out_dir = Path(out_dir)
+    loaded = load_study(study_dir, REPORT_TABLES, sample_phases=("validation",),
+                        skip_unreadable=True)
+    analysis = StudyAnalysis.of(loaded.tables)
+    tables = write_tables(analysis, out_dir / "tables")
+    figures = draw_participant_figures(analysis, out_dir / "figures")
+    if benchmark_dir is not None:
+        figures["fig3"] = draw_benchmark_figure3(benchmark_dir, out_dir / "figures")
+    unreadable = {str(path): reason for path, reason in loaded.unreadable.items()}
+    html = out_dir / "report.html"
+    html.write_text(render_page(analysis, figures, study_dir=Path(study_dir), unreadable=unreadable,
+                                generated=datetime.now(UTC).isoformat(timespec="seconds")))
+    incomplete = analysis.status.loc[~analysis.status["complete"], "participant"].tolist()
+    if incomplete:
+        log.info("incomplete sessions (reported, left out of the tests): %s", incomplete)
+    return Report(html=html, tables=tables, figures=figures, tests=analysis.tests,
+                  incomplete=incomplete, unreadable=unreadable)
+

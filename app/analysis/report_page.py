@@ -1,0 +1,151 @@
+"""The HTML page of ``handover report``: sections in the paper's order (Sect. VI: Tables II–III and
+the validation sign test, Table IV and the survey tests, Fig. 4), then learning curves and Fig. 3."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import pandas as pd
+
+from app.analysis import html
+from app.analysis.figures import FigureFiles
+from app.analysis.stats import MWU_METHOD, SIGN_TIE_RULE, StatTest
+from app.analysis.tables import INDISTINCT_ARRIVAL_S, SCENARIOS
+
+if TYPE_CHECKING:
+    from app.analysis.report import StudyAnalysis
+
+TABLE_NUMBER = {"straightforward": "Table II", "perturbed": "Table III"}
+SCORE_RULE = (
+    "Validation (%) = pairs in which the learned θ* was preferred / rated pairs. A pair rated "
+    "'equal' counts as not preferred (it stays in the denominator), as in the paper, where every "
+    "score is a multiple of 25 % of 4 pairs. * : a missed pair compared two θ with which the robot "
+    f"arrived within {INDISTINCT_ARRIVAL_S * 1000:.0f} ms of each other (practically identical "
+    "controllers, as the paper's *75 in Table II). † : incomplete session, left out of the tests "
+    "(its θ* is the learner's best so far).")
+ALTERNATIVE_TEXT = {"greater": "one-sided (above)", "less": "one-sided (below)",
+                    "two-sided": "two-sided"}
+
+
+def _status_text(row: pd.Series) -> str:
+    if row["complete"]:
+        return "complete"
+    return (f"incomplete: stopped in phase {row['phase']}, waiting for {row['waiting_for']} "
+            f"({row['completed']}/{row['planned']} interactions)")
+
+
+def _score_text(row: pd.Series) -> str:
+    if pd.isna(row["score_pct"]):
+        return "no rated pair"
+    mark = "*" if row["indistinct_missed"] else ""
+    return f"{mark}{row['score_pct']:.0f}"
+
+
+def _participant_text(row: pd.Series) -> str:
+    return row["participant"] + ("" if row["complete"] else " †")
+
+
+def unreadable_text(path: str, reason: str) -> str:
+    """Why a database was left out, naming the file once."""
+    return f"not read, left out: {reason if path in reason else f'{path}: {reason}'}"
+
+
+def problems(analysis: StudyAnalysis, unreadable: Mapping[str, str]) -> str:
+    lines = [unreadable_text(path, reason) for path, reason in unreadable.items()]
+    lines += [f"{row['participant']}: {_status_text(row)}; shown below, left out of the tests"
+              for _, row in analysis.status.iterrows() if not row["complete"]]
+    if not lines:
+        return html.paragraph("No problems: every database was read and every session is complete.")
+    return html.section("Data problems", html.items(lines, "problem"))
+
+
+def sessions(analysis: StudyAnalysis) -> str:
+    frame = analysis.status.assign(progress=lambda f: f["completed"].astype(str) + "/"
+                                   + f["planned"].astype(str),
+                                   state=analysis.status.apply(_status_text, axis=1))
+    return html.section("Sessions", html.table(
+        frame, {"participant": "Participant", "scenario": "Scenario",
+                "progress": "Interactions", "state": "Status"}))
+
+
+def validation_tables(analysis: StudyAnalysis) -> str:
+    parts = []
+    for scenario in SCENARIOS:
+        rows = analysis.scores[analysis.scores["scenario"] == scenario]
+        if rows.empty:
+            continue
+        rows = rows.assign(shown=rows.apply(_score_text, axis=1),
+                           who=rows.apply(_participant_text, axis=1))
+        parts.append(html.section(
+            f"{TABLE_NUMBER[scenario]}: validation results, {scenario} handover",
+            html.table(rows, {"who": "Participant", "theta_a": "a_d", "theta_delta": "δ_d",
+                              "theta_k": "k", "shown": "Validation (%)", "pairs": "pairs",
+                              "learned_preferred": "θ* preferred", "sobol_preferred":
+                              "Sobol preferred", "equal": "equal"}), level=3))
+    return html.section("Validation (Sect. VI-A)", *parts, html.paragraph(SCORE_RULE, "note"))
+
+
+def _p_text(p: float) -> str:
+    return "n/a" if pd.isna(p) else f"{p:.2g}" if p >= 1e-4 else f"{p:.1e}"
+
+
+def statistics(tests: list[StatTest]) -> str:
+    frame = pd.DataFrame([{
+        "name": t.name, "test": "sign test" if t.test == "sign" else "Mann–Whitney U",
+        "sides": ALTERNATIVE_TEXT[t.alternative], "n": t.n, "n_total": t.n_total, "ties": t.n_ties,
+        "groups": ", ".join(f"{k} {v}" for k, v in t.groups.items()),
+        "statistic": "n/a" if pd.isna(t.statistic) else f"{t.statistic:g}",
+        "p": _p_text(t.p_value)} for t in tests])
+    rules = [f"Sign test: exact binomial (p = ½); {SIGN_TIE_RULE}. Statistic S = number of values "
+             "above the threshold; H1: values lie above it (the paper's directional hypotheses).",
+             f"Mann–Whitney U: two-sided, {MWU_METHOD}; U is that of the first group "
+             "(straightforward); 'ties' counts the answers that share a rank.",
+             "Only complete sessions enter the tests."]
+    return html.section("Statistics (Sect. VI)", html.table(frame, {
+        "name": "Hypothesis", "test": "Test", "sides": "Sidedness", "n": "N used",
+        "n_total": "N given", "ties": "ties", "groups": "counts", "statistic": "statistic",
+        "p": "p"}), html.items(rules, "note"))
+
+
+def survey(analysis: StudyAnalysis) -> str:
+    parts = []
+    for scenario in SCENARIOS:
+        rows = analysis.survey[analysis.survey["scenario"] == scenario]
+        if not rows.empty:
+            rows = rows.assign(who=rows.apply(_participant_text, axis=1))
+            parts.append(html.section(f"{scenario.capitalize()}", html.table(
+                rows, {"who": "Participant", "Q1": "Q1", "Q2": "Q2", "Q3": "Q3"}), level=3))
+    questions = ["Q1: It was easy to remember the interactions within the batch (1–5).",
+                 "Q2: Did you feel that the robot was constantly improving? (Yes / No / Maybe)",
+                 "Q3: Relative to the last set of parameters tried, how much did you perceive that "
+                 "the robot was coordinating with you? (1–5)"]
+    return html.section("Table IV: survey results (Sect. VI-B)", *parts,
+                        html.items(questions, "note"))
+
+
+def figure_list(figures: Mapping[str, FigureFiles], prefix: str, caption: str) -> list[str]:
+    return [html.figure(files.png, f"{caption} {name.removeprefix(prefix)}")
+            for name, files in figures.items() if name.startswith(prefix)]
+
+
+def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, study_dir: Path,
+                unreadable: Mapping[str, str], generated: str) -> str:
+    """The whole report as one HTML string (figures embedded)."""
+    counts = analysis.status["scenario"].value_counts()
+    intro = html.paragraph(
+        f"Study folder {study_dir}, {len(analysis.status)} participants ("
+        + ", ".join(f"{counts.get(s, 0)} {s}" for s in SCENARIOS) + f"). Generated {generated}.")
+    fig4 = figure_list(figures, "fig4-", "Fig. 4: human (red) and robot (blue) distance to the "
+                       "handover point, normalised by the distance at the start, validation trials:")
+    curves = figure_list(figures, "learning-", "θ over interactions and θ*'s posterior utility:")
+    parts = [intro, problems(analysis, unreadable), sessions(analysis), validation_tables(analysis),
+             statistics(analysis.tests), survey(analysis),
+             html.section("Fig. 4: trajectories of the validation trials (Sect. VI-C)",
+                          *(fig4 or [html.paragraph("No completed validation trial.")])),
+             html.section("Learning curves", *(curves or [html.paragraph("No learner update.")]))]
+    if "fig3" in figures:
+        parts.append(html.section("Fig. 3: simulated study (Sect. IV)", html.figure(
+            figures["fig3"].png, "Mean distance to the target (95 % CI) and success rate")))
+    return html.page(f"Handover study report: {study_dir.name}", *parts)
