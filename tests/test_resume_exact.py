@@ -4,18 +4,26 @@ never interrupted."""
 
 from __future__ import annotations
 
+import multiprocessing as mp
+import os
 import random
 import signal
 import sqlite3
 import subprocess
 import sys
+import time
 
 import numpy as np
 import pytest
+from session_helpers import drive_until, new_engine
 
 from app.learning.config import LearnerConfig
 from app.learning.learner import PreferenceLearner
 from app.learning.models import Comparison, Interaction, ParameterBox
+from app.learning.worker import LearnerClient
+from app.protocol.engine import SessionEngine
+from app.protocol.state import Step
+from session_store.store import ParticipantStore
 
 
 def test_a_restored_learner_is_the_stored_learner():
@@ -60,31 +68,82 @@ def _outcome(path) -> dict[str, list]:
         }
 
 
+def _events(path) -> int:
+    """Events written so far (0 before the session exists); read-only, beside the writer."""
+    try:
+        with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as conn:
+            return conn.execute("SELECT count(*) FROM events").fetchone()[0]
+    except sqlite3.Error:
+        return 0
+
+
 @pytest.mark.slow
 def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_path):
     command = [sys.executable, "-m", "app.cli", "run-session", "--participant", "K1", "--scenario",
                "perturbed", "--auto", "--seed", "11", "--no-progress"]
     subprocess.run([*command, "--study", str(tmp_path / "whole")], check=True,
                    capture_output=True, timeout=300)
-    rng, kills, resume = random.Random(2026), 0, []
-    for _ in range(60):
-        process = subprocess.Popen([*command, "--study", str(tmp_path / "killed"), *resume],
+    database = tmp_path / "killed" / "K1.sqlite"
+    rng, kills = random.Random(2026), 0
+    while True:
+        before = _events(database)
+        process = subprocess.Popen([*command, "--study", str(tmp_path / "killed"), "--resume"],
                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        resume = ["--resume"]
-        try:  # the first 12 runs are killed after 1.5–5 s (spawn, trials, fits, writes), then done
-            process.wait(timeout=rng.uniform(1.5, 5.0) if kills < 12 else 300)
-        except subprocess.TimeoutExpired:
-            process.send_signal(signal.SIGKILL)
-            process.wait()
-            kills += 1
-            continue
+        if kills < 12:
+            # Kill inside the session, whatever the machine's load: once this run has written an
+            # event (created or resumed the session), after a random further 0–2.5 s of trials,
+            # learner updates and writes.
+            while _events(database) <= before and process.poll() is None:
+                time.sleep(0.02)
+            try:
+                process.wait(timeout=rng.uniform(0.0, 2.5))
+            except subprocess.TimeoutExpired:
+                process.send_signal(signal.SIGKILL)
+                process.wait()
+                kills += 1
+                continue
+        process.wait(timeout=300)
         assert process.returncode == 0, process.stderr.read().decode()[-2000:]
         break
-    assert kills >= 10
-    whole, killed = _outcome(tmp_path / "whole" / "K1.sqlite"), _outcome(tmp_path / "killed" / "K1.sqlite")
+    assert kills == 12
+    whole, killed = _outcome(tmp_path / "whole" / "K1.sqlite"), _outcome(database)
     for table in whole:
         assert killed[table] == whole[table], table
     assert len(whole["completed trials"]) == 34
-    with sqlite3.connect(tmp_path / "killed" / "K1.sqlite") as conn:
-        resumes = conn.execute("SELECT count(*) FROM events WHERE kind = 'session_resumed'").fetchone()
-    assert resumes[0] == kills
+    with sqlite3.connect(database) as conn:
+        resumes = conn.execute("SELECT count(*) FROM events WHERE kind = 'session_resumed'"
+                               ).fetchone()[0]
+    assert resumes == kills  # every kill landed inside a session, every run after it resumed
+
+
+def _place_and_die_mid_write(study) -> None:  # runs in a forked child
+    engine = SessionEngine(ParticipantStore.open(study, "S01"), LearnerClient.for_session)
+    add = engine.store.add
+
+    def add_then_die(row) -> None:
+        add(row)  # the placement row is written, inside the open transaction...
+        os.kill(os.getpid(), signal.SIGKILL)  # ...and the process dies before the commit
+
+    engine.store.add = add_then_die
+    engine.place(position=0.9)
+
+
+def test_a_kill_in_the_middle_of_a_write_leaves_the_database_as_before(tmp_path):
+    engine = new_engine(tmp_path)
+    drive_until(engine, Step.PLACE)
+    engine.place(position=0.5)
+    drive_until(engine, Step.PLACE)  # the second interaction: its placement makes a comparison
+    before = engine.store.counts()
+    engine.close()
+    child = mp.get_context("fork").Process(target=_place_and_die_mid_write, args=(tmp_path,))
+    child.start()
+    child.join(60)
+    assert child.exitcode == -signal.SIGKILL
+    resumed = SessionEngine.resume(tmp_path, "S01")
+    try:
+        after = resumed.store.counts()
+        assert after == {**before, "events": before["events"] + 1}  # only session_resumed
+        assert resumed.state.step is Step.PLACE
+        assert [(c.winner, c.loser) for c in resumed.place(position=0.9)] == [(2, 1)]
+    finally:
+        resumed.close()
