@@ -18,6 +18,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "robot_io.cli",
     "app.learning.cli",
     "app.protocol.cli",
+    "app.ui.cli",
 )
 
 
