@@ -21,6 +21,8 @@ from pathlib import Path
 
 from playwright.sync_api import Browser, Page, sync_playwright
 
+from session_store.models import QUESTIONS
+
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
@@ -30,6 +32,46 @@ TOKEN = "test-token"
 SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
               "validation_batches = 1\n")
 TIMEOUT_MS = 60_000
+
+
+SCREENS = {"place": "Handover", "wait": "Please wait", "rate": "Compared with",
+           "done": "Thank you", "go": "Go!",
+           **{q.id: q.text[:30] for q in QUESTIONS}}
+
+
+def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0) -> str:
+    """Wait until the tablet shows a known screen other than ``not_``; return its name."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        text = page.inner_text("body")
+        for name, marker in SCREENS.items():
+            if marker in text and name != not_:
+                return name
+        time.sleep(0.02)
+    raise AssertionError(f"tablet shows no known screen: {page.inner_text('body')[:300]}")
+
+
+def run_trial(dashboard: Page, tablet: Page) -> str:
+    """Start trial on the dashboard; the tablet shows "Go!", then the screen after the trial."""
+    click(dashboard, "Start trial")
+    assert tablet_screen(tablet, not_="wait") == "go"
+    return tablet_screen(tablet, not_="go")
+
+
+def confirm_placement(tablet: Page) -> float:
+    """Tap Confirm on the scale; seconds until the tablet shows the next screen (the engine has
+    stored the placement before it publishes the next state)."""
+    began = time.perf_counter()
+    tap(tablet, "Confirm")
+    tablet.wait_for_function("() => !document.querySelector('.hl-scale')", polling="raf")
+    return time.perf_counter() - began
+
+
+def open_participant(dashboard: Page, code: str) -> None:
+    unlock_dashboard(dashboard)
+    fill(dashboard, "Code", code)
+    click(dashboard, "Create or resume")
+    wait_text(dashboard, "handovers completed")
 
 
 def free_port() -> int:
@@ -55,13 +97,13 @@ class Served:
 
 
 @contextmanager
-def serve(tmp: Path, *extra: str) -> Iterator[Served]:
-    """`handover serve` on two free loopback ports with the short protocol at 125 Hz."""
+def serve(tmp: Path, *extra: str, rate: int = 125) -> Iterator[Served]:
+    """`handover serve` on two free loopback ports with the short protocol (125 Hz for speed)."""
     protocol = tmp / "short.toml"
     protocol.write_text(SHORT_TOML)
     study, log = tmp / "study", tmp / "serve.log"
     tablet, dashboard = free_port(), free_port()
-    command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study), "--rate", "125",
+    command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study), "--rate", str(rate),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
                "--protocol", str(protocol), "--token", TOKEN, *extra]
     with log.open("w") as out:
@@ -106,6 +148,12 @@ def open_page(browser: Browser, url: str, touch: bool = False,
     page.goto(url)
     wait_ready(page)
     return page
+
+
+def open_screens(browser: Browser, served: Served) -> tuple[Page, Page]:
+    """The dashboard on a laptop-sized window (mouse) and the tablet (touch), both ready."""
+    return (open_page(browser, served.dashboard_url, size=(1400, 900)),
+            open_page(browser, served.tablet_url, touch=True))
 
 
 def wait_ready(page: Page) -> None:

@@ -18,12 +18,15 @@ from browser_helpers import (
     Served,
     chromium,
     click,
-    fill,
-    open_page,
+    confirm_placement,
+    open_participant,
+    open_screens,
     reload,
+    run_trial,
     scale_value,
     serve,
     shot,
+    tablet_screen,
     tap,
     touch_drag_to,
     unlock_dashboard,
@@ -31,7 +34,6 @@ from browser_helpers import (
 )
 from playwright.sync_api import Page
 
-from session_store.models import QUESTIONS
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -40,37 +42,6 @@ DOC_FIGURES = Path(__file__).parents[1] / "docs" / "figures"
 #: Where the participant drags each interaction: a fraction of the scale, or ("equal", label).
 DRAGS: dict[int, float | tuple[str, int]] = {1: 0.6, 2: 0.25, 3: 0.8, 4: 0.4, 5: 0.7,
                                              6: ("equal", 1)}
-SCREENS = {"place": "Handover", "wait": "Please wait", "rate": "Compared with",
-           "done": "Thank you", "go": "Go!",
-           **{q.id: q.text[:30] for q in QUESTIONS}}
-
-
-def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0) -> str:
-    """Wait until the tablet shows a known screen other than ``not_``; return its name."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        text = page.inner_text("body")
-        for name, marker in SCREENS.items():
-            if marker in text and name != not_:
-                return name
-        time.sleep(0.02)
-    raise AssertionError(f"tablet shows no known screen: {page.inner_text('body')[:300]}")
-
-
-def run_trial(dashboard: Page, tablet: Page) -> str:
-    """Start trial on the dashboard; the tablet shows "Go!", then the screen after the trial."""
-    click(dashboard, "Start trial")
-    assert tablet_screen(tablet, not_="wait") == "go"
-    return tablet_screen(tablet, not_="go")
-
-
-def open_participant(dashboard: Page, code: str) -> None:
-    unlock_dashboard(dashboard)
-    fill(dashboard, "Code", code)
-    click(dashboard, "Create or resume")
-    wait_text(dashboard, "handovers completed")
-
-
 def publish(paths: list[Path]) -> None:
     if os.environ.get("HANDOVER_DOC_FIGURES") == "1":
         DOC_FIGURES.mkdir(exist_ok=True)
@@ -95,8 +66,8 @@ def place_by_touch(tablet: Page, interaction: int, label: int, positions: dict[i
 def test_participant_session_with_touch(tmp_path: Path) -> None:
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
-        dashboard = open_page(browser, served.dashboard_url, size=(1400, 900))
-        tablet = open_page(browser, served.tablet_url, touch=True)
+        dashboard, tablet = open_screens(browser, served)
+        wait_text(tablet, "Please wait")
         shot(tablet, screens, "tablet-wait")
         open_participant(dashboard, "P01")
         dragged: dict[int, tuple[float | None, int | None]] = {}
@@ -112,7 +83,9 @@ def test_participant_session_with_touch(tmp_path: Path) -> None:
                 assert tablet_screen(tablet, not_="wait") in ("go", "place", "rate", "Q1")
                 if "go" not in shown:
                     assert tablet.locator("audio.hl-cue").count() == 1  # the audible cue
-                    assert tablet.evaluate("() => !document.querySelector('audio.hl-cue').paused")
+                    tablet.wait_for_function(  # it plays (or has played) without a tap
+                        "() => { const a = document.querySelector('audio.hl-cue');"
+                        " return a && (!a.paused || a.ended); }", timeout=5000)
                     shot(tablet, screens, "tablet-go")
                     time.sleep(0.4)
                     shot(dashboard, screens, "dashboard-trial")
@@ -128,10 +101,7 @@ def test_participant_session_with_touch(tmp_path: Path) -> None:
                 positions[interaction] = dragged[interaction][0] or positions[
                     dragged[interaction][1]]
                 shot(tablet, screens, f"tablet-place-{interaction}")
-                began = time.perf_counter()
-                tap(tablet, "Confirm")
-                tablet_screen(tablet, not_="place")
-                latencies.append(time.perf_counter() - began)
+                latencies.append(confirm_placement(tablet))
             elif screen in ("Q1", "Q2", "Q3"):
                 shot(tablet, screens, f"tablet-{screen}")
                 tap(tablet, {"Q1": "4", "Q2": "Maybe", "Q3": "5 – Perfectly"}[screen])
@@ -186,8 +156,7 @@ def check_store(served: Served, dragged: dict[int, tuple[float | None, int | Non
 def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
-        dashboard = open_page(browser, served.dashboard_url, size=(1400, 900))
-        tablet = open_page(browser, served.tablet_url, touch=True)
+        dashboard, tablet = open_screens(browser, served)
         open_participant(dashboard, "P02")
         # Abort: recorded as aborted, never rated (the tablet goes back to "Please wait").
         click(dashboard, "Start trial")

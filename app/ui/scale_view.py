@@ -56,10 +56,11 @@ def render_scale(markers: Sequence[Marker], newest_label: int, position: float) 
     parts.append(_marker(newest_label, newest_at, len(columns.get(newest_at, [])), True))
     tallest = max([len(labels) for labels in columns.values()] + [0]) + 1
     caption = (f"Same as {landed.label}" if landed is not None else "&nbsp;")
-    return (f'<div class="hl-scale"><div class="hl-lane" style="height:{tallest * STACK_PX}px">'
-            f'{"".join(parts)}</div><div class="hl-arrow"></div>'
+    return (f'<div class="hl-scale"><div class="hl-caption">{caption}</div>'
+            f'<div class="hl-lane" style="height:{tallest * STACK_PX}px">{"".join(parts)}</div>'
+            f'<div class="hl-arrow"></div>'
             f'<div class="hl-ends"><span>Strongly Worse</span><span>Strongly Better</span></div>'
-            f'<div class="hl-caption">{caption}</div></div>')
+            f'</div>')
 
 
 def screen_text(title: str, detail: str = "", kind: str = "") -> str:

@@ -21,10 +21,10 @@ ORANGE, BLUE, GREY = "#f08c00", "#1c7ed6", "#495057"
 #: The tablet: no 3-D canvas, big text, big buttons, the slider as a big orange drag handle.
 TABLET_CSS = f"""
 canvas, .mantine-Notification-root {{ display: none !important; }}
-.hl-title {{ font-size: 60px; font-weight: 700; text-align: center; padding: 56px 8px 16px; }}
+.hl-title {{ font-size: 52px; font-weight: 700; text-align: center; padding: 24px 8px 8px; }}
 .hl-title.hl-go {{ color: #2b8a3e; font-size: 140px; padding-top: 96px; }}
 .hl-title.hl-question {{ font-size: 34px; font-weight: 600; padding: 24px 8px 8px; }}
-.hl-detail {{ font-size: 28px; text-align: center; color: #495057; padding: 0 8px 24px; }}
+.hl-detail {{ font-size: 26px; text-align: center; color: #495057; padding: 0 8px 12px; }}
 .hl-scale {{ margin: 8px 40px 0; }}
 .hl-lane {{ position: relative; }}
 .hl-marker {{ position: absolute; transform: translateX(-50%); width: {MARKER_PX}px;
@@ -42,7 +42,7 @@ canvas, .mantine-Notification-root {{ display: none !important; }}
   min-height: 40px; }}
 .mantine-Flex-root:has(> div > .mantine-Flex-root > .mantine-Slider-root) > :first-child {{
   display: none; }}
-.mantine-Slider-root {{ margin: 0 31px; height: 96px; }}
+.mantine-Slider-root {{ margin: 28px 31px 0; height: 88px; }}
 .mantine-Slider-track::before {{ background: #dee2e6 !important; }}
 .mantine-Slider-bar {{ background: transparent !important; }}
 .mantine-Slider-thumb {{ width: 80px !important; height: 80px !important; border-radius: 50% !important;
