@@ -19,6 +19,7 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "app.learning.cli",
     "app.protocol.cli",
     "app.analysis.cli",
+    "app.ui.cli",
 )
 
 

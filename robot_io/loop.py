@@ -84,6 +84,7 @@ class HandoverLoop:
         self._stop_requested = threading.Event()
         self._thread: threading.Thread | None = None
         self.result: TrialRecord | None = None
+        self._recorder: TrialRecorder | None = None
 
     # -- threading --------------------------------------------------------------------------------
     def start(self) -> threading.Thread:
@@ -101,11 +102,17 @@ class HandoverLoop:
             self._thread.join(timeout)
         return self.result
 
+    def latest(self, stride: int = 1) -> dict[str, np.ndarray] | None:
+        """The rows recorded so far (every ``stride``-th), read from another thread while the loop
+        runs (live displays); None before the loop started. Costs the loop nothing."""
+        recorder = self._recorder
+        return None if recorder is None else recorder.view(stride)
+
     # -- the loop ---------------------------------------------------------------------------------
     def run(self) -> TrialRecord:
         cfg, clock, dt = self.config, self.clock, self.clock.period
         goal = self.dmp.goal
-        recorder = TrialRecorder(int((cfg.timeout_s + 1.0) * cfg.rate_hz))
+        recorder = self._recorder = TrialRecorder(int((cfg.timeout_s + 1.0) * cfg.rate_hz))
         self._last: HandSample | None = None
         self._seen_t = -np.inf
         self._invalid = 0

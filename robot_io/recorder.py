@@ -52,6 +52,16 @@ class TrialRecorder:
 
     def columns(self) -> dict[str, np.ndarray]:
         """Named columns of the rows written so far; vectors have shape (n, 3)."""
-        rows = self._rows[: self.count]
+        return self._named(self._rows[: self.count])
+
+    def view(self, stride: int = 1) -> dict[str, np.ndarray]:
+        """A copy of every ``stride``-th finished row, safe to call from another thread while the
+        loop writes: the row being filled (the last one) is left out, and a buffer that grows
+        meanwhile is replaced, not changed, so the reference taken here stays consistent."""
+        rows, count = self._rows, self.count
+        return self._named(rows[: max(count - 1, 0): stride].copy())
+
+    @staticmethod
+    def _named(rows: np.ndarray) -> dict[str, np.ndarray]:
         return {name: rows[:, SLICES[name]].squeeze(axis=1) if width == 1 else rows[:, SLICES[name]]
                 for name, width, _ in COLUMNS}

@@ -1,0 +1,233 @@
+"""The experimenter's dashboard: participant, progress, trial control, devices, learner, live view.
+
+A client sees only a token field until it enters the token printed by ``handover serve``. After that
+its panels are rendered from the runner's published :class:`RunnerView` (a reload rebuilds them from
+the session state), and every refused action is shown with the engine's reason. Stop is never
+disabled: it stops the arm whatever else is going on.
+"""
+
+from __future__ import annotations
+
+import logging
+import secrets
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import viser
+
+from app.protocol.state import Step
+from app.ui.live_view import STRIDE, LiveView
+from app.ui.session_runner import RunnerView, SessionRunner
+from app.ui.style import DASHBOARD_CSS, style_block
+from robot_io.errors import RobotIOError
+from robot_io.simulated_hand import Scenario
+from session_store.errors import StoreError
+
+log = logging.getLogger(__name__)
+
+NEXT: dict[Step, str] = {
+    Step.PLAN: "the learner chooses the next θ; then Start trial",
+    Step.READY: "press Start trial when the participant is ready",
+    Step.RUNNING: "the handover runs (Abort repeats it later; Stop stops the arm)",
+    Step.PLACE: "the participant places the handover on the tablet's scale",
+    Step.RATE: "the participant rates this handover against the previous one",
+    Step.ANSWER: "the participant answers the questionnaire on the tablet",
+    Step.DONE: "the session is complete: close the server (Ctrl-C) and export",
+}
+
+
+def progress_markdown(view: RunnerView) -> str:
+    """Where the protocol stands and what comes next."""
+    state = view.state
+    if state is None:
+        return "No participant open. Create or resume one above."
+    slot = state.slot
+    lines = [f"**{view.code}** · {view.scenario.value} · {state.completed} of "
+             f"{view.interactions} handovers completed"]
+    if slot is not None and state.step is not Step.ANSWER:
+        attempt = state.attempts.get(slot.interaction, 0) + (state.step in (Step.PLAN, Step.READY))
+        lines.append(f"phase **{slot.phase.value}** · batch {slot.batch} · handover "
+                     f"{slot.position} of {slot.batch_size} · interaction {slot.interaction} · "
+                     f"attempt {attempt}")
+    elif state.step is Step.ANSWER:
+        lines.append(f"phase **questionnaire** · {len(state.answers)} of 3 answered")
+    status = "**paused**" if state.paused else f"waiting for **{state.step.value}**"
+    if view.preparing:
+        status = "**preparing** (the learner is fitting)"
+    lines.append(f"{status} — next: {NEXT[state.step]}")
+    return "  \n".join(lines)
+
+
+def devices_markdown(view: RunnerView) -> str:
+    def line(name: str, text: str, fault: str | None) -> str:
+        return f"- **{name}**: {text}" + (f" — ⚠ **{fault}**" if fault else "")
+    return "\n".join([line("arm", view.arm, view.arm_fault), line("hand", view.hand, None),
+                      line("learner", view.learner, view.learner_fault),
+                      "", "Recent events:", *[f"- {m}" for m in view.messages]])
+
+
+def learner_markdown(view: RunnerView, rows: int = 10) -> str:
+    """θ* after each learner update and the θ of the latest attempts (the posterior itself stays
+    in the learner's process)."""
+    star = view.theta_star[-1] if view.theta_star else None
+    head = (f"θ* (best so far): **a {star.a:.2f}, δ {star.delta:.2f}, k {star.k:.2f}** after "
+            f"interaction {star.after_interaction}" if star else "θ*: none yet")
+    table = ["| trial | int. | phase | a | δ | k | origin | outcome |",
+             "|---|---|---|---|---|---|---|---|"]
+    table += [f"| {t.trial_index} | {t.interaction} | {t.phase.value} | {t.theta_a:.2f} | "
+              f"{t.theta_delta:.2f} | {t.theta_k:.2f} | {t.origin.value} | "
+              f"{t.outcome.value if t.outcome else 'running'} |" for t in view.trials[-rows:]]
+    history = ", ".join(f"({s.a:.1f}, {s.delta:.2f}, {s.k:.1f})" for s in view.theta_star[-6:])
+    return "\n".join([head, "", f"θ* history (latest 6): {history or '—'}", "", *table])
+
+
+@dataclass
+class Controls:
+    start: viser.GuiButtonHandle
+    abort: viser.GuiButtonHandle
+    stop: viser.GuiButtonHandle
+    pause: viser.GuiButtonHandle
+    resume: viser.GuiButtonHandle
+    auto: viser.GuiCheckboxHandle
+
+    def enable_for(self, view: RunnerView) -> None:
+        step, state = view.step, view.state
+        paused = state is not None and state.paused
+        self.start.disabled = step is not Step.READY or paused
+        self.abort.disabled = step is not Step.RUNNING
+        self.pause.disabled = state is None or paused or step in (Step.RUNNING, Step.DONE)
+        self.resume.disabled = not paused
+        self.auto.value = view.auto
+
+
+class DashboardClient:
+    """One experimenter's browser."""
+
+    def __init__(self, client: viser.ClientHandle, runner: SessionRunner, token: str) -> None:
+        self.client, self.runner, self.token = client, runner, token
+        self.live: LiveView | None = None
+        self._code: str | None = "-"
+        self._lock = threading.Lock()
+        self._locked_screen()
+
+    # -- access -----------------------------------------------------------------------------------
+    def _locked_screen(self) -> None:
+        gui = self.client.gui
+        gui.add_markdown("### handover-lab dashboard\nEnter the access token that "
+                         "`handover serve` printed.")
+        field = gui.add_text("Token", "")
+        unlock = gui.add_button("Unlock")
+        error = gui.add_markdown("")
+
+        @unlock.on_click
+        def _(_: viser.GuiEvent) -> None:
+            if secrets.compare_digest(field.value.strip(), self.token):
+                self.refresh(self.runner.view, rebuild=True)
+            else:
+                error.content = "⚠ Wrong token."
+
+    # -- panels -----------------------------------------------------------------------------------
+    def refresh(self, view: RunnerView, rebuild: bool = False) -> None:
+        with self._lock:
+            if self.live is None and not rebuild:
+                return  # still locked
+            if rebuild or view.code != self._code:
+                self._build(view)
+            self.progress.content = progress_markdown(view)
+            self.devices.content = devices_markdown(view)
+            self.learner.content = learner_markdown(view)
+            self.controls.enable_for(view)
+
+    def tick(self) -> None:
+        if self.live is not None:
+            self.live.update(self.runner.live(STRIDE)[1])
+
+    def _build(self, view: RunnerView) -> None:
+        gui = self.client.gui
+        self._code = view.code
+        with self.client.atomic():
+            gui.reset()
+            self.client.scene.reset()
+            gui.add_html(style_block(DASHBOARD_CSS))
+            with gui.add_folder("Participant"):
+                self._participant(gui, view)
+            with gui.add_folder("Session"):
+                self.progress = gui.add_markdown("")
+                self.controls = self._controls(gui)
+                self.error = gui.add_markdown("")
+            with gui.add_folder("Devices"):
+                self.devices = gui.add_markdown("")
+            with gui.add_folder("Coupling signals (live)"):
+                self.live = LiveView(self.client, self.runner.scene_config())
+            with gui.add_folder("Learner", expand_by_default=False):
+                self.learner = gui.add_markdown("")
+
+    def _participant(self, gui: viser.GuiApi, view: RunnerView) -> None:
+        if view.code is not None:
+            gui.add_markdown(f"**{view.code}** ({view.scenario.value})")
+            return
+        known = self.runner.codes()
+        gui.add_markdown("Existing: " + (", ".join(known) if known else "none") +
+                         ". A known code resumes its session.")
+        code = gui.add_text("Code", "")
+        scenario = gui.add_dropdown("Scenario", [s.value for s in Scenario],
+                                    initial_value=Scenario.PERTURBED.value)
+        seed = gui.add_number("Seed", 0, step=1)
+        open_button = gui.add_button("Create or resume")
+        open_button.on_click(lambda _: self._act(lambda: self.runner.open(
+            code.value.strip(), Scenario(scenario.value), int(seed.value))))
+
+    def _controls(self, gui: viser.GuiApi) -> Controls:
+        controls = Controls(
+            start=gui.add_button("Start trial", color="green", icon=viser.Icon.PLAYER_PLAY),
+            abort=gui.add_button("Abort trial", color="orange"),
+            stop=gui.add_button("STOP ARM", color="red", icon=viser.Icon.HAND_STOP),
+            pause=gui.add_button("Pause session"),
+            resume=gui.add_button("Resume session"),
+            auto=gui.add_checkbox("Simulated participant rates", False),
+        )
+        controls.start.on_click(lambda _: self._act(self.runner.start_trial))
+        controls.abort.on_click(lambda _: self._act(self.runner.abort_trial))
+        controls.stop.on_click(lambda _: self._act(self.runner.stop))
+        controls.pause.on_click(lambda _: self._act(self.runner.pause))
+        controls.resume.on_click(lambda _: self._act(self.runner.resume))
+        controls.auto.on_update(lambda _: self._act(
+            lambda: self.runner.set_auto(controls.auto.value)))
+        return controls
+
+    def _act(self, action: Callable[[], None]) -> None:
+        """Run an experimenter's action; show why it was refused."""
+        try:
+            action()
+            self.error.content = ""
+        except (StoreError, RobotIOError, ValueError) as exc:
+            log.warning("dashboard action refused: %s", exc)
+            self.error.content = f"⚠ **{exc}**"
+
+
+class Dashboard:
+    """The dashboard server: token-gated clients, refreshed on every change and ticked for the
+    live view."""
+
+    def __init__(self, server: viser.ViserServer, runner: SessionRunner, token: str) -> None:
+        self.server, self.runner, self.token = server, runner, token
+        self.clients: dict[int, DashboardClient] = {}
+        server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
+        server.gui.main_panel.dock_right()
+        server.gui.main_panel.set_width(520)
+        server.on_client_connect(self._connect)
+        server.on_client_disconnect(lambda client: self.clients.pop(client.client_id, None))
+        runner.subscribe(self.refresh)
+
+    def _connect(self, client: viser.ClientHandle) -> None:
+        client.scene.configure_environment_map(hdri=None)
+        self.clients[client.client_id] = DashboardClient(client, self.runner, self.token)
+
+    def refresh(self, view: RunnerView) -> None:
+        for client in list(self.clients.values()):
+            client.refresh(view)
+
+    def tick(self) -> None:
+        for client in list(self.clients.values()):
+            client.tick()

@@ -1,0 +1,69 @@
+"""The refreshing relative scale as the tablet draws it (Sect. III-C, Fig. 1).
+
+One horizontal arrow from "Strongly Worse" (0) to "Strongly Better" (1). The batch's earlier
+interactions stand on it as numbered markers where they were placed; markers placed "equal" stand
+stacked in one column. The newest marker (orange) follows the participant's finger: it is dragged
+with a full-width slider right under the arrow (viser's slider works with touch and mouse; its
+multi-slider does not), and dropping it within :data:`SNAP` of an earlier marker means "equal" and is
+drawn stacked on that marker. This module is pure: markers in, HTML out.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from html import escape
+
+from app.protocol.state import Marker
+
+#: A drop closer than this (in scale units, 0…1) to an earlier marker counts as "equal" to it.
+SNAP = 0.025
+#: Height of one marker in the stack [px].
+MARKER_PX = 64
+STACK_PX = 70
+
+
+def snap(position: float, markers: Sequence[Marker]) -> Marker | None:
+    """The earlier marker a drop at ``position`` lands on ("equal"), if any: the nearest within
+    :data:`SNAP`."""
+    near = [(abs(m.position - position), i, m) for i, m in enumerate(markers)
+            if abs(m.position - position) <= SNAP]
+    return min(near)[2] if near else None
+
+
+def _columns(markers: Sequence[Marker]) -> dict[float, list[int]]:
+    """Marker labels by their position on the scale (equal ones share a position)."""
+    columns: dict[float, list[int]] = {}
+    for marker in markers:
+        columns.setdefault(marker.position, []).append(marker.label)
+    return columns
+
+
+def _marker(label: int, left: float, level: int, newest: bool) -> str:
+    kind = "hl-marker hl-new" if newest else "hl-marker"
+    return (f'<div class="{kind}" style="left:{100 * left:.2f}%;bottom:{level * STACK_PX}px">'
+            f"{label}</div>")
+
+
+def render_scale(markers: Sequence[Marker], newest_label: int, position: float) -> str:
+    """The scale with the earlier ``markers`` and the newest one at ``position`` (stacked on an
+    earlier marker when it snaps to it)."""
+    columns = _columns(markers)
+    landed = snap(position, markers)
+    newest_at = landed.position if landed is not None else position
+    parts = []
+    for left, labels in columns.items():
+        parts += [_marker(label, left, level, False) for level, label in enumerate(labels)]
+    parts.append(_marker(newest_label, newest_at, len(columns.get(newest_at, [])), True))
+    tallest = max([len(labels) for labels in columns.values()] + [0]) + 1
+    caption = (f"Same as {landed.label}" if landed is not None else "&nbsp;")
+    return (f'<div class="hl-scale"><div class="hl-caption">{caption}</div>'
+            f'<div class="hl-lane" style="height:{tallest * STACK_PX}px">{"".join(parts)}</div>'
+            f'<div class="hl-arrow"></div>'
+            f'<div class="hl-ends"><span>Strongly Worse</span><span>Strongly Better</span></div>'
+            f'</div>')
+
+
+def screen_text(title: str, detail: str = "", kind: str = "") -> str:
+    """A large centred message ("Please wait", "Go!", a question)."""
+    detail_html = f'<div class="hl-detail">{escape(detail)}</div>' if detail else ""
+    return f'<div class="hl-title {kind}">{escape(title)}</div>{detail_html}'

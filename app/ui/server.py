@@ -1,0 +1,69 @@
+"""``handover serve``'s servers: the tablet and the dashboard, two viser servers in one process.
+
+Roles are told apart by port, since viser passes no URL query to the server. The dashboard is
+token-gated; the tablet offers nothing but rating and answering. A ticker thread redraws the
+dashboard's live view ten times a second while the control loop runs in its own thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import secrets
+import threading
+from dataclasses import dataclass
+
+import viser
+
+from app.ui.dashboard import Dashboard
+from app.ui.session_runner import SessionRunner
+from app.ui.tablet import Tablet
+
+log = logging.getLogger(__name__)
+
+#: Live-view refresh period [s].
+TICK_S = 0.1
+
+
+@dataclass(frozen=True)
+class ServeOptions:
+    host: str = "127.0.0.1"
+    tablet_port: int = 8080
+    dashboard_port: int = 8081
+    token: str | None = None
+
+
+class HandoverServers:
+    """Both screens over one :class:`SessionRunner`. :meth:`close` stops the arm first."""
+
+    def __init__(self, runner: SessionRunner, options: ServeOptions) -> None:
+        self.runner, self.options = runner, options
+        self.token = options.token or secrets.token_urlsafe(9)
+        self.tablet_server = viser.ViserServer(host=options.host, port=options.tablet_port,
+                                               verbose=False)
+        self.dashboard_server = viser.ViserServer(host=options.host, port=options.dashboard_port,
+                                                  label="handover-lab dashboard", verbose=False)
+        self.tablet = Tablet(self.tablet_server, runner)
+        self.dashboard = Dashboard(self.dashboard_server, runner, self.token)
+        self._closed = threading.Event()
+        self._ticker = threading.Thread(target=self._tick, name="live-view", daemon=True)
+        self._ticker.start()
+
+    def urls(self) -> tuple[str, str]:
+        host = self.options.host
+        return (f"http://{host}:{self.tablet_server.get_port()}",
+                f"http://{host}:{self.dashboard_server.get_port()}")
+
+    def _tick(self) -> None:
+        while not self._closed.wait(TICK_S):
+            try:
+                self.dashboard.tick()
+            except Exception:
+                log.exception("live view update failed")
+
+    def close(self) -> None:
+        """Stop the arm and end the session cleanly, then the servers."""
+        self.runner.close()
+        self._closed.set()
+        self._ticker.join(1.0)
+        self.tablet_server.stop()
+        self.dashboard_server.stop()

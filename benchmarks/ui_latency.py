@@ -1,0 +1,103 @@
+"""The web app's latency and the control loop's deadline misses with both screens connected.
+
+Runs `handover serve` (500 Hz, the short protocol) with the tablet and the dashboard open in headless
+Chromium, drives a whole session (touch drags on the tablet, Start on the dashboard), and prints:
+
+- placement confirmed on the tablet → stored → next screen: median and max over the session
+  (goal < 150 ms on loopback);
+- the share of 500 Hz control cycles that missed their deadline over all trials (goal < 1 %), while
+  both screens are connected, the live view streams, and a second learner process fits
+  continuously (the worst case: the session's own learner fits only between trials).
+
+    python benchmarks/ui_latency.py
+"""
+
+from __future__ import annotations
+
+import statistics
+import sys
+import tempfile
+import threading
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
+
+from browser_helpers import (
+    chromium,
+    confirm_placement,
+    open_participant,
+    open_screens,
+    run_trial,
+    serve,
+    tablet_screen,
+    tap,
+    touch_drag_to,
+)
+
+from app.learning.config import LearnerConfig
+from app.learning.models import Comparison, Interaction, ParameterBox
+from app.learning.worker import LearnerClient
+from robot_io.theta import THETA_BOUNDS
+from session_store.store import ParticipantStore
+
+ANSWERS = {"Q1": "4", "Q2": "Maybe", "Q3": "3", "rate": "Better"}
+
+
+def busy_learner(stop: threading.Event) -> None:
+    """A learner process that fits again and again (load on the second core)."""
+    with LearnerClient(LearnerConfig(box=ParameterBox.from_bounds(THETA_BOUNDS), seed=1)) as client:
+        client.submit()
+        n = 0
+        while not stop.is_set():
+            suggestion = client.get(timeout=30)
+            if suggestion.theta is None:  # the learner's schedule is used up
+                return
+            n += 1
+            client.submit([Interaction(interaction_id=str(n), theta=suggestion.theta)],
+                          [Comparison(winner=str(n), loser=str(n - 1))] if n > 1 else [])
+
+
+def run(tmp: Path) -> tuple[list[float], int, int]:
+    latencies: list[float] = []
+    stop = threading.Event()
+    learner = threading.Thread(target=busy_learner, args=(stop,), daemon=True)
+    with serve(tmp, rate=500) as served, chromium() as browser:
+        dashboard, tablet = open_screens(browser, served)
+        open_participant(dashboard, "BENCH")
+        learner.start()
+        screen = tablet_screen(tablet)
+        while screen != "done":
+            if screen == "wait":
+                screen = run_trial(dashboard, tablet)
+                continue
+            if screen == "place":
+                touch_drag_to(tablet, 0.1 + 0.8 * (len(latencies) % 5) / 4)
+                latencies.append(confirm_placement(tablet))
+            else:
+                tap(tablet, ANSWERS[screen])
+            screen = tablet_screen(tablet, not_=screen)
+        stop.set()
+        served.shutdown()
+    learner.join(60)
+    store = ParticipantStore.open(served.study, "BENCH")
+    try:
+        trials = store.rows("trials")
+        misses = sum(t.deadline_misses or 0 for t in trials)
+        cycles = sum(len(store.samples(t.trial_index)) for t in trials)
+    finally:
+        store.close()
+    return latencies, misses, cycles
+
+
+def main() -> None:
+    with tempfile.TemporaryDirectory() as tmp:
+        latencies, misses, cycles = run(Path(tmp))
+    ms = sorted(1e3 * x for x in latencies)
+    print(f"placement confirmed -> stored -> next screen: median {statistics.median(ms):.0f} ms, "
+          f"max {ms[-1]:.0f} ms over {len(ms)} placements (goal < 150 ms)")
+    print(f"500 Hz deadline misses with both screens connected and a learner fitting: {misses} of "
+          f"{cycles} cycles = {100 * misses / max(cycles, 1):.2f} % (goal < 1 %)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,236 @@
+"""Driving `handover serve` in headless Chromium (the Debian package) with Python Playwright.
+
+The server runs as a real subprocess (real viser, real SQLite, real learner process); pages are real
+browser pages. Touch drags are real touch events sent through the DevTools protocol
+(``Input.dispatchTouchEvent``), the same path a finger on a tablet takes.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+from playwright.sync_api import Browser, Page, sync_playwright
+
+from session_store.models import QUESTIONS
+
+CHROMIUM = "/usr/bin/chromium"
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--autoplay-policy=no-user-gesture-required"]
+TOKEN = "test-token"
+#: The short protocol of tests/session_helpers.SHORT, as `handover serve --protocol` reads it.
+SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
+              "validation_batches = 1\n")
+TIMEOUT_MS = 60_000
+
+
+SCREENS = {"place": "Handover", "wait": "Please wait", "rate": "Compared with",
+           "done": "Thank you", "go": "Go!",
+           **{q.id: q.text[:30] for q in QUESTIONS}}
+
+
+def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0) -> str:
+    """Wait until the tablet shows a known screen other than ``not_``; return its name."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        text = page.inner_text("body")
+        for name, marker in SCREENS.items():
+            if marker in text and name != not_:
+                return name
+        time.sleep(0.02)
+    raise AssertionError(f"tablet shows no known screen: {page.inner_text('body')[:300]}")
+
+
+def run_trial(dashboard: Page, tablet: Page) -> str:
+    """Start trial on the dashboard; the tablet shows "Go!", then the screen after the trial."""
+    click(dashboard, "Start trial")
+    assert tablet_screen(tablet, not_="wait") == "go"
+    return tablet_screen(tablet, not_="go")
+
+
+def confirm_placement(tablet: Page) -> float:
+    """Tap Confirm on the scale; seconds until the tablet shows the next screen (the engine has
+    stored the placement before it publishes the next state)."""
+    began = time.perf_counter()
+    tap(tablet, "Confirm")
+    tablet.wait_for_function("() => !document.querySelector('.hl-scale')", polling="raf")
+    return time.perf_counter() - began
+
+
+def open_participant(dashboard: Page, code: str) -> None:
+    unlock_dashboard(dashboard)
+    fill(dashboard, "Code", code)
+    click(dashboard, "Create or resume")
+    wait_text(dashboard, "handovers completed")
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+@dataclass
+class Served:
+    process: subprocess.Popen
+    tablet_url: str
+    dashboard_url: str
+    study: Path
+    log: Path
+
+    def shutdown(self, timeout: float = 30.0) -> str:
+        """Ctrl-C, as the experimenter would; returns the server's output."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+            self.process.wait(timeout)
+        return self.log.read_text()
+
+
+@contextmanager
+def serve(tmp: Path, *extra: str, rate: int = 125) -> Iterator[Served]:
+    """`handover serve` on two free loopback ports with the short protocol (125 Hz for speed)."""
+    protocol = tmp / "short.toml"
+    protocol.write_text(SHORT_TOML)
+    study, log = tmp / "study", tmp / "serve.log"
+    tablet, dashboard = free_port(), free_port()
+    command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study), "--rate", str(rate),
+               "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
+               "--protocol", str(protocol), "--token", TOKEN, *extra]
+    with log.open("w") as out:
+        process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
+                                   env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    served = Served(process, f"http://127.0.0.1:{tablet}", f"http://127.0.0.1:{dashboard}",
+                    study, log)
+    try:
+        deadline = time.monotonic() + 60
+        while "dashboard token" not in log.read_text():
+            assert process.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, "server did not start"
+            time.sleep(0.1)
+        yield served
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+@contextmanager
+def chromium() -> Iterator[Browser]:
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+def open_page(browser: Browser, url: str, touch: bool = False,
+              size: tuple[int, int] = (1024, 768)) -> Page:
+    context = browser.new_context(viewport={"width": size[0], "height": size[1]},
+                                  has_touch=touch, is_mobile=False)
+    # Hide viser's "Software WebGL rendering detected" notice of headless Chromium (screenshots).
+    context.add_init_script("document.addEventListener('DOMContentLoaded', () => {"
+                            "const s = document.createElement('style');"
+                            "s.textContent = '.mantine-Notification-root{display:none!important}';"
+                            "document.head.appendChild(s); });")
+    page = context.new_page()
+    page.set_default_timeout(TIMEOUT_MS)
+    page.goto(url)
+    wait_ready(page)
+    return page
+
+
+def open_screens(browser: Browser, served: Served) -> tuple[Page, Page]:
+    """The dashboard on a laptop-sized window (mouse) and the tablet (touch), both ready."""
+    return (open_page(browser, served.dashboard_url, size=(1400, 900)),
+            open_page(browser, served.tablet_url, touch=True))
+
+
+def wait_ready(page: Page) -> None:
+    page.wait_for_function("() => document.body && document.body.innerText.length > 0 && "
+                           "!document.body.innerText.includes('Connecting')")
+
+
+def reload(page: Page) -> None:
+    page.reload()
+    wait_ready(page)
+
+
+def wait_text(page: Page, text: str) -> None:
+    page.get_by_text(text, exact=False).first.wait_for(state="visible")
+
+
+def button(page: Page, name: str):
+    return page.get_by_role("button", name=re.compile(f"^{re.escape(name)}$"))
+
+
+def click(page: Page, name: str) -> None:
+    button(page, name).click()  # waits until it is visible and enabled
+
+
+def tap(page: Page, name: str) -> None:
+    """A finger tap on a button (touch events, not mouse)."""
+    target = button(page, name)
+    target.wait_for(state="visible")
+    box = target.bounding_box()
+    page.touchscreen.tap(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+
+
+def fill(page: Page, label: str, value: str) -> None:
+    """Type into the text field labelled ``label`` (viser's labels are not <label> elements)."""
+    page.locator(f"xpath=//*[normalize-space(text())='{label}']/following::input[1]").fill(value)
+
+
+def unlock_dashboard(page: Page) -> None:
+    fill(page, "Token", TOKEN)
+    click(page, "Unlock")
+    wait_text(page, "Participant")
+
+
+def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:
+    """Drag the scale's handle (the slider thumb) with one finger to ``fraction`` of the track."""
+    track = page.locator(".mantine-Slider-track").first.bounding_box()
+    thumb = page.locator(".mantine-Slider-thumb").first.bounding_box()
+    y = thumb["y"] + thumb["height"] / 2
+    x0 = thumb["x"] + thumb["width"] / 2
+    x1 = track["x"] + fraction * track["width"]
+    cdp = page.context.new_cdp_session(page)
+
+    def touch(kind: str, x: float) -> None:
+        points = [] if kind == "touchEnd" else [{"x": x, "y": y, "id": 1}]
+        cdp.send("Input.dispatchTouchEvent", {"type": kind, "touchPoints": points})
+
+    touch("touchStart", x0)
+    for i in range(1, steps + 1):
+        touch("touchMove", x0 + (x1 - x0) * i / steps)
+        time.sleep(0.01)
+    touch("touchEnd", x1)
+    cdp.detach()
+    # The server redraws the newest marker where it received the handle: wait until it has.
+    page.wait_for_function(
+        "() => { const m = document.querySelector('.hl-new'); const t = document.querySelector("
+        "'.mantine-Slider-thumb'); return m && t && Math.abs(parseFloat(m.style.left) - "
+        "100 * parseFloat(t.getAttribute('aria-valuenow'))) < 0.05 || "
+        "document.body.innerText.includes('Same as'); }")
+
+
+def scale_value(page: Page) -> float:
+    """The handle's position 0…1 as the slider reports it (aria-valuenow)."""
+    return float(page.locator(".mantine-Slider-thumb").first.get_attribute("aria-valuenow"))
+
+
+def shot(page: Page, folder: Path, name: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.png"
+    page.screenshot(path=str(path))
+    return path
