@@ -109,14 +109,8 @@ class PreferenceLearner:
         """
         if not self.data.points:
             return None
-        index = self.model.best_index(self.data)
-        mean = None
-        if index is None:
-            index = 0
-        else:
-            X, _ = self.data.tensors()
-            with torch.no_grad():
-                mean = float(self.model.model.posterior(X[index:index + 1]).mean)  # type: ignore[union-attr]
+        best = self.model.best(self.data)
+        index, mean = best if best is not None else (0, None)
         return BestPoint(theta=self.config.box.from_unit(self.data.points[index]),
                          interaction_ids=self.data.interactions_at(index), utility_mean=mean)
 
@@ -151,15 +145,15 @@ class PreferenceLearner:
 
     def _query(self, slot: Slot) -> torch.Tensor:
         acquisition = self.config.acquisition
-        model = self.model.model
-        if acquisition is AcquisitionName.SOBOL or model is None:
-            if model is None:
+        if acquisition is AcquisitionName.SOBOL or self.model.model is None:
+            if self.model.model is None:
                 logger.info("no preference model yet (no comparisons): Sobol point for slot %d",
                             slot.index)
             return self._sobol(slot)
         if self.model.needs_fit(self.data):
             self._update(fit_hyperparameters=True)
-        best_x = torch.tensor(self.data.points[self.model.best_index(self.data)],  # type: ignore[index]
-                              dtype=torch.float64)
+        model = self.model.model  # after the fit above, if one was due
+        index, _ = self.model.best(self.data)  # type: ignore[misc]  # a model exists here
+        best_x = torch.tensor(self.data.points[index], dtype=torch.float64)
         return propose(acquisition, model, best_x, self.config.optimizer,
                        derive_seed(self.config.seed, slot.index, 2))

@@ -12,9 +12,11 @@ from botorch.fit import fit_gpytorch_mll
 from botorch.optim.fit import fit_gpytorch_mll_scipy
 
 from app.learning import preference_model
+from app.learning.acquisition import propose
 from app.learning.errors import UnknownInteractionError
 from app.learning.learner import PreferenceLearner
 from app.learning.models import Comparison, Interaction, SlotKind
+from app.learning.rng import derive_seed
 
 from .conftest import drive
 
@@ -130,3 +132,20 @@ def test_snapshot_round_trip_restores_the_same_best_point(make_learner):
     assert restored.data.comparisons == learner.data.comparisons
     assert restored.best().theta == learner.best().theta
     assert restored.next_slot() == learner.next_slot()
+
+
+def test_lazy_fit_queries_use_the_model_fitted_just_before(make_learner):
+    learner = make_learner("qnei")
+    lazy = learner.config.model_copy(update={"model": learner.config.model.model_copy(
+        update={"lazy_fit": True})})
+    learner = PreferenceLearner(lazy)
+    drive(learner, 6)  # initial batch, θ*, one query: its comparisons are not fitted yet
+    assert learner.model.needs_fit(learner.data)
+    suggestion = learner.suggest()
+    assert suggestion.slot.kind is SlotKind.QUERY and suggestion.fit.hyperparameters_fitted
+    assert not learner.model.needs_fit(learner.data)
+    index, _ = learner.model.best(learner.data)
+    expected = propose(lazy.acquisition, learner.model.model,
+                       torch.tensor(learner.data.points[index], dtype=torch.float64),
+                       lazy.optimizer, derive_seed(lazy.seed, suggestion.slot.index, 2))
+    assert learner.config.box.to_unit(suggestion.theta) == pytest.approx(expected.tolist())
