@@ -144,15 +144,17 @@ class PreferenceLearner:
         return sobol_points(self.config.box.dim, self.config.seed, slot.index, 1)[0]
 
     def _query(self, slot: Slot) -> torch.Tensor:
-        acquisition = self.config.acquisition
-        if acquisition is AcquisitionName.SOBOL or self.model.model is None:
-            if self.model.model is None:
-                logger.info("no preference model yet (no comparisons): Sobol point for slot %d",
-                            slot.index)
-            return self._sobol(slot)
+        # A due hyperparameter fit happens here for every acquisition, Sobol included: θ* of the
+        # baseline must come from a model fitted as often as the learning conditions' models.
         if self.model.needs_fit(self.data):
             self._update(fit_hyperparameters=True)
         model = self.model.model  # after the fit above, if one was due
+        acquisition = self.config.acquisition
+        if acquisition is AcquisitionName.SOBOL or model is None:
+            if model is None:
+                logger.info("no preference model yet (no comparisons): Sobol point for slot %d",
+                            slot.index)
+            return self._sobol(slot)
         index, _ = self.model.best(self.data)  # type: ignore[misc]  # a model exists here
         best_x = torch.tensor(self.data.points[index], dtype=torch.float64)
         return propose(acquisition, model, best_x, self.config.optimizer,

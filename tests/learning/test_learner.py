@@ -134,11 +134,24 @@ def test_snapshot_round_trip_restores_the_same_best_point(make_learner):
     assert restored.next_slot() == learner.next_slot()
 
 
+def lazy_learner(make_learner, acquisition: str) -> PreferenceLearner:
+    config = make_learner(acquisition).config
+    return PreferenceLearner(config.model_copy(update={"model": config.model.model_copy(
+        update={"lazy_fit": True})}))
+
+
+def test_lazy_fit_refits_before_a_sobol_query_too(make_learner):
+    learner = lazy_learner(make_learner, "sobol")
+    drive(learner, 6)
+    assert learner.model.needs_fit(learner.data)
+    suggestion = learner.suggest()
+    assert suggestion.slot.kind is SlotKind.QUERY and suggestion.fit.hyperparameters_fitted
+    assert not learner.model.needs_fit(learner.data)
+
+
 def test_lazy_fit_queries_use_the_model_fitted_just_before(make_learner):
-    learner = make_learner("qnei")
-    lazy = learner.config.model_copy(update={"model": learner.config.model.model_copy(
-        update={"lazy_fit": True})})
-    learner = PreferenceLearner(lazy)
+    learner = lazy_learner(make_learner, "qnei")
+    lazy = learner.config
     drive(learner, 6)  # initial batch, θ*, one query: its comparisons are not fitted yet
     assert learner.model.needs_fit(learner.data)
     suggestion = learner.suggest()
