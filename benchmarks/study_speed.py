@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import torch
+from scipy import stats
 
 from app.learning.cli import PAPER_CONDITIONS
 from app.learning.config import AcquisitionName, ModelConfig, OptimizerConfig
@@ -63,13 +64,20 @@ def main() -> None:
     baseline = ours.model_copy(update={"model": BASELINE_MODEL, "optimizer": BASELINE_OPTIMIZER})
     print(f"condition {ours.name}, {args.trials} trials, seed {args.seed}, torch single-threaded")
     run_trial(ours, args.seed, 10**6)  # warm-up: the first fit in a process is slow
-    base_median, base_line = describe("baseline (tutorial defaults)",
-                                      timed_trials(baseline, args.seed, args.trials))
-    our_median, our_line = describe("this implementation, 1 process",
-                                    timed_trials(ours, args.seed, args.trials))
+    base_results = timed_trials(baseline, args.seed, args.trials)
+    our_results = timed_trials(ours, args.seed, args.trials)
+    base_median, base_line = describe("baseline (tutorial defaults)", base_results)
+    our_median, our_line = describe("this implementation, 1 process", our_results)
     print(base_line)
     print(our_line)
     print(f"{'speed-up, 1 process':>34}: {base_median / our_median:.2f}x")
+    # same targets and noise per trial: the paired difference is the sharper comparison
+    diffs = [o.distances[-1] - b.distances[-1]
+             for o, b in zip(our_results, base_results, strict=True)]
+    half = stats.t.ppf(0.975, len(diffs) - 1) * statistics.stdev(diffs) / len(diffs) ** 0.5
+    mean = statistics.fmean(diffs)
+    print(f"{'final distance, ours - baseline':>34}: {mean:+.3f} [{mean - half:+.3f}, "
+          f"{mean + half:+.3f}] (paired, 95 % CI)")
     with tempfile.TemporaryDirectory() as out:
         start = time.monotonic()
         run_condition(ours, trials=args.trials, seed=args.seed, jobs=args.jobs, out=Path(out),
