@@ -7,7 +7,7 @@ from pydantic import ValidationError
 
 from app.learning.errors import ParameterBoxError
 from app.learning.models import ParameterBox, SlotKind
-from app.learning.planner import BatchSchedule
+from app.learning.planner import PAPER_SESSION_SCHEDULE, BatchSchedule
 
 #: Table I's box, written out here: app.learning must not import robot_io.
 TABLE_I = {"a": (1.0, 10.0), "delta": (-1.0, 1.0), "k": (0.01, 15.0)}
@@ -53,7 +53,8 @@ def test_simulation_schedule_has_25_unique_points(q, interactions):
 
 
 def test_human_study_schedule_is_5_random_then_4_batches_of_5():
-    schedule = BatchSchedule(n_initial=5, q=5, n_unique=21)
+    schedule = PAPER_SESSION_SCHEDULE
+    assert schedule.n_initial == 5 and schedule.q == 5
     assert schedule.n_batches == 4
     assert schedule.n_interactions == 25
 
