@@ -17,16 +17,20 @@ def draw_figure3(results: Sequence[tuple[ConditionSummary, list[InteractionSumma
                  path: Path) -> Path:
     """Draw both panels of Fig. 3 for ``results`` (one entry per condition) to the PNG ``path``."""
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 7.0), sharex=True)
+    methods = sorted({(s.acquisition, s.q) for s, _ in results})
+    colours = dict(zip(methods, plt.get_cmap("tab10").colors, strict=False))
     for summary, rows in results:
         x = [r.interaction for r in rows]
         mean = [r.mean_distance for r in rows]
         err = [[r.mean_distance - r.ci_low for r in rows],
                [r.ci_high - r.mean_distance for r in rows]]
-        style = "--" if summary.acquisition == "sobol" else "-"
-        line = top.errorbar(x, mean, yerr=err, capsize=2, linestyle=style, linewidth=1.2,
-                            elinewidth=0.8, label=f"{summary.condition} (N={summary.trials})")
+        # one colour per method, solid without noise, dashed with; the baseline dotted
+        style = ":" if summary.acquisition == "sobol" else "-" if summary.noise == 0 else "--"
+        colour = colours[(summary.acquisition, summary.q)]
+        top.errorbar(x, mean, yerr=err, capsize=2, linestyle=style, linewidth=1.2, color=colour,
+                     elinewidth=0.8, label=f"{summary.condition} (N={summary.trials})")
         bottom.plot(x, [r.success_rate for r in rows], linestyle=style, linewidth=1.2,
-                    color=line.lines[0].get_color())
+                    color=colour)
     top.set_ylabel("mean distance to target u(θ*)")
     top.set_title("Simulated task (Sect. IV): mean distance, 95 % CI")
     top.legend(fontsize=8, ncol=2)

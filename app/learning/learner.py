@@ -114,14 +114,8 @@ class PreferenceLearner:
         """
         if not self.data.points:
             return None
-        index = self.model.best_index(self.data)
-        mean = None
-        if index is None:
-            index = 0
-        else:
-            X, _ = self.data.tensors()
-            with torch.no_grad():
-                mean = float(self.model.model.posterior(X[index:index + 1]).mean)  # type: ignore[union-attr]
+        best = self.model.best(self.data)
+        index, mean = best if best is not None else (0, None)
         return BestPoint(theta=self.config.box.from_unit(self.data.points[index]),
                          interaction_ids=self.data.interactions_at(index), utility_mean=mean)
 
@@ -158,16 +152,18 @@ class PreferenceLearner:
         return sobol_points(self.config.box.dim, self.config.seed, slot.index, 1)[0]
 
     def _query(self, slot: Slot) -> torch.Tensor:
+        # A due hyperparameter fit happens here for every acquisition, Sobol included: θ* of the
+        # baseline must come from a model fitted as often as the learning conditions' models.
+        if self.model.needs_fit(self.data):
+            self._update(fit_hyperparameters=True)
+        model = self.model.model  # after the fit above, if one was due
         acquisition = self.config.acquisition
-        model = self.model.model
         if acquisition is AcquisitionName.SOBOL or model is None:
             if model is None:
                 logger.info("no preference model yet (no comparisons): Sobol point for slot %d",
                             slot.index)
             return self._sobol(slot)
-        if self.model.needs_fit(self.data):
-            self._update(fit_hyperparameters=True)
-        best_x = torch.tensor(self.data.points[self.model.best_index(self.data)],  # type: ignore[index]
-                              dtype=torch.float64)
+        index, _ = self.model.best(self.data)  # type: ignore[misc]  # a model exists here
+        best_x = torch.tensor(self.data.points[index], dtype=torch.float64)
         return propose(acquisition, model, best_x, self.config.optimizer,
                        derive_seed(self.config.seed, slot.index, 2))

@@ -67,3 +67,7 @@ class BatchSchedule(BaseModel):
     def slots(self) -> list[Slot]:
         """All slots of the schedule, in order."""
         return [self.slot(i) for i in range(self.n_interactions)]
+
+
+#: Sect. V-C: 5 random interactions, then 4 learning batches of 5 (θ* + 4 queries).
+PAPER_SESSION_SCHEDULE = BatchSchedule(n_initial=5, q=5, n_unique=21)

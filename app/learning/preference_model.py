@@ -174,13 +174,15 @@ class PreferenceModel:
         with seeded(derive_seed(len(data.points), len(data.comparisons))):
             return fit_model(data, self.config, hyperparameters, optimize=False)
 
-    def best_index(self, data: PreferenceData) -> int | None:
-        """θ*: index of the observed point with the largest posterior mean (None without a model).
+    def best(self, data: PreferenceData) -> tuple[int, float] | None:
+        """θ*: index and posterior mean of the observed point with the largest posterior mean.
 
-        The previous model (after a failed fit) may not know the newest points, so the posterior
-        is evaluated at all of ``data``'s points, which any fitted model can predict.
+        None without a model. The previous model (after a failed fit) may not know the newest
+        points, so the posterior is evaluated at all of ``data``'s points, which any model can.
         """
         if self.model is None or not data.points:
             return None
         X, _ = data.tensors()
-        return int(posterior_mean(self.model, X).argmax())
+        mean = posterior_mean(self.model, X)
+        index = int(mean.argmax())
+        return index, float(mean[index])

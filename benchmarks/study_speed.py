@@ -1,0 +1,101 @@
+"""Seconds per simulated trial (Sect. IV): this implementation vs BoTorch's tutorial defaults.
+
+The baseline follows BoTorch's preference-BO tutorial: hyperparameters refitted from scratch after
+every interaction, ``optimize_acqf(num_restarts=10, raw_samples=512)``, 512 MC samples (qNEI's
+default sampler). The study configuration: warm-started fits, done only before a query (the
+posterior is updated with fixed hyperparameters after the other interactions), fewer restarts and
+raw samples, and trials in parallel processes. Both run the same trials (same targets, same noise)
+in this run, so the final distances are comparable side by side.
+
+Prints medians, the ratio to the baseline, and the projected time of the full paper study
+(six conditions × 500 trials) on this machine from per-condition timings.
+
+Usage: ``.venv/bin/python benchmarks/study_speed.py [--trials 12] [--jobs 2]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import torch
+from scipy import stats
+
+from app.learning.cli import PAPER_CONDITIONS
+from app.learning.config import AcquisitionName, ModelConfig, OptimizerConfig
+from app.learning.simulation import StudyCondition, TrialResult, run_trial
+from app.learning.study import run_condition, summarise
+
+BASELINE_MODEL = ModelConfig(warm_start=False, lazy_fit=False)
+BASELINE_OPTIMIZER = OptimizerConfig(num_restarts=10, raw_samples=512, mc_samples=512)
+
+
+def timed_trials(condition: StudyCondition, seed: int, trials: int) -> list[TrialResult]:
+    return [run_trial(condition, seed, t) for t in range(trials)]
+
+
+def describe(label: str, results: list[TrialResult]) -> tuple[float, str]:
+    seconds = sorted(r.seconds for r in results)
+    final = summarise(results)[-1]
+    median = statistics.median(seconds)
+    return median, (f"{label:>34}: median {median:6.2f} s/trial (p90 "
+                    f"{seconds[int(0.9 * (len(seconds) - 1))]:.2f}), final mean distance "
+                    f"{final.mean_distance:.3f} [{final.ci_low:.3f}, {final.ci_high:.3f}], "
+                    f"success {final.success_rate:.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--acq", default="qnei", choices=[a.value for a in AcquisitionName])
+    parser.add_argument("--q", type=int, default=5)
+    parser.add_argument("--noise", type=float, default=0.05)
+    parser.add_argument("--trials", type=int, default=12)
+    parser.add_argument("--seed", type=int, default=2024)
+    parser.add_argument("--jobs", type=int, default=2, help="processes for the parallel run")
+    parser.add_argument("--project-trials", type=int, default=3,
+                        help="trials per paper condition timed for the projection")
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+
+    ours = StudyCondition(acquisition=args.acq, q=args.q, noise=args.noise)
+    baseline = ours.model_copy(update={"model": BASELINE_MODEL, "optimizer": BASELINE_OPTIMIZER})
+    print(f"condition {ours.name}, {args.trials} trials, seed {args.seed}, torch single-threaded")
+    run_trial(ours, args.seed, 10**6)  # warm-up: the first fit in a process is slow
+    base_results = timed_trials(baseline, args.seed, args.trials)
+    our_results = timed_trials(ours, args.seed, args.trials)
+    base_median, base_line = describe("baseline (tutorial defaults)", base_results)
+    our_median, our_line = describe("this implementation, 1 process", our_results)
+    print(base_line)
+    print(our_line)
+    print(f"{'speed-up, 1 process':>34}: {base_median / our_median:.2f}x")
+    # same targets and noise per trial: the paired difference is the sharper comparison
+    diffs = [o.distances[-1] - b.distances[-1]
+             for o, b in zip(our_results, base_results, strict=True)]
+    half = stats.t.ppf(0.975, len(diffs) - 1) * statistics.stdev(diffs) / len(diffs) ** 0.5
+    mean = statistics.fmean(diffs)
+    print(f"{'final distance, ours - baseline':>34}: {mean:+.3f} [{mean - half:+.3f}, "
+          f"{mean + half:+.3f}] (paired, 95 % CI)")
+    with tempfile.TemporaryDirectory() as out:
+        start = time.monotonic()
+        run_condition(ours, trials=args.trials, seed=args.seed, jobs=args.jobs, out=Path(out),
+                      progress=False)
+        wall = (time.monotonic() - start) / args.trials
+    print(f"{f'this implementation, --jobs {args.jobs}':>34}: {wall:6.2f} s/trial wall clock "
+          f"(pool start-up included) -> {base_median / wall:.2f}x the baseline")
+
+    total = 0.0
+    for acq, q, noise in PAPER_CONDITIONS[:6]:
+        condition = StudyCondition(acquisition=acq, q=q, noise=noise)
+        median = statistics.median(r.seconds for r in timed_trials(condition, args.seed + 1,
+                                                                   args.project_trials))
+        total += 500 * median
+        print(f"{condition.name:>34}: median {median:.2f} s/trial")
+    print(f"projected full study (6 conditions x 500 trials): {total / 3600:.2f} h in 1 process, "
+          f"{total / 3600 / args.jobs:.2f} h with --jobs {args.jobs}")
+
+
+if __name__ == "__main__":
+    main()
