@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: install demo test lint bench clean
+.PHONY: install demo test chromium bench clean
 
 install: $(VENV)/.installed
 
@@ -17,9 +17,17 @@ $(VENV)/.installed: pyproject.toml
 	touch $@
 
 demo: install
-	$(BIN)/handover simulate-trial --scenario perturbed --theta 5,-0.2,15 --seed 1 --plot handover.png
+	$(BIN)/handover serve --study ./study
 
-test: install
+# The browser tests drive Debian's Chromium through Playwright (which cannot download its own
+# browsers here); installed once with apt-get when missing.
+chromium:
+	@if [ ! -x /usr/bin/chromium ]; then \
+		export DEBIAN_FRONTEND=noninteractive; \
+		apt-get update -qq >/dev/null && apt-get install -y -qq chromium >/dev/null; \
+	fi
+
+test: install chromium
 	$(BIN)/ruff check .
 	$(BIN)/pytest
 
