@@ -1,4 +1,5 @@
-"""``handover simulate-trial``: one handover of the simulated hand with the mock arm."""
+"""``handover simulate-trial`` (one handover of the simulated hand with the mock arm or a UR) and
+``handover check-devices``."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
+
+import numpy as np
 
 from robot_io.config import load_config
 from robot_io.errors import explain
@@ -53,19 +56,66 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", type=Path, metavar="FILE.png",
                         help="write the Fig. 4 style distance plot")
+    parser.add_argument("--arm", choices=("mock", "ur"), default="mock",
+                        help="mock: the kinematic mock arm; ur: a UR over RTDE (real time, moves it!)")
+    parser.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
+    parser.add_argument("--samples", type=Path, metavar="FILE.npz", help="write the per-cycle samples")
     parser.set_defaults(func=run)
+
+    check = subparsers.add_parser(
+        "check-devices", help="connect to the configured arm, hand source and gripper; move nothing",
+        description="Connect to the configured UR arm, hand source and gripper and report versions, "
+                    "rates and faults in plain words. Nothing moves and no output is switched.")
+    check.add_argument("--config", type=Path, help="TOML configuration file")
+    check.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
+    check.set_defaults(func=run_check_devices)
+
+
+def _with_host(config, host: str | None):
+    if host is None:
+        return config
+    return config.model_copy(update={"ur": config.ur.model_copy(update={"host": host})})
+
+
+def run_check_devices(args: argparse.Namespace) -> int:
+    from robot_io.devices import check_devices
+
+    lines, ok = check_devices(_with_host(load_config(args.config), args.ur_host))
+    print("\n".join(lines))
+    return 0 if ok else 1
+
+
+def _run_on_ur(config, args: argparse.Namespace):
+    from robot_io.devices import ur_trial
+    from robot_io.simulated_hand import SimulatedHand
+    from robot_io.ur_arm import URArm
+
+    arm = URArm(config.ur, config.safety)
+    try:
+        if args.rate is not None and args.rate != arm.rate_hz:
+            raise ValueError(f"--rate = {args.rate} but the controller at {config.ur.host} runs at "
+                             f"{arm.rate_hz} Hz")
+        hand = SimulatedHand(args.scenario, config.scene, config.hand, args.seed)
+        return ur_trial(config, args.theta, hand, arm)
+    finally:
+        arm.close()
 
 
 def run(args: argparse.Namespace) -> int:
     from robot_io.plot import plot_trial
     from robot_io.trial import simulate_trial
 
-    config = load_config(args.config)
+    config = _with_host(load_config(args.config), args.ur_host)
     if args.rate is not None:
         config = config.model_copy(
             update={"loop": config.loop.model_copy(update={"rate_hz": args.rate})})
-    record = simulate_trial(config, args.theta, args.scenario, args.seed, realtime=args.realtime)
+    if args.arm == "ur":
+        record = _run_on_ur(config, args)
+    else:
+        record = simulate_trial(config, args.theta, args.scenario, args.seed, realtime=args.realtime)
     summary = record.summary
+    if args.samples:
+        np.savez(args.samples, **record.samples)
     if args.plot:
         theta = args.theta
         plot_trial(record.samples, config.scene.point("handover_point"), args.plot,
