@@ -246,8 +246,10 @@ class URArm:
                            f"{self.limits.max_acceleration} m/s²); not sent")
 
     def stop(self) -> None:
-        """servoStop and end the control script (it is re-uploaded before the next motion).
-        Never raises."""
+        """servoStop and end the control script (it is re-uploaded before the next motion), when
+        streaming or after a fault met while streaming. Never raises."""
+        if self._state not in (ArmState.STREAMING, ArmState.FAULT):
+            return
         if self._state is ArmState.STREAMING:
             self._state = ArmState.STOPPING
         try:

@@ -2,7 +2,7 @@
 
 Enough of it for ur_rtde's ``DashboardClient`` and ``RTDEControlInterface``: robotmode, safetymode,
 safetystatus, unlock protective stop (refused within 5 s of the stop), close (safety) popup, play,
-stop, pause, running, programState, PolyscopeVersion, is in remote control, get robot model,
+stop, pause, running, programState, PolyscopeVersion, is in remote control, get robot model, get serial number,
 power on/off, brake release, addToLog, quit.
 """
 
@@ -35,6 +35,7 @@ def reply(controller: Controller, command: str) -> str:
             "polyscopeversion": POLYSCOPE[controller.series],
             "is in remote control": "true",
             "get robot model": "UR5",
+            "get serial number": "20185500001",
             "close popup": "closing popup",
             "close safety popup": "closing safety popup",
             "power on": "Powering on",

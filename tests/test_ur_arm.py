@@ -1,0 +1,179 @@
+"""The UR backend with ur_rtde's real client against the stand-in controller (one address per test).
+
+What the controller received is read back from the stand-in and asserted on.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from ur_helpers import MOVEL, SERVO_STOP, SERVOL, SET_WATCHDOG, STOP_SCRIPT, commands, servo_targets, standin
+
+from robot_io.arm import ArmState
+from robot_io.config import ControllerConfig
+from robot_io.devices import ur_trial
+from robot_io.errors import ArmFault
+from robot_io.loop import Outcome
+from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.theta import Theta
+from robot_io.ur_arm import URArm
+
+THETA = Theta(a=5.0, delta=-0.2, k=1.0)
+STEP = np.array([0.0002, 0.0, 0.0])
+
+
+def ur_config(host: str) -> ControllerConfig:
+    config = ControllerConfig()
+    return config.model_copy(update={"ur": config.ur.model_copy(update={"host": host})})
+
+
+def hand(config: ControllerConfig, seed: int = 0) -> SimulatedHand:
+    return SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, seed)
+
+
+@pytest.mark.slow
+def test_full_handover_from_the_cli_targets_follow_the_dmp_within_1mm(tmp_path):
+    host = "127.0.0.101"
+    samples = tmp_path / "samples.npz"
+    with standin(host) as control:
+        run = subprocess.run(
+            [sys.executable, "-m", "app.cli", "simulate-trial", "--arm", "ur", "--ur-host", host,
+             "--scenario", "perturbed", "--theta", "5,-0.2,15", "--seed", "2", "--json",
+             "--samples", str(samples)],
+            capture_output=True, text=True, timeout=120)
+        assert run.returncode == 0, run.stderr
+        summary = json.loads(run.stdout)
+        received = servo_targets(control)
+        sequence = commands(control)
+        state = control("state")
+    assert summary["outcome"] == "completed" and summary["rate_hz"] == 125
+    data = np.load(samples)
+    dmp_path = data["x"][np.isfinite(data["commanded"][:, 0])]
+    sent = np.array([xyz for _, xyz in received])
+    assert len(sent) == len(dmp_path) > 100
+    assert np.max(np.linalg.norm(sent - dmp_path, axis=1)) < 1e-3
+    # the protocol around the stream: moveL to the start, watchdog, servoL…, servoStop, stop script
+    assert sequence[:2] == [MOVEL, SET_WATCHDOG] and sequence[-2:] == [SERVO_STOP, STOP_SCRIPT]
+    assert set(sequence[2:-2]) == {SERVOL}
+    assert np.linalg.norm(np.array(state["pose"][:3]) - dmp_path[-1]) < 0.01
+
+
+def run_with_fault(arm: URArm, config: ControllerConfig, inject, after_s: float):
+    """A trial on a worker thread; ``inject()`` ``after_s`` into it; returns (record, injected_at)."""
+    injected = {}
+
+    def later() -> None:
+        time.sleep(after_s)
+        injected["at"] = time.monotonic()
+        inject()
+
+    timer = threading.Thread(target=later)
+    timer.start()
+    record = ur_trial(config, THETA, hand(config), arm)
+    timer.join()
+    return record, injected["at"]
+
+
+@pytest.mark.slow
+def test_protective_stop_aborts_the_trial_stops_streaming_and_recovers_for_the_next():
+    host = "127.0.0.102"
+    config = ur_config(host)
+    with standin(host) as control:
+        arm = URArm(config.ur, config.safety)
+        try:
+            record, at = run_with_fault(arm, config, lambda: control("protective_stop"), 0.6)
+            assert record.summary.outcome is Outcome.ARM_FAULT
+            assert "protective stop" in record.summary.reason
+            late = [t for t, _ in servo_targets(control) if t > at + 0.05]
+            assert late == [], f"{len(late)} servo targets sent after the protective stop"
+            assert arm.state is ArmState.FAULT
+            with pytest.raises(ArmFault, match="protective stop"):
+                arm.move_to(config.scene.point("robot_start"))
+            began = time.monotonic()
+            arm.recover()
+            assert time.monotonic() - at >= 5.0 and time.monotonic() - began < 10.0
+            assert arm.state is ArmState.IDLE
+            second = ur_trial(config, THETA, hand(config, 1), arm)
+            assert second.summary.outcome is Outcome.COMPLETED, second.summary.reason
+            assert "protective stop unlocked" in control("state")["events"]
+        finally:
+            arm.close()
+
+
+@pytest.mark.slow
+def test_dropped_socket_mid_trial_aborts_and_a_reconnect_serves_the_next_trial():
+    host = "127.0.0.103"
+    config = ur_config(host)
+    with standin(host) as control:
+        arm = URArm(config.ur, config.safety)
+        try:
+            record, _ = run_with_fault(arm, config, lambda: control("drop_sockets"), 0.6)
+            assert record.summary.outcome is Outcome.ARM_FAULT
+            assert "lost the RTDE connection" in record.summary.reason
+            assert record.summary.duration_s < 0.6 + 0.2
+            arm.recover()
+            second = ur_trial(config, THETA, hand(config, 1), arm)
+            assert second.summary.outcome is Outcome.COMPLETED, second.summary.reason
+        finally:
+            arm.close()
+
+
+def test_a_target_outside_the_workspace_box_is_never_sent():
+    host = "127.0.0.104"
+    config = ur_config(host)
+    with standin(host) as control:
+        arm = URArm(config.ur, config.safety)
+        try:
+            arm.begin_stream()
+            start = arm.read_pose()
+            arm.command(start + STEP)  # a legal target: 0.025 m/s, 3.1 m/s² at 125 Hz
+            outside = start.copy()
+            outside[2] = config.safety.workspace_min[2] - 0.01
+            with pytest.raises(ArmFault, match="outside the workspace box"):
+                arm.command(outside)
+            assert arm.state is ArmState.FAULT
+            with pytest.raises(ArmFault):
+                arm.command(start)  # nothing more is sent after the fault
+            time.sleep(0.05)
+            sent = [xyz for _, xyz in servo_targets(control)]
+        finally:
+            arm.close()
+    assert len(sent) == 1 and sent[0] == pytest.approx(start + STEP)
+
+
+def test_a_target_beyond_the_speed_cap_is_refused_and_a_far_start_pose_is_not_moved_to():
+    host = "127.0.0.105"
+    config = ur_config(host)
+    with standin(host) as control:
+        arm = URArm(config.ur, config.safety)
+        try:
+            far = arm.read_pose() + np.array([0.0, 0.9, 0.0])
+            with pytest.raises(ArmFault, match="max_move_distance"):
+                arm.move_to(far)
+            arm.begin_stream()
+            with pytest.raises(ArmFault, match="m/s"):
+                arm.command(arm.read_pose() + np.array([0.05, 0.0, 0.0]))  # 6.25 m/s at 125 Hz
+            time.sleep(0.05)
+            assert MOVEL not in commands(control) and servo_targets(control) == []
+        finally:
+            arm.close()
+
+
+def test_check_devices_reports_versions_and_rate_and_moves_nothing(capsys):
+    from app.cli import main
+
+    host = "127.0.0.106"
+    with standin(host, series="e") as control:
+        code = main(["check-devices", "--ur-host", host])
+        out = capsys.readouterr().out
+        assert not {MOVEL, SERVOL, SET_WATCHDOG} & set(commands(control))
+        pose_after = control("state")["pose"]
+    assert code == 0, out
+    assert "PolyScope 5.11.1.108318" in out and "500 Hz" in out and "gripper: none" in out
+    assert pose_after[:3] == pytest.approx([0.35, -0.35, 0.35])
