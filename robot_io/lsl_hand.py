@@ -16,7 +16,7 @@ log = logging.getLogger(__name__)
 
 
 class LSLHand(TrackedHand):
-    """Resolves the stream by type (and name), then pulls chunks in a thread."""
+    """Resolves the stream by type (and name), then pulls samples in a thread."""
 
     def __init__(self, config: HandSourceConfig, transform: FrameTransform) -> None:
         super().__init__(transform)
@@ -41,10 +41,11 @@ class LSLHand(TrackedHand):
         self.start()
 
     def receive_once(self) -> None:
+        # One sample at a time: pull_chunk waits out its whole timeout, which would age every sample.
         # proc_clocksync maps the outlet's time stamps onto pylsl.local_clock(), which on Linux is
         # the monotonic clock that time.monotonic() reads.
-        chunk, stamps = self.inlet.pull_chunk(timeout=0.1)
-        for sample, stamp in zip(chunk, stamps, strict=True):
+        sample, stamp = self.inlet.pull_sample(timeout=0.1)
+        if sample is not None:
             self.put(stamp, [sample[c] for c in self.channels])
 
     def close(self) -> None:

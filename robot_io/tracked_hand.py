@@ -19,6 +19,7 @@ import time
 
 import numpy as np
 
+from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
 from robot_io.hand import HandSample
 
@@ -56,6 +57,14 @@ class TrackedHand:
         if newest is None:
             return None
         return HandSample(newest[0] - (time.monotonic() - now), newest[1])
+
+    def wait_for_sample(self, timeout: float) -> None:
+        """Block until the first sample (start a trial only once the tracker is live)."""
+        deadline = time.monotonic() + timeout
+        while self.age() is None:
+            if time.monotonic() > deadline:
+                raise HandSourceError(f"{type(self).__name__}: no sample within {timeout} s")
+            time.sleep(0.005)
 
     def age(self) -> float | None:
         """Seconds since the newest sample was measured; None before the first."""

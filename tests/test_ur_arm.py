@@ -6,6 +6,7 @@ What the controller received is read back from the stand-in and asserted on.
 from __future__ import annotations
 
 import json
+import socket
 import subprocess
 import sys
 import threading
@@ -13,15 +14,17 @@ import time
 
 import numpy as np
 import pytest
+from hand_replay import TRACKER, Replay
 from ur_helpers import MOVEL, SERVO_STOP, SERVOL, SET_WATCHDOG, STOP_SCRIPT, commands, servo_targets, standin
 
 from robot_io.arm import ArmState
 from robot_io.config import ControllerConfig
-from robot_io.devices import ur_trial
+from robot_io.devices import tracker_transform, ur_trial
 from robot_io.errors import ArmFault
 from robot_io.loop import Outcome
 from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
+from robot_io.udp_hand import UDPHand
 from robot_io.ur_arm import URArm
 
 THETA = Theta(a=5.0, delta=-0.2, k=1.0)
@@ -177,3 +180,42 @@ def test_check_devices_reports_versions_and_rate_and_moves_nothing(capsys):
     assert code == 0, out
     assert "PolyScope 5.11.1.108318" in out and "500 Hz" in out and "gripper: none" in out
     assert pose_after[:3] == pytest.approx([0.35, -0.35, 0.35])
+
+
+@pytest.mark.slow
+def test_a_stale_hand_source_stops_the_arm():
+    """The tracker (UDP/JSON at 100 Hz) goes silent mid-reach: the loop stops, servoL stops, the
+    controller is told servoStop."""
+    host = "127.0.0.108"
+    config = ur_config(host)
+    source = config.hand_source.model_copy(update={
+        "kind": "udp", "udp_host": host, "udp_port": 0, "units_to_m": TRACKER.units_to_m,
+        "rotation": tuple(map(tuple, TRACKER.rotation)), "translation": tuple(TRACKER.translation)})
+    config = config.model_copy(update={"hand_source": source})
+    with standin(host) as control:
+        arm = URArm(config.ur, config.safety)
+        tracker = UDPHand(config.hand_source, tracker_transform(config))
+        sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+        def send(xyz: np.ndarray) -> None:
+            sender.sendto(json.dumps(dict(zip("xyz", xyz.tolist(), strict=True))).encode(),
+                          tracker.address)
+
+        replay = Replay(hand(config), send, 100.0, stop_after=0.8).start()
+        try:
+            tracker.wait_for_sample(2.0)
+            record = ur_trial(config, THETA, tracker, arm)
+            silent_at = replay.began + 0.8
+        finally:
+            replay.stop()
+            tracker.close()
+            sender.close()
+            arm.close()
+        received = control("received")["received"]
+    assert record.summary.outcome is Outcome.TRACKER_LOST, record.summary.reason
+    servo_times = [t for t, command, _ in received if command == SERVOL]
+    stop_times = [t for t, command, _ in received if command == SERVO_STOP]
+    limit = config.loop.staleness_limit_s
+    assert servo_times[-1] < silent_at + limit + 0.05  # no target once the hand is stale
+    assert stop_times and stop_times[0] >= servo_times[-1]
+    assert stop_times[0] < silent_at + limit + 0.1
