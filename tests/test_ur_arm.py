@@ -5,17 +5,29 @@ What the controller received is read back from the stand-in and asserted on.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import socket
 import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
 from hand_replay import TRACKER, Replay
-from ur_helpers import MOVEL, SERVO_STOP, SERVOL, SET_WATCHDOG, STOP_SCRIPT, commands, servo_targets, standin
+from ur_helpers import (
+    MOVEL,
+    SERVO_STOP,
+    SERVOL,
+    SET_WATCHDOG,
+    STOP_SCRIPT,
+    commands,
+    servo_targets,
+    settled_servo_targets,
+    standin,
+)
 
 from robot_io.arm import ArmState
 from robot_io.config import ControllerConfig
@@ -26,6 +38,7 @@ from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
 from robot_io.udp_hand import UDPHand
 from robot_io.ur_arm import URArm
+from robot_io.ur_standin.control import ControlClient
 
 THETA = Theta(a=5.0, delta=-0.2, k=1.0)
 STEP = np.array([0.0002, 0.0, 0.0])
@@ -34,6 +47,18 @@ STEP = np.array([0.0002, 0.0, 0.0])
 def ur_config(host: str) -> ControllerConfig:
     config = ControllerConfig()
     return config.model_copy(update={"ur": config.ur.model_copy(update={"host": host})})
+
+
+@contextlib.contextmanager
+def connected_arm(host: str) -> Iterator[tuple[ControlClient, ControllerConfig, URArm]]:
+    """A stand-in on ``host`` and a URArm connected to it; both ended afterwards."""
+    config = ur_config(host)
+    with standin(host) as control:
+        arm = URArm(config.ur, config.safety)
+        try:
+            yield control, config, arm
+        finally:
+            arm.close()
 
 
 def hand(config: ControllerConfig, seed: int = 0) -> SimulatedHand:
@@ -67,105 +92,81 @@ def test_full_handover_from_the_cli_targets_follow_the_dmp_within_1mm(tmp_path):
     assert np.linalg.norm(np.array(state["pose"][:3]) - dmp_path[-1]) < 0.01
 
 
-def run_with_fault(arm: URArm, config: ControllerConfig, inject, after_s: float):
-    """A trial on a worker thread; ``inject()`` ``after_s`` into it; returns (record, injected_at)."""
+def aborted_by(control: ControlClient, config: ControllerConfig, arm: URArm, fault: str,
+               reason: str, after_s: float = 0.6):
+    """A trial with the stand-in fault ``fault`` injected ``after_s`` into it; asserts it ended as an
+    arm fault whose reason says ``reason``; returns (record, injected_at)."""
     injected = {}
 
     def later() -> None:
         time.sleep(after_s)
         injected["at"] = time.monotonic()
-        inject()
+        control(fault)
 
     timer = threading.Thread(target=later)
     timer.start()
     record = ur_trial(config, THETA, hand(config), arm)
     timer.join()
+    assert record.summary.outcome is Outcome.ARM_FAULT
+    assert reason in record.summary.reason
     return record, injected["at"]
+
+
+def assert_recovers_for_the_next_trial(config: ControllerConfig, arm: URArm) -> None:
+    arm.recover()
+    assert arm.state is ArmState.IDLE
+    second = ur_trial(config, THETA, hand(config, 1), arm)
+    assert second.summary.outcome is Outcome.COMPLETED, second.summary.reason
 
 
 @pytest.mark.slow
 def test_protective_stop_aborts_the_trial_stops_streaming_and_recovers_for_the_next():
-    host = "127.0.0.102"
-    config = ur_config(host)
-    with standin(host) as control:
-        arm = URArm(config.ur, config.safety)
-        try:
-            record, at = run_with_fault(arm, config, lambda: control("protective_stop"), 0.6)
-            assert record.summary.outcome is Outcome.ARM_FAULT
-            assert "protective stop" in record.summary.reason
-            late = [t for t, _ in servo_targets(control) if t > at + 0.05]
-            assert late == [], f"{len(late)} servo targets sent after the protective stop"
-            assert arm.state is ArmState.FAULT
-            with pytest.raises(ArmFault, match="protective stop"):
-                arm.move_to(config.scene.point("robot_start"))
-            began = time.monotonic()
-            arm.recover()
-            assert time.monotonic() - at >= 5.0 and time.monotonic() - began < 10.0
-            assert arm.state is ArmState.IDLE
-            second = ur_trial(config, THETA, hand(config, 1), arm)
-            assert second.summary.outcome is Outcome.COMPLETED, second.summary.reason
-            assert "protective stop unlocked" in control("state")["events"]
-        finally:
-            arm.close()
+    with connected_arm("127.0.0.102") as (control, config, arm):
+        _, at = aborted_by(control, config, arm, "protective_stop", "protective stop")
+        late = [t for t, _ in servo_targets(control) if t > at + 0.05]
+        assert late == [], f"{len(late)} servo targets sent after the protective stop"
+        assert arm.state is ArmState.FAULT
+        with pytest.raises(ArmFault, match="protective stop"):
+            arm.move_to(config.scene.point("robot_start"))
+        began = time.monotonic()
+        assert_recovers_for_the_next_trial(config, arm)
+        assert time.monotonic() - at >= 5.0 and time.monotonic() - began < 15.0
+        assert "protective stop unlocked" in control("state")["events"]
 
 
 @pytest.mark.slow
 def test_dropped_socket_mid_trial_aborts_and_a_reconnect_serves_the_next_trial():
-    host = "127.0.0.103"
-    config = ur_config(host)
-    with standin(host) as control:
-        arm = URArm(config.ur, config.safety)
-        try:
-            record, _ = run_with_fault(arm, config, lambda: control("drop_sockets"), 0.6)
-            assert record.summary.outcome is Outcome.ARM_FAULT
-            assert "lost the RTDE connection" in record.summary.reason
-            assert record.summary.duration_s < 0.6 + 0.2
-            arm.recover()
-            second = ur_trial(config, THETA, hand(config, 1), arm)
-            assert second.summary.outcome is Outcome.COMPLETED, second.summary.reason
-        finally:
-            arm.close()
+    with connected_arm("127.0.0.103") as (control, config, arm):
+        record, _ = aborted_by(control, config, arm, "drop_sockets", "lost the RTDE connection")
+        assert record.summary.duration_s < 0.6 + 0.2
+        assert_recovers_for_the_next_trial(config, arm)
 
 
 def test_a_target_outside_the_workspace_box_is_never_sent():
-    host = "127.0.0.104"
-    config = ur_config(host)
-    with standin(host) as control:
-        arm = URArm(config.ur, config.safety)
-        try:
-            arm.begin_stream()
-            start = arm.read_pose()
-            arm.command(start + STEP)  # a legal target: 0.025 m/s, 3.1 m/s² at 125 Hz
-            outside = start.copy()
-            outside[2] = config.safety.workspace_min[2] - 0.01
-            with pytest.raises(ArmFault, match="outside the workspace box"):
-                arm.command(outside)
-            assert arm.state is ArmState.FAULT
-            with pytest.raises(ArmFault):
-                arm.command(start)  # nothing more is sent after the fault
-            time.sleep(0.05)
-            sent = [xyz for _, xyz in servo_targets(control)]
-        finally:
-            arm.close()
+    with connected_arm("127.0.0.104") as (control, config, arm):
+        arm.begin_stream()
+        start = arm.read_pose()
+        arm.command(start + STEP)  # a legal target: 0.025 m/s, 3.1 m/s² at 125 Hz
+        outside = start.copy()
+        outside[2] = config.safety.workspace_min[2] - 0.01
+        with pytest.raises(ArmFault, match="outside the workspace box"):
+            arm.command(outside)
+        assert arm.state is ArmState.FAULT
+        with pytest.raises(ArmFault):
+            arm.command(start)  # nothing more is sent after the fault
+        sent = [xyz for _, xyz in settled_servo_targets(control, expected=1)]
     assert len(sent) == 1 and sent[0] == pytest.approx(start + STEP)
 
 
 def test_a_target_beyond_the_speed_cap_is_refused_and_a_far_start_pose_is_not_moved_to():
-    host = "127.0.0.105"
-    config = ur_config(host)
-    with standin(host) as control:
-        arm = URArm(config.ur, config.safety)
-        try:
-            far = arm.read_pose() + np.array([0.0, 0.9, 0.0])
-            with pytest.raises(ArmFault, match="max_move_distance"):
-                arm.move_to(far)
-            arm.begin_stream()
-            with pytest.raises(ArmFault, match="m/s"):
-                arm.command(arm.read_pose() + np.array([0.05, 0.0, 0.0]))  # 6.25 m/s at 125 Hz
-            time.sleep(0.05)
-            assert MOVEL not in commands(control) and servo_targets(control) == []
-        finally:
-            arm.close()
+    with connected_arm("127.0.0.105") as (control, _, arm):
+        far = arm.read_pose() + np.array([0.0, 0.9, 0.0])
+        with pytest.raises(ArmFault, match="max_move_distance"):
+            arm.move_to(far)
+        arm.begin_stream()
+        with pytest.raises(ArmFault, match="m/s"):
+            arm.command(arm.read_pose() + np.array([0.05, 0.0, 0.0]))  # 6.25 m/s at 125 Hz
+        assert settled_servo_targets(control, expected=0) == [] and MOVEL not in commands(control)
 
 
 def test_check_devices_reports_versions_and_rate_and_moves_nothing(capsys):

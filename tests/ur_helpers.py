@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 
 from robot_io.ur_standin.control import ControlClient
@@ -42,6 +43,15 @@ def servo_targets(control: ControlClient) -> list[tuple[float, list[float]]]:
     """(time, xyz) of every servoL the stand-in received, in order."""
     return [(t, values[:3]) for t, command, values in control("received")["received"]
             if command == SERVOL]
+
+
+def settled_servo_targets(control: ControlClient, expected: int, timeout: float = 2.0):
+    """:func:`servo_targets` once ``expected`` have arrived (or ``timeout``), plus 0.1 s for strays."""
+    deadline = time.monotonic() + timeout
+    while len(servo_targets(control)) < expected and time.monotonic() < deadline:
+        time.sleep(0.01)
+    time.sleep(0.1)
+    return servo_targets(control)
 
 
 def commands(control: ControlClient) -> list[int]:
