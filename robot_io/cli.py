@@ -70,6 +70,36 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     check.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
     check.set_defaults(func=run_check_devices)
 
+    calibrate = subparsers.add_parser(
+        "calibrate-tracker", help="fit the tracker → robot base transform from point pairs",
+        description="Fit the rigid transform from tracker to robot base coordinates (Kabsch) from a CSV "
+                    "of point pairs: tx,ty,tz (tracker units) and bx,by,bz (robot base, m), one pair "
+                    "per line, N ≥ 3 not on one line. Prints the [hand_source] TOML lines and the RMS "
+                    "residual. See docs/hardware.md.")
+    calibrate.add_argument("pairs", type=Path, help="CSV file: tx,ty,tz,bx,by,bz per line")
+    calibrate.add_argument("--config", type=Path, help="TOML configuration file (for units_to_m)")
+    calibrate.set_defaults(func=run_calibrate_tracker)
+
+
+def run_calibrate_tracker(args: argparse.Namespace) -> int:
+    from robot_io.frame import fit_kabsch
+
+    units = load_config(args.config).hand_source.units_to_m
+    try:
+        pairs = np.loadtxt(args.pairs, delimiter=",", ndmin=2, comments="#")
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"pairs file {args.pairs}: {exc}") from exc
+    if pairs.shape[1] != 6:
+        raise ValueError(f"pairs file {args.pairs}: {pairs.shape[1]} columns, expected 6 (tx,ty,tz,bx,by,bz)")
+    transform, residual = fit_kabsch(pairs[:, :3] * units, pairs[:, 3:])
+    rows = ", ".join("[" + ", ".join(f"{v:.6f}" for v in row) + "]" for row in transform.rotation)
+    print("[hand_source]")
+    print(f"rotation = [{rows}]")
+    print("translation = [" + ", ".join(f"{v:.5f}" for v in transform.translation) + "]")
+    print(f"units_to_m = {units:g}")
+    print(f"# {len(pairs)} pairs, RMS residual {1e3 * residual:.2f} mm")
+    return 0
+
 
 def _with_host(config, host: str | None):
     if host is None:
