@@ -159,11 +159,11 @@ class URArm:
     def _trip(self, reason: str) -> None:
         log.error("UR arm fault: %s", reason)
         self._state, self._fault, self._fault_at = ArmState.FAULT, reason, time.monotonic()
-        if self._dashboard is not None:
+        if self._dashboard is not None and self._receive.isConnected():  # not on a dead link
             try:
                 self._dashboard.addToLog(f"handover-lab: {reason}"[:200])
-            except RuntimeError:
-                log.warning("could not tell the dashboard about the fault")
+            except Exception:  # the pybind layer raises RuntimeError or boost errors
+                log.warning("could not tell the dashboard about the fault", exc_info=True)
 
     # -- motion --------------------------------------------------------------------------------
     def _refuse_outside_box(self, pose: np.ndarray, what: str) -> None:

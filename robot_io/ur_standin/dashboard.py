@@ -2,8 +2,8 @@
 
 Enough of it for ur_rtde's ``DashboardClient`` and ``RTDEControlInterface``: robotmode, safetymode,
 safetystatus, unlock protective stop (refused within 5 s of the stop), close (safety) popup, play,
-stop, pause, running, programState, PolyscopeVersion, is in remote control, get robot model, get serial number,
-power on/off, brake release, addToLog, quit.
+stop, pause, running, programState, PolyscopeVersion, is in remote control, get robot model,
+get serial number, power on/off, brake release, addToLog, quit.
 """
 
 from __future__ import annotations
