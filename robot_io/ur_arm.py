@@ -9,8 +9,8 @@ that implies more than the speed or acceleration cap, is refused — never sent 
   in this process, ``RTDEControlInterface`` in a worker process (:mod:`robot_io.ur_worker`). All are
   constructed in :meth:`URArm.connect`, before any real-time thread starts.
 * Faults read every cycle: protective stop, emergency stop, lost RTDE connection, the control script
-  no longer running (watchdog), the worker gone. Each becomes ``ArmState.FAULT`` with a plain-words
-  ``fault``; the loop then aborts the trial.
+  no longer running (watchdog), the worker gone, no new controller state for 0.1 s (a stall). Each
+  becomes ``ArmState.FAULT`` with a plain-words ``fault``; the loop then aborts the trial.
 * :meth:`recover` is the documented way back: reconnect what dropped, unlock a protective stop once
   the controller's 5 s have passed, re-upload the control script. The experimenter calls it (a
   protective stop is to be inspected before unlocking); it moves nothing.
@@ -42,6 +42,8 @@ UNLOCK_DELAY_S = 5.0
 REST_SPEED = 1e-3
 #: Relative slack on the speed and acceleration caps (floating point of the limiter upstream).
 CAP_SLACK = 1e-6
+#: While streaming, the controller's state time stamp must advance at least this often [s].
+STATE_SILENCE_S = 0.1
 
 
 class URArm:
@@ -155,6 +157,16 @@ class URArm:
                 self._trip("the control script stopped on the controller (watchdog: no target for "
                            f"more than {1 / self.config.watchdog_hz:.2f} s, or stopped from the "
                            "teach pendant); call recover()")
+            elif self._state_silent():
+                self._trip(f"the controller sent no new state for more than {STATE_SILENCE_S} s "
+                           "(controller stalled or network congested); call recover()")
+
+    def _state_silent(self) -> bool:
+        """True when the controller's time stamp has not advanced for STATE_SILENCE_S."""
+        now, stamp = time.monotonic(), self._receive.getTimestamp()
+        if stamp != self._stamp:
+            self._stamp, self._stamp_seen = stamp, now
+        return now - self._stamp_seen > STATE_SILENCE_S
 
     def _trip(self, reason: str) -> None:
         log.error("UR arm fault: %s", reason)
@@ -213,6 +225,7 @@ class URArm:
             raise ArmFault("the controller did not accept the watchdog")
         self._last = self.read_pose()
         self._last_velocity = np.zeros(3)
+        self._stamp, self._stamp_seen = self._receive.getTimestamp(), time.monotonic()
         self._state = ArmState.STREAMING
 
     def command(self, target: np.ndarray) -> None:

@@ -93,7 +93,7 @@ def test_full_handover_from_the_cli_targets_follow_the_dmp_within_1mm(tmp_path):
 
 
 def aborted_by(control: ControlClient, config: ControllerConfig, arm: URArm, fault: str,
-               reason: str, after_s: float = 0.6):
+               reason: str, after_s: float = 0.6, **arguments):
     """A trial with the stand-in fault ``fault`` injected ``after_s`` into it; asserts it ended as an
     arm fault whose reason says ``reason``; returns (record, injected_at)."""
     injected = {}
@@ -101,7 +101,7 @@ def aborted_by(control: ControlClient, config: ControllerConfig, arm: URArm, fau
     def later() -> None:
         time.sleep(after_s)
         injected["at"] = time.monotonic()
-        control(fault)
+        control(fault, **arguments)
 
     timer = threading.Thread(target=later)
     timer.start()
@@ -220,3 +220,26 @@ def test_a_stale_hand_source_stops_the_arm():
     assert servo_times[-1] < silent_at + limit + 0.05  # no target once the hand is stale
     assert stop_times and stop_times[0] >= servo_times[-1]
     assert stop_times[0] < silent_at + limit + 0.1
+
+
+@pytest.mark.slow
+def test_a_stalled_controller_aborts_the_trial_within_a_few_cycles():
+    with connected_arm("127.0.0.111") as (control, config, arm):
+        record, _ = aborted_by(control, config, arm, "stall", "sent no new state", after_s=0.5,
+                               seconds=1.0)
+        stop = record.summary.stop_commanded_s
+        assert stop is not None and record.summary.duration_s < 0.5 + 0.1 + 0.1
+        assert_recovers_for_the_next_trial(config, arm)
+
+
+def test_an_emergency_stop_is_a_fault_that_recover_refuses_until_released():
+    with connected_arm("127.0.0.112") as (control, _, arm):
+        control("emergency_stop")
+        time.sleep(0.1)
+        assert arm.state is ArmState.FAULT and "emergency stop" in arm.fault
+        with pytest.raises(ArmFault, match="emergency stop still engaged"):
+            arm.recover()
+        control("release_emergency_stop")
+        time.sleep(0.1)  # the next state package carries it
+        arm.recover()
+        assert arm.state is ArmState.IDLE
