@@ -56,17 +56,22 @@ def test_k_ext_term_yields_to_a_steady_pull_like_a_spring_and_only_while_grasped
     config = ControllerConfig()
     c = config.dmp
     start, goal = config.scene.point("robot_start"), config.scene.point("handover_point")
-    pull = np.array([10.0, 0.0, 0.0])
-    grasped = {"now": True}
-    coupling = CompliantCoupling(NoCoupling(), lambda: pull, c.k_ext, lambda: grasped["now"],
-                                 lambda: np.zeros(3))
+    force = {"now": np.array([3.0, -2.0, 20.0])}  # the baseline at grasp: bias only
+    release = ForceRelease(ReleaseConfig(), DT)
+    coupling = CompliantCoupling(NoCoupling(), lambda: force["now"], c.k_ext,
+                                 lambda: release.grasped, lambda: release.baseline)
     dmp = DMP.from_minimum_jerk(start, goal, c)
-    for _ in range(int(4.0 / DT)):
+    pull = np.array([6.0, 0.0, 0.0])  # below the 10 N threshold: held, not released
+    for i in range(int(4.0 / DT)):
+        if i == int(0.5 / DT):
+            force["now"] = force["now"] + pull
+        release.update(force["now"], in_handover=True)
         dmp.step(DT, coupling.update(goal))
-    # steady state of τ²ẍ = α_x β_x (g − x) + k_ext F: x − g = k_ext F / (α_x β_x)
+    assert release.phase is ReleasePhase.ARMED
+    # steady state of τ²ẍ = α_x β_x (g − x) + k_ext (F − F₀): x − g = k_ext (F − F₀) / (α_x β_x)
     assert dmp.x - goal == pytest.approx(c.k_ext * pull / (c.alpha_x * c.beta_x), abs=1e-3)
-    grasped["now"] = False
     for _ in range(int(4.0 / DT)):
+        release.update(force["now"], in_handover=False)  # handover state left: not grasped
         dmp.step(DT, coupling.update(goal))
     assert dmp.x == pytest.approx(goal, abs=1e-3)
 
