@@ -78,7 +78,11 @@ class URArm:
             raise ArmFault(f"cannot connect to the UR controller at {cfg.host}: {exc}") from exc
         self.rate_hz = 125 if self.polyscope_version.startswith("3.") else 500
         self.period = 1.0 / self.rate_hz
-        self._worker = ControlWorker(cfg.host, cfg.upper_range_registers, cfg.connect_timeout_s)
+        try:
+            self._worker = ControlWorker(cfg.host, cfg.upper_range_registers, cfg.connect_timeout_s)
+        except ArmFault:
+            self.close()  # leave no receive or dashboard connection behind
+            raise
         self.orientation = list(self._receive.getActualTCPPose()[3:])
         log.info("connected to UR controller %s (PolyScope %s, %d Hz)", cfg.host,
                  self.polyscope_version, self.rate_hz)

@@ -243,3 +243,12 @@ def test_an_emergency_stop_is_a_fault_that_recover_refuses_until_released():
         time.sleep(0.1)  # the next state package carries it
         arm.recover()
         assert arm.state is ArmState.IDLE
+
+
+def test_check_devices_says_in_plain_words_when_no_controller_answers(capsys):
+    from app.cli import main
+
+    code = main(["check-devices", "--ur-host", "127.0.0.113"])  # nothing listens there
+    out = capsys.readouterr().out
+    assert code == 1
+    assert "arm: NOT OK — cannot connect to the UR controller at 127.0.0.113" in out
