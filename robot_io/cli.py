@@ -1,4 +1,5 @@
-"""``handover simulate-trial``: one handover of the simulated hand with the mock arm."""
+"""``handover simulate-trial`` (one handover of the simulated hand with the mock arm or a UR) and
+``handover check-devices``."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
+
+import numpy as np
 
 from robot_io.config import load_config
 from robot_io.errors import explain
@@ -53,19 +56,96 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", type=Path, metavar="FILE.png",
                         help="write the Fig. 4 style distance plot")
+    parser.add_argument("--arm", choices=("mock", "ur"), default="mock",
+                        help="mock: the kinematic mock arm; ur: a UR over RTDE (real time, moves it!)")
+    parser.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
+    parser.add_argument("--samples", type=Path, metavar="FILE.npz", help="write the per-cycle samples")
     parser.set_defaults(func=run)
+
+    check = subparsers.add_parser(
+        "check-devices", help="connect to the configured arm, hand source and gripper; move nothing",
+        description="Connect to the configured UR arm, hand source and gripper and report versions, "
+                    "rates and faults in plain words. Nothing moves and no output is switched.")
+    check.add_argument("--config", type=Path, help="TOML configuration file")
+    check.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
+    check.set_defaults(func=run_check_devices)
+
+    calibrate = subparsers.add_parser(
+        "calibrate-tracker", help="fit the tracker → robot base transform from point pairs",
+        description="Fit the rigid transform from tracker to robot base coordinates (Kabsch) from a CSV "
+                    "of point pairs: tx,ty,tz (tracker units) and bx,by,bz (robot base, m), one pair "
+                    "per line, N ≥ 3 not on one line. Prints the [hand_source] TOML lines and the RMS "
+                    "residual. See docs/hardware.md.")
+    calibrate.add_argument("pairs", type=Path, help="CSV file: tx,ty,tz,bx,by,bz per line")
+    calibrate.add_argument("--config", type=Path, help="TOML configuration file (for units_to_m)")
+    calibrate.set_defaults(func=run_calibrate_tracker)
+
+
+def run_calibrate_tracker(args: argparse.Namespace) -> int:
+    from robot_io.frame import fit_kabsch
+
+    units = load_config(args.config).hand_source.units_to_m
+    try:
+        pairs = np.loadtxt(args.pairs, delimiter=",", ndmin=2, comments="#")
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"pairs file {args.pairs}: {exc}") from exc
+    if pairs.shape[1] != 6:
+        raise ValueError(f"pairs file {args.pairs}: {pairs.shape[1]} columns, expected 6 (tx,ty,tz,bx,by,bz)")
+    transform, residual = fit_kabsch(pairs[:, :3] * units, pairs[:, 3:])
+    rows = ", ".join("[" + ", ".join(f"{v:.6f}" for v in row) + "]" for row in transform.rotation)
+    print("[hand_source]")
+    print(f"rotation = [{rows}]")
+    print("translation = [" + ", ".join(f"{v:.5f}" for v in transform.translation) + "]")
+    print(f"units_to_m = {units:g}")
+    print(f"# {len(pairs)} pairs, RMS residual {1e3 * residual:.2f} mm")
+    return 0
+
+
+def _with_host(config, host: str | None):
+    if host is None:
+        return config
+    return config.model_copy(update={"ur": config.ur.model_copy(update={"host": host})})
+
+
+def run_check_devices(args: argparse.Namespace) -> int:
+    from robot_io.devices import check_devices
+
+    lines, ok = check_devices(_with_host(load_config(args.config), args.ur_host))
+    print("\n".join(lines))
+    return 0 if ok else 1
+
+
+def _run_on_ur(config, args: argparse.Namespace):
+    from robot_io.devices import ur_trial
+    from robot_io.simulated_hand import SimulatedHand
+    from robot_io.ur_arm import URArm
+
+    arm = URArm(config.ur, config.safety)
+    try:
+        if args.rate is not None and args.rate != arm.rate_hz:
+            raise ValueError(f"--rate = {args.rate} but the controller at {config.ur.host} runs at "
+                             f"{arm.rate_hz} Hz")
+        hand = SimulatedHand(args.scenario, config.scene, config.hand, args.seed)
+        return ur_trial(config, args.theta, hand, arm)
+    finally:
+        arm.close()
 
 
 def run(args: argparse.Namespace) -> int:
     from robot_io.plot import plot_trial
     from robot_io.trial import simulate_trial
 
-    config = load_config(args.config)
+    config = _with_host(load_config(args.config), args.ur_host)
     if args.rate is not None:
         config = config.model_copy(
             update={"loop": config.loop.model_copy(update={"rate_hz": args.rate})})
-    record = simulate_trial(config, args.theta, args.scenario, args.seed, realtime=args.realtime)
+    if args.arm == "ur":
+        record = _run_on_ur(config, args)
+    else:
+        record = simulate_trial(config, args.theta, args.scenario, args.seed, realtime=args.realtime)
     summary = record.summary
+    if args.samples:
+        np.savez(args.samples, **record.samples)
     if args.plot:
         theta = args.theta
         plot_trial(record.samples, config.scene.point("handover_point"), args.plot,

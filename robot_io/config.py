@@ -113,6 +113,64 @@ class LoopConfig(_Frozen):
     timeout_s: Positive = Field(20.0, description="a trial longer than this ends as 'timeout' [s]")
 
 
+class URConfig(_Frozen):
+    """The UR5 over RTDE (``robot_io.ur_arm``); see ``docs/hardware.md``."""
+
+    host: str = Field("192.168.1.10", description="controller address (a stand-in: 127.0.0.x)")
+    servo_lookahead_s: float = Field(
+        0.1, ge=0.03, le=0.2, description="servoL lookahead time [s] (ur_rtde's range [0.03, 0.2])")
+    servo_gain: float = Field(300.0, ge=100, le=2000,
+                              description="servoL proportional gain (ur_rtde's range [100, 2000])")
+    watchdog_hz: float = Field(
+        10.0, gt=0, le=125,
+        description="controller watchdog: the program stops if no target comes for 1/watchdog_hz s; "
+                    "10 Hz tolerates Python jitter (50 Hz tripped on a 31 ms stall)")
+    move_speed: float = Field(0.25, gt=0, le=0.5, description="moveL to the start pose: speed [m/s]")
+    move_acceleration: float = Field(0.5, gt=0, le=1.2, description="moveL acceleration [m/s²]")
+    max_move_distance: float = Field(
+        0.6, gt=0, le=1.0, description="move_to refuses a start pose farther than this from the TCP [m]")
+    stop_deceleration: float = Field(5.0, gt=0, le=10,
+                                     description="servoStop deceleration at the end of a trial [m/s²]")
+    connect_timeout_s: float = Field(10.0, gt=0, description="give up connecting after this [s]")
+    upper_range_registers: bool = Field(
+        False, description="use RTDE registers 24–47 (when a fieldbus owns 0–23)")
+
+
+class HandSourceConfig(_Frozen):
+    """Where hand samples come from and the tracker → robot-base calibration (``docs/hardware.md``)."""
+
+    kind: Literal["simulated", "lsl", "udp"] = Field("simulated", description="hand source")
+    lsl_stream_type: str = Field("Mocap", description="LSL: type of the stream to resolve")
+    lsl_stream_name: str | None = Field(None, description="LSL: name of the stream (None: any)")
+    lsl_channels: tuple[int, int, int] = Field((0, 1, 2), description="LSL: channels of x, y, z")
+    udp_host: str = Field("0.0.0.0", description="UDP: address to listen on")
+    udp_port: int = Field(9870, ge=1, le=65535, description="UDP: port to listen on")
+    units_to_m: Positive = Field(0.001, description="tracker units → metres (Vicon, OptiTrack: mm)")
+    rotation: tuple[Vec3, Vec3, Vec3] = Field(
+        ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+        description="tracker → robot base rotation (rows), from `handover calibrate-tracker`")
+    translation: Vec3 = Field((0.0, 0.0, 0.0), description="tracker → robot base translation [m]")
+    resolve_timeout_s: Positive = Field(5.0, description="LSL: give up resolving the stream after [s]")
+
+
+class GripperConfig(_Frozen):
+    """The gripper that holds the object; ``tool_output``: a tool digital output drives it."""
+
+    kind: Literal["none", "tool_output"] = Field("none", description="gripper interface")
+    tool_output: int = Field(0, ge=0, le=1, description="tool digital output that drives it")
+    open_level: bool = Field(True, description="output level that opens the gripper")
+
+
+class ReleaseConfig(_Frozen):
+    """Force-threshold release (DESIGN.md §2): baseline at grasp, filtered norm, threshold."""
+
+    threshold_n: Positive = Field(10.0, description="pull above the baseline that releases [N]")
+    filter_cutoff_hz: Positive = Field(
+        5.0, description="first-order low-pass on the force (a CB-series estimate is ±10 N noisy)")
+    baseline_s: Positive = Field(0.2, description="averaging window of the baseline at grasp [s]")
+    timeout_s: Positive = Field(10.0, description="no release within this long: give up, keep holding")
+
+
 class ControllerConfig(_Frozen):
     """Everything the controller needs; the TOML file has one table per field."""
 
@@ -121,6 +179,10 @@ class ControllerConfig(_Frozen):
     safety: SafetyLimits = SafetyLimits()
     hand: HandProfile = HandProfile()
     loop: LoopConfig = LoopConfig()
+    ur: URConfig = URConfig()
+    hand_source: HandSourceConfig = HandSourceConfig()
+    gripper: GripperConfig = GripperConfig()
+    release: ReleaseConfig = ReleaseConfig()
 
     @model_validator(mode="after")
     def _scene_in_workspace(self) -> ControllerConfig:
@@ -134,7 +196,8 @@ class ControllerConfig(_Frozen):
 
 
 def load_config(path: Path | None = None) -> ControllerConfig:
-    """Read a TOML file (tables ``[dmp]``, ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``);
+    """Read a TOML file (tables ``[dmp]``, ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``,
+    ``[hand_source]``, ``[gripper]``, ``[release]``);
     missing keys take their documented defaults. ``None`` gives the defaults."""
     if path is None:
         return ControllerConfig()

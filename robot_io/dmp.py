@@ -1,10 +1,12 @@
 """Multi-DOF discrete DMP with coupling terms, eqs. (1)–(5), stepped online.
 
-    τ²ẍ = α_x(β_x(g − x) − τẋ) + f(s) + C_s        (1), (4)
+    τ²ẍ = α_x(β_x(g − x) − τẋ) + f(s) + C_s + k_ext F    (1), (4)
     τṡ  = −α_s s                                    (3)
     τ   = τ0(1 + C_t)                               (5)
 
-with C_s = −α_x τ ẋ γ (eq. 9, γ = k_s σ_d σ_j given by the coupling). All DOFs share the phase s.
+with C_s = −α_x τ ẋ γ (eq. 9, γ = k_s σ_d σ_j given by the coupling) and k_ext F the external-force
+term of Table I (DESIGN.md §2; zero unless a compliance coupling supplies it). All DOFs share the
+phase s.
 The phase is integrated online: τ changes every step, so s is never computed in closed form from t.
 """
 
@@ -22,11 +24,13 @@ from robot_io.minimum_jerk import minimum_jerk
 class CouplingTerms(NamedTuple):
     """What a coupling contributes to one DMP step.
 
-    ``temporal`` is C_t of eq. (5); ``spatial_gain`` is γ such that C_s = −α_x τ ẋ γ (eq. 9).
+    ``temporal`` is C_t of eq. (5); ``spatial_gain`` is γ such that C_s = −α_x τ ẋ γ (eq. 9);
+    ``external`` is k_ext·F, the measured pull times k_ext, added to τ²ẍ (None: no such term).
     """
 
     temporal: float = 0.0
     spatial_gain: float = 0.0
+    external: np.ndarray | None = None
 
 
 NO_COUPLING = CouplingTerms()
@@ -91,6 +95,8 @@ class DMP:
         s_end = self.s * np.exp(-c.alpha_s * dt / tau)
         f0, f_half, f_end = self.forcing(np.array([self.s, s_half, s_end])) / tau**2
         pull = stiffness * self.goal
+        if coupling.external is not None:
+            pull = pull + coupling.external / tau**2  # k_ext F, constant over the step
 
         x, v, h = self.x, self.xd, 0.5 * dt
         a1 = pull - stiffness * x - damping * v + f0

@@ -1,0 +1,36 @@
+"""The external-force term of Table I: while the participant holds the object, the measured pull
+times k_ext enters the DMP acceleration (DESIGN.md §2), so the arm yields like a virtual spring
+instead of resisting the pull.
+
+    τ²ẍ = … + k_ext (F − F₀)        F₀: the baseline force at grasp
+
+:class:`CompliantCoupling` wraps any coupling and adds the term while ``grasped()`` is true.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from robot_io.coupling import Coupling
+from robot_io.dmp import CouplingTerms
+
+
+class CompliantCoupling:
+    """``inner``'s terms plus ``external = k_ext (F − F₀)`` while grasped."""
+
+    def __init__(self, inner: Coupling, read_force: Callable[[], np.ndarray], k_ext: float,
+                 grasped: Callable[[], bool], baseline: Callable[[], np.ndarray | None]) -> None:
+        self.inner, self.read_force, self.k_ext = inner, read_force, k_ext
+        self.grasped, self.baseline = grasped, baseline
+
+    def reset(self, hand: np.ndarray) -> None:
+        self.inner.reset(hand)
+
+    def update(self, hand: np.ndarray) -> CouplingTerms:
+        terms = self.inner.update(hand)
+        baseline = self.baseline()
+        if not self.grasped() or baseline is None:
+            return terms
+        return terms._replace(external=self.k_ext * (self.read_force() - baseline))

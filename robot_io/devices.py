@@ -1,0 +1,100 @@
+"""Opening the configured devices (UR arm, hand source, gripper) and ``handover check-devices``."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from robot_io.clock import RealClock
+from robot_io.config import ControllerConfig
+from robot_io.errors import RobotIOError
+from robot_io.frame import FrameTransform
+from robot_io.gripper import ToolOutputGripper
+from robot_io.hand import HandSource
+from robot_io.loop import TrialRecord
+from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.theta import Theta
+from robot_io.trial import make_loop
+from robot_io.ur_arm import URArm
+
+
+def tracker_transform(config: ControllerConfig) -> FrameTransform:
+    source = config.hand_source
+    return FrameTransform(np.asarray(source.rotation, dtype=float),
+                          np.asarray(source.translation, dtype=float), source.units_to_m)
+
+
+def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: int = 0) -> HandSource:
+    """The configured hand source; the simulated one needs a scenario."""
+    kind = config.hand_source.kind
+    if kind == "lsl":
+        from robot_io.lsl_hand import LSLHand
+
+        return LSLHand(config.hand_source, tracker_transform(config))
+    if kind == "udp":
+        from robot_io.udp_hand import UDPHand
+
+        return UDPHand(config.hand_source, tracker_transform(config))
+    if scenario is None:
+        raise RobotIOError("hand_source.kind = 'simulated' needs a scenario")
+    return SimulatedHand(scenario, config.scene, config.hand, seed)
+
+
+def ur_trial(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: URArm) -> TrialRecord:
+    """One real-time handover on the UR at the controller's rate (125 or 500 Hz)."""
+    config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": arm.rate_hz})})
+    return make_loop(config, theta, hand, arm, RealClock(arm.rate_hz)).run()
+
+
+def check_devices(config: ControllerConfig, listen_s: float = 1.0) -> tuple[list[str], bool]:
+    """Connect to the configured arm, hand source and gripper; report in plain words; move nothing.
+    Returns the report lines and whether everything is usable."""
+    lines, arm_ok = [], True
+    try:
+        arm = URArm(config.ur, config.safety)
+    except RobotIOError as exc:
+        lines.append(f"arm: NOT OK — {exc}")
+    else:
+        try:
+            pose = arm.read_pose()
+            state = arm.state
+            lines.append(f"arm: UR at {config.ur.host}, PolyScope {arm.polyscope_version}, "
+                         f"{arm.rate_hz} Hz, TCP at {np.round(pose, 3).tolist()} m, {state.value}"
+                         + (f" — {arm.fault}" if arm.fault else ""))
+            if not config.safety.contains(pose):
+                lines.append("arm: WARNING — the TCP is outside the workspace box; jog it inside")
+            arm_ok = arm.fault is None
+        finally:
+            arm.close()
+    lines.extend(_check_hand(config, listen_s))
+    if config.gripper.kind == "tool_output":
+        try:
+            ToolOutputGripper(config.ur.host, config.gripper).disconnect()
+            lines.append(f"gripper: tool digital output {config.gripper.tool_output} reachable "
+                         "(not switched)")
+        except RobotIOError as exc:
+            lines.append(f"gripper: NOT OK — {exc}")
+    else:
+        lines.append("gripper: none configured")
+    return lines, arm_ok and not any("NOT OK" in line for line in lines)
+
+
+def _check_hand(config: ControllerConfig, listen_s: float) -> list[str]:
+    kind = config.hand_source.kind
+    if kind == "simulated":
+        return ["hand: simulated (no tracker configured)"]
+    try:
+        hand = open_hand(config)
+    except (RobotIOError, OSError) as exc:
+        return [f"hand: NOT OK — {exc}"]
+    try:
+        time.sleep(listen_s)
+        rate = hand.received / listen_s
+        age = hand.age()
+        if hand.received == 0:
+            return [f"hand: NOT OK — {kind} source open but no sample in {listen_s:g} s"]
+        return [f"hand: {kind}, {rate:.0f} samples/s, newest {1e3 * age:.0f} ms old, "
+                f"{hand.dropouts} occluded"]
+    finally:
+        hand.close()

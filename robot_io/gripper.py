@@ -1,0 +1,49 @@
+"""The gripper interface (open/close) and its tool-digital-output implementation (``RTDEIOInterface``).
+
+Most UR-mounted parallel grippers without their own URCap (pneumatic, or electric with a digital
+input) are driven by one tool digital output; ``open_level`` says which level opens.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Protocol
+
+from robot_io.config import GripperConfig
+from robot_io.errors import RobotIOError
+
+log = logging.getLogger(__name__)
+
+
+class Gripper(Protocol):
+    def open(self) -> None: ...
+
+    def close(self) -> None: ...
+
+
+class ToolOutputGripper:
+    """Drives tool digital output ``config.tool_output`` of the UR at ``host``."""
+
+    def __init__(self, host: str, config: GripperConfig) -> None:
+        import rtde_io
+
+        self.config = config
+        try:
+            self._io = rtde_io.RTDEIOInterface(host)
+        except RuntimeError as exc:
+            raise RobotIOError(f"gripper: cannot connect the RTDE IO interface to {host}: {exc}") from exc
+
+    def _set(self, level: bool, what: str) -> None:
+        if not self._io.setToolDigitalOut(self.config.tool_output, level):
+            raise RobotIOError(f"gripper: setting tool digital output {self.config.tool_output} "
+                               f"to {level} ({what}) failed")
+        log.info("gripper %s (tool digital output %d = %s)", what, self.config.tool_output, level)
+
+    def open(self) -> None:
+        self._set(self.config.open_level, "open")
+
+    def close(self) -> None:
+        self._set(not self.config.open_level, "close")
+
+    def disconnect(self) -> None:
+        self._io.disconnect()

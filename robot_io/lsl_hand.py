@@ -1,0 +1,53 @@
+"""A hand source reading a Lab Streaming Layer stream (Vicon, OptiTrack and most mocap systems publish
+one). The stream's channels ``lsl_channels`` hold the marker's x, y, z in tracker units."""
+
+from __future__ import annotations
+
+import logging
+
+import pylsl
+
+from robot_io.config import HandSourceConfig
+from robot_io.errors import HandSourceError
+from robot_io.frame import FrameTransform
+from robot_io.tracked_hand import TrackedHand
+
+log = logging.getLogger(__name__)
+
+
+class LSLHand(TrackedHand):
+    """Resolves the stream by type (and name), then pulls samples in a thread."""
+
+    def __init__(self, config: HandSourceConfig, transform: FrameTransform) -> None:
+        super().__init__(transform)
+        self.channels = list(config.lsl_channels)
+        streams = pylsl.resolve_byprop("type", config.lsl_stream_type,
+                                       timeout=config.resolve_timeout_s)
+        if config.lsl_stream_name is not None:
+            streams = [s for s in streams if s.name() == config.lsl_stream_name]
+        if not streams:
+            raise HandSourceError(
+                f"no LSL stream of type {config.lsl_stream_type!r}"
+                + (f" named {config.lsl_stream_name!r}" if config.lsl_stream_name else "")
+                + f" found within resolve_timeout_s = {config.resolve_timeout_s} s")
+        info = streams[0]
+        if max(self.channels) >= info.channel_count():
+            raise HandSourceError(f"hand_source.lsl_channels = {tuple(self.channels)} but stream "
+                                  f"{info.name()!r} has {info.channel_count()} channels")
+        self.name, self.nominal_rate_hz = info.name(), info.nominal_srate()
+        self.inlet = pylsl.StreamInlet(info, max_buflen=1, processing_flags=pylsl.proc_clocksync)
+        self.inlet.open_stream(timeout=config.resolve_timeout_s)
+        log.info("LSL hand source: stream %r at %g Hz", self.name, self.nominal_rate_hz)
+        self.start()
+
+    def receive_once(self) -> None:
+        # One sample at a time: pull_chunk waits out its whole timeout, which would age every sample.
+        # proc_clocksync maps the outlet's time stamps onto pylsl.local_clock(), which on Linux is
+        # the monotonic clock that time.monotonic() reads.
+        sample, stamp = self.inlet.pull_sample(timeout=0.1)
+        if sample is not None:
+            self.put(stamp, [sample[c] for c in self.channels])
+
+    def close(self) -> None:
+        super().close()
+        self.inlet.close_stream()

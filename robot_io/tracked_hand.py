@@ -1,0 +1,96 @@
+"""What the LSL and UDP hand sources share: a receiver thread, the frame transform, dropouts, and
+trial-time stamps.
+
+A receiver thread puts samples in; the control loop takes the newest with :meth:`TrackedHand.latest`.
+Each sample carries the ``time.monotonic()`` instant it was measured (LSL: the outlet's time stamp
+mapped to this machine's clock; UDP: the arrival time, or the sender's when it sends one on this
+machine's monotonic clock). ``latest(now)`` turns it into trial time, assuming the loop's clock runs on
+``time.monotonic`` as the real clock does: t_trial = t_sample − (time.monotonic() − now).
+
+Dropouts: an occluded marker (NaN, or exactly zero as Vicon sends it) becomes a NaN sample, which the
+loop counts and ignores; no sample at all for ``staleness_limit_s`` makes the loop stop the arm.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+
+import numpy as np
+
+from robot_io.errors import HandSourceError
+from robot_io.frame import FrameTransform
+from robot_io.hand import HandSample
+
+log = logging.getLogger(__name__)
+
+
+class TrackedHand:
+    """Thread-safe newest sample of a tracked hand, in the robot base frame."""
+
+    def __init__(self, transform: FrameTransform) -> None:
+        self.transform = transform
+        self._lock = threading.Lock()
+        self._newest: tuple[float, np.ndarray] | None = None
+        self.received = 0
+        self.dropouts = 0
+        self._thread: threading.Thread | None = None
+        self._running = False
+
+    def put(self, measured_at: float, tracker_xyz) -> None:
+        """One sample: ``measured_at`` on ``time.monotonic``, position in tracker units."""
+        raw = np.asarray(tracker_xyz, dtype=float)
+        if raw.shape != (3,) or not np.all(np.isfinite(raw)) or not np.any(raw):
+            self.dropouts += 1
+            position = np.full(3, np.nan)
+        else:
+            position = self.transform.apply(raw)
+        with self._lock:
+            if self._newest is None or measured_at >= self._newest[0]:
+                self._newest = (measured_at, position)
+            self.received += 1
+
+    def latest(self, now: float) -> HandSample | None:
+        with self._lock:
+            newest = self._newest
+        if newest is None:
+            return None
+        return HandSample(newest[0] - (time.monotonic() - now), newest[1])
+
+    def wait_for_sample(self, timeout: float) -> None:
+        """Block until the first sample (start a trial only once the tracker is live)."""
+        deadline = time.monotonic() + timeout
+        while self.age() is None:
+            if time.monotonic() > deadline:
+                raise HandSourceError(f"{type(self).__name__}: no sample within {timeout} s")
+            time.sleep(0.005)
+
+    def age(self) -> float | None:
+        """Seconds since the newest sample was measured; None before the first."""
+        with self._lock:
+            return None if self._newest is None else time.monotonic() - self._newest[0]
+
+    # -- receiver thread -----------------------------------------------------------------------
+    def start(self) -> None:
+        self._running = True
+        self._thread = threading.Thread(target=self._receive_loop, name=type(self).__name__,
+                                        daemon=True)
+        self._thread.start()
+
+    def _receive_loop(self) -> None:
+        while self._running:
+            try:
+                self.receive_once()
+            except Exception:
+                log.exception("%s: receiving failed; retrying", type(self).__name__)
+                time.sleep(0.1)
+
+    def receive_once(self) -> None:
+        """Block briefly (≤ 0.1 s) for samples and :meth:`put` them; subclasses implement it."""
+        raise NotImplementedError
+
+    def close(self) -> None:
+        self._running = False
+        if self._thread is not None:
+            self._thread.join(1.0)

@@ -1,0 +1,94 @@
+"""The stand-in's control port: JSON lines for tests and dry runs (fault injection, what was received).
+
+Each request is one JSON object with ``"op"``; each reply one JSON object (``{"ok": true, ...}``, or
+``{"ok": false, "error": ...}``). Operations:
+
+``ping``; ``state`` (pose, force, safety, program, tool outputs, events); ``received`` (every command
+data package: ``[t, command id, doubles]``, ``t`` in the stand-in's ``time.monotonic``);
+``protective_stop``; ``emergency_stop``; ``release_emergency_stop``; ``drop_sockets`` (close every
+client connection on every port); ``stall`` with ``seconds`` (no cycles, no output packages);
+``set_force`` with ``force`` (6 values, N and N·m); ``set_pose`` with ``pose`` (6 values).
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from robot_io.ur_standin.listener import read_lines
+from robot_io.ur_standin.model import Controller
+
+DEFAULT_PORT = 30100
+
+
+def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int]) -> dict:
+    op = request.get("op")
+    with controller.lock:
+        if op == "ping":
+            return {"ok": True, "series": int(controller.series)}
+        if op == "state":
+            program = controller.program
+            return {"ok": True, "pose": list(controller.arm.pose), "force": list(controller.force),
+                    "safety": controller.safety.name, "program": program and program.name,
+                    "tool_outputs": controller.tool_outputs, "events": controller.events[-50:],
+                    "speed": float(np.linalg.norm(controller.arm.velocity))}
+        if op == "received":
+            return {"ok": True, "received": [[r.t, r.command, r.values] for r in controller.received]}
+        if op == "protective_stop":
+            controller.protective_stop("injected by the control port")
+            return {"ok": True}
+        if op == "emergency_stop":
+            controller.emergency_stop("injected by the control port")
+            return {"ok": True}
+        if op == "release_emergency_stop":
+            controller.release_emergency_stop()
+            return {"ok": True}
+        if op == "stall":
+            controller.stalled_until = time.monotonic() + float(request["seconds"])
+            controller.event(f"stalling for {request['seconds']} s")
+            return {"ok": True}
+        if op == "set_force":
+            controller.force = np.asarray(request["force"], dtype=float).reshape(6)
+            return {"ok": True}
+        if op == "set_pose":
+            controller.arm.pose = np.asarray(request["pose"], dtype=float).reshape(6)
+            return {"ok": True}
+    if op == "drop_sockets":
+        count = drop_sockets()
+        with controller.lock:
+            controller.event(f"dropped {count} client connections")
+        return {"ok": True, "dropped": count}
+    return {"ok": False, "error": f"unknown op {op!r}"}
+
+
+def serve(controller: Controller, drop_sockets: Callable[[], int], sock: socket.socket) -> None:
+    for line in read_lines(sock):
+        try:
+            answer = handle(controller, json.loads(line), drop_sockets)
+        except (ValueError, KeyError, TypeError) as exc:
+            answer = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
+        sock.sendall((json.dumps(answer) + "\n").encode())
+
+
+class ControlClient:
+    """The test side of the control port."""
+
+    def __init__(self, host: str, port: int = DEFAULT_PORT, timeout: float = 5.0) -> None:
+        self._sock = socket.create_connection((host, port), timeout=timeout)
+        self._file = self._sock.makefile("rwb")
+
+    def __call__(self, op: str, **arguments) -> dict:
+        self._file.write((json.dumps({"op": op, **arguments}) + "\n").encode())
+        self._file.flush()
+        answer = json.loads(self._file.readline())
+        if not answer.get("ok"):
+            raise RuntimeError(f"stand-in control port: {answer.get('error')}")
+        return answer
+
+    def close(self) -> None:
+        self._file.close()
+        self._sock.close()

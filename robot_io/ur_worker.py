@@ -1,0 +1,115 @@
+"""``RTDEControlInterface`` in a worker process of its own, driven through a pipe.
+
+Why a process: ur_rtde 1.6.5's control interface reconnects by itself when its RTDE socket drops, and
+that path is broken — its receive thread never clears ``should_reconnect`` and starts a second
+receive thread from inside itself; against the stand-in this segfaulted the process within a second
+of a dropped socket, or left it hung (see ``docs/hardware.md``). Isolated here, a crash or hang takes
+down only this worker: the arm backend sees the pipe close, reports the fault, and starts a fresh
+worker for the next trial. It also keeps the constructor, which holds the GIL while it waits for
+the controller, off the control loop's interpreter.
+
+Parent → worker messages: ``("servo", args)`` (servoL, no reply: one per control cycle) and
+``("call", method, args)`` answered by ``("ok", result)`` or ``("error", message)``.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from multiprocessing.connection import Connection
+
+from robot_io.errors import ArmFault
+
+#: Methods of RTDEControlInterface the arm backend may call through the worker.
+CALLS = frozenset({"moveL", "servoStop", "stopScript", "setWatchdog", "reuploadScript"})
+
+
+def _serve(conn: Connection, host: str, flags: int) -> None:
+    """The worker process: construct the interface, then execute messages until the pipe closes."""
+    import rtde_control
+
+    try:
+        control = rtde_control.RTDEControlInterface(host, -1.0, flags)
+    except Exception as exc:  # the constructor throws RuntimeError, std::logic_error, ...
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        return
+    conn.send(("ok", None))
+    try:
+        while True:
+            message = conn.recv()
+            if message[0] == "servo":
+                control.servoL(*message[1])
+                continue
+            _, method, args = message
+            try:
+                conn.send(("ok", getattr(control, method)(*args)))
+            except Exception as exc:
+                conn.send(("error", f"{method}: {type(exc).__name__}: {exc}"))
+    except (EOFError, OSError):
+        pass  # the arm backend is gone: the controller's watchdog stops the program
+    finally:
+        try:
+            control.servoStop(5.0)
+            control.stopScript()
+        finally:
+            os._exit(0)  # do not wait in ur_rtde's destructor (it can hang on a dead connection)
+
+
+class ControlWorker:
+    """The arm backend's handle on the worker process."""
+
+    def __init__(self, host: str, upper_range_registers: bool, timeout: float) -> None:
+        import rtde_control
+
+        flags = rtde_control.RTDEControlInterface.FLAG_UPLOAD_SCRIPT
+        if upper_range_registers:
+            flags |= rtde_control.RTDEControlInterface.FLAG_UPPER_RANGE_REGISTERS
+        context = multiprocessing.get_context("spawn")  # no fork: the parent runs ur_rtde threads
+        self._conn, child = context.Pipe()
+        self.process = context.Process(target=_serve, args=(child, host, flags),
+                                       name=f"ur_rtde-control-{host}", daemon=True)
+        self.process.start()
+        child.close()
+        self._wait_reply(timeout, f"connecting the control interface to {host}")
+
+    @property
+    def alive(self) -> bool:
+        return self.process.is_alive()
+
+    def servo(self, pose: list[float], speed: float, acceleration: float, time: float,
+              lookahead: float, gain: float) -> None:
+        """One servoL target; raises ArmFault if the worker is gone."""
+        try:
+            self._conn.send(("servo", (pose, speed, acceleration, time, lookahead, gain)))
+        except (OSError, ValueError) as exc:
+            raise ArmFault(f"the ur_rtde control process is gone ({exc})") from exc
+
+    def call(self, method: str, *args, timeout: float = 5.0):
+        """Call a method of RTDEControlInterface in the worker and return its result."""
+        if method not in CALLS:
+            raise ValueError(f"method = {method!r} is not one of {sorted(CALLS)}")
+        try:
+            self._conn.send(("call", method, args))
+        except (OSError, ValueError) as exc:
+            raise ArmFault(f"the ur_rtde control process is gone ({exc})") from exc
+        return self._wait_reply(timeout, method)
+
+    def _wait_reply(self, timeout: float, what: str):
+        try:
+            if not self._conn.poll(timeout):
+                raise ArmFault(f"{what}: no answer from the ur_rtde control process within {timeout} s")
+            status, value = self._conn.recv()
+        except (EOFError, OSError) as exc:
+            raise ArmFault(f"{what}: the ur_rtde control process exited "
+                           f"(exit code {self.process.exitcode})") from exc
+        if status == "error":
+            raise ArmFault(f"{what}: {value}")
+        return value
+
+    def close(self) -> None:
+        """End the worker: it stops servoing and the script; killed if it does not exit in 2 s."""
+        self._conn.close()
+        self.process.join(2.0)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join(1.0)

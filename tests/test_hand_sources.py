@@ -1,0 +1,123 @@
+"""Hand sources over real protocols on loopback: LSL (a real outlet at 100 Hz) and UDP/JSON, with the
+tracker → robot-base transform; and the Kabsch calibration."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import time
+
+import numpy as np
+import pylsl
+import pytest
+from hand_replay import TRACKER, Replay, to_tracker
+
+from robot_io.clock import RealClock
+from robot_io.config import ControllerConfig
+from robot_io.errors import ConfigError, HandSourceError
+from robot_io.frame import fit_kabsch
+from robot_io.loop import Outcome
+from robot_io.lsl_hand import LSLHand
+from robot_io.mock_arm import MockArm
+from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.theta import Theta
+from robot_io.trial import make_loop
+from robot_io.udp_hand import UDPHand
+
+
+def source_config(config: ControllerConfig, **update):
+    source = config.hand_source.model_copy(update={
+        "rotation": tuple(map(tuple, TRACKER.rotation)), "translation": tuple(TRACKER.translation),
+        "units_to_m": TRACKER.units_to_m, **update})
+    return config.model_copy(update={"hand_source": source})
+
+
+@pytest.mark.slow
+def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
+    config = ControllerConfig()
+    name = f"handover-test-{os.getpid()}"
+    config = source_config(config, kind="lsl", lsl_stream_name=name, lsl_stream_type="MocapTest")
+    info = pylsl.StreamInfo(name, "MocapTest", 3, 100.0, pylsl.cf_float32, name)
+    outlet = pylsl.StreamOutlet(info)
+    simulated = SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, 3)
+    hand = LSLHand(config.hand_source, _transform(config))
+    replay = Replay(simulated, lambda xyz: outlet.push_sample(xyz.tolist()), 100.0).start()
+    try:
+        hand.wait_for_sample(5.0)
+        clock = RealClock(125)
+        arm = MockArm(clock, config.scene.point("robot_start"))
+        loop_config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": 125})})
+        record = make_loop(loop_config, Theta(a=5.0, delta=-0.2, k=1.0), hand, arm, clock).run()
+        elapsed = time.monotonic() - replay.began
+    finally:
+        replay.stop()
+        hand.close()
+    summary = record.summary
+    assert summary.outcome is Outcome.COMPLETED, summary.reason
+    assert 80 <= hand.received / elapsed <= 110  # the 100 Hz stream, as received
+    # every hand position the controller used is one that was sent, back in the robot base frame
+    hand_t, hand_xyz = record.samples["hand_t"], record.samples["hand"]
+    valid = np.isfinite(hand_t)
+    sent = np.array(replay.sent)
+    nearest = np.min(np.linalg.norm(hand_xyz[valid][:, None, :] - sent[None], axis=2), axis=1)
+    assert np.max(nearest) < 1e-5  # float32 millimetres
+    # stamps are fresh: at most a few tracker periods old when used
+    age = record.samples["t"][valid] - hand_t[valid]
+    assert np.median(age) < 0.03
+
+
+def _transform(config: ControllerConfig):
+    from robot_io.devices import tracker_transform
+
+    return tracker_transform(config)
+
+
+def test_lsl_source_says_what_it_could_not_find():
+    config = source_config(ControllerConfig(), kind="lsl", lsl_stream_type="NoSuchType",
+                           resolve_timeout_s=0.3)
+    with pytest.raises(HandSourceError, match="no LSL stream of type 'NoSuchType'"):
+        LSLHand(config.hand_source, _transform(config))
+
+
+def test_udp_json_samples_are_transformed_stamped_and_dropouts_become_nan():
+    config = source_config(ControllerConfig(), kind="udp", udp_host="127.0.0.107", udp_port=0)
+    hand = UDPHand(config.hand_source, _transform(config))
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        target = np.array([0.55, 0.05, 0.30])
+        x, y, z = to_tracker(target)
+        sender.sendto(json.dumps({"x": x, "y": y, "z": z}).encode(), hand.address)
+        _wait(lambda: hand.received == 1)
+        sample = hand.latest(now=10.0)
+        assert sample.position == pytest.approx(target, abs=1e-9)
+        assert 9.9 < sample.t <= 10.0  # measured just now, on the trial clock
+        sender.sendto(json.dumps({"x": None, "y": 1.0, "z": 2.0}).encode(), hand.address)
+        sender.sendto(b"not json", hand.address)
+        _wait(lambda: hand.received == 2 and hand.malformed == 1)
+        assert not hand.latest(now=10.0).is_valid() and hand.dropouts == 1
+    finally:
+        sender.close()
+        hand.close()
+
+
+def _wait(condition, timeout: float = 2.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.005)
+
+
+def test_kabsch_recovers_a_known_transform_and_rejects_collinear_points():
+    rng = np.random.default_rng(0)
+    tracker = rng.uniform(-0.5, 0.5, size=(8, 3))
+    base = tracker @ TRACKER.rotation.T + TRACKER.translation + rng.normal(0, 0.001, size=(8, 3))
+    transform, residual = fit_kabsch(tracker, base)
+    assert transform.rotation == pytest.approx(TRACKER.rotation, abs=0.01)
+    assert transform.translation == pytest.approx(TRACKER.translation, abs=0.003)
+    assert 0.0005 < residual < 0.003
+    line = np.outer(np.linspace(0, 1, 5), [1.0, 2.0, 3.0])
+    with pytest.raises(ConfigError, match="one line"):
+        fit_kabsch(line, line)
+    with pytest.raises(ConfigError, match="N ≥ 3"):
+        fit_kabsch(tracker[:2], base[:2])

@@ -1,0 +1,80 @@
+"""The stand-in controller at the wire: RTDE messages from a plain socket, the dashboard's 5 s rule,
+and the calibration command that goes with the hardware docs."""
+
+from __future__ import annotations
+
+import socket
+import struct
+import time
+
+import numpy as np
+import pytest
+from hand_replay import TRACKER, to_tracker
+from ur_helpers import standin
+
+from app.cli import main
+from robot_io.ur_standin import rtde_protocol as rtde
+from robot_io.ur_standin.dashboard import reply
+from robot_io.ur_standin.model import Controller, Safety, Series
+
+
+def request(sock: socket.socket, message_type: int, payload: bytes = b"") -> tuple[int, bytes]:
+    sock.sendall(rtde.frame(message_type, payload))
+    size, kind = rtde.HEADER.unpack(sock.recv(3, socket.MSG_WAITALL))
+    return kind, sock.recv(size - 3, socket.MSG_WAITALL)
+
+
+def test_rtde_handshake_recipes_not_found_in_use_and_data_packages_at_the_controller_rate():
+    host = "127.0.0.110"
+    with standin(host, series="e"):
+        first = socket.create_connection((host, 30004))
+        second = socket.create_connection((host, 30004))
+        try:
+            assert request(first, rtde.REQUEST_PROTOCOL_VERSION, struct.pack(">H", 2))[1] == b"\x01"
+            _, version = request(first, rtde.GET_URCONTROL_VERSION)
+            assert struct.unpack(">4I", version)[:2] == (5, 11)
+            names = b"timestamp,actual_TCP_pose,no_such_variable"
+            _, answer = request(first, rtde.SETUP_OUTPUTS, struct.pack(">d", 500.0) + names)
+            assert answer[1:].decode().split(",") == ["DOUBLE", "VECTOR6D", "NOT_FOUND"]
+            _, answer = request(first, rtde.SETUP_OUTPUTS, struct.pack(">d", 500.0) + names[:-17])
+            assert answer[1:] == b"DOUBLE,VECTOR6D"
+            _, answer = request(first, rtde.SETUP_INPUTS, b"input_int_register_5")
+            assert answer[0] == 1 and answer[1:] == b"INT32"
+            _, answer = request(second, rtde.SETUP_INPUTS, b"input_int_register_5")
+            assert answer[0] == 0 and answer[1:] == b"IN_USE"
+            assert request(first, rtde.START)[1] == b"\x01"
+            layout = rtde.recipe_format(["DOUBLE", "VECTOR6D"])
+            stamps = []
+            for _ in range(50):
+                kind, payload = rtde.HEADER.unpack(first.recv(3, socket.MSG_WAITALL))[::-1]
+                body = first.recv(payload - 3, socket.MSG_WAITALL)
+                assert kind == rtde.DATA_PACKAGE
+                stamps.append(layout.unpack(body[1:])[0])
+            assert np.median(np.diff(stamps)) == pytest.approx(0.002)  # 500 Hz controller time
+        finally:
+            first.close()
+            second.close()
+
+
+def test_dashboard_refuses_to_unlock_a_protective_stop_within_5_s():
+    controller = Controller(Series.CB3, np.zeros(6))
+    controller.protective_stop("test")
+    assert reply(controller, "safetystatus") == "Safetystatus: PROTECTIVE_STOP"
+    assert reply(controller, "unlock protective stop").startswith("Cannot unlock protective stop")
+    controller.safety_since = time.monotonic() - 5.1
+    assert reply(controller, "unlock protective stop") == "Protective stop releasing"
+    assert controller.safety is Safety.NORMAL
+    assert reply(controller, "PolyscopeVersion").startswith("URSoftware 3.15")
+    assert reply(controller, "no such command") == "could not understand: 'no such command'"
+
+
+def test_calibrate_tracker_prints_the_transform_that_maps_the_pairs(tmp_path, capsys):
+    rng = np.random.default_rng(2)
+    base = rng.uniform([0.2, -0.4, 0.05], [0.8, 0.4, 0.6], size=(6, 3))
+    tracker = np.array([to_tracker(b) for b in base])  # millimetres
+    pairs = tmp_path / "pairs.csv"
+    np.savetxt(pairs, np.hstack([tracker, base]), delimiter=",", header="tx,ty,tz,bx,by,bz")
+    assert main(["calibrate-tracker", str(pairs)]) == 0
+    out = capsys.readouterr().out
+    assert "units_to_m = 0.001" in out and "RMS residual 0.00 mm" in out
+    assert f"translation = [{', '.join(f'{v:.5f}' for v in TRACKER.translation)}]" in out
