@@ -178,6 +178,7 @@ class HandoverLoop:
             outcome, reason = Outcome.ERROR, f"{type(exc).__name__}: {exc}"
         finally:
             stop_at = self._halt()
+            clock.stop()
         samples = recorder.columns()
         self.result = TrialRecord(
             self._summarise(samples, outcome, reason, robot_arrival, hand_arrival, misses, stop_at),

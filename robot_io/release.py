@@ -74,9 +74,12 @@ def await_release(read_force, gripper, release: ForceRelease, clock, timeout_s: 
     False after ``timeout_s`` (the gripper stays closed)."""
     release.reset()
     clock.start()
-    while clock.now() < timeout_s:
-        if release.update(read_force(), in_handover=True):
-            gripper.open()
-            return True
-        clock.wait_next_cycle()
-    return False
+    try:
+        while clock.now() < timeout_s:
+            if release.update(read_force(), in_handover=True):
+                gripper.open()
+                return True
+            clock.wait_next_cycle()
+        return False
+    finally:
+        clock.stop()

@@ -242,3 +242,26 @@ def test_real_clock_completes_a_handover_like_the_simulated_clock(config):
     assert real.outcome == sim.outcome == Outcome.COMPLETED
     # the wall clock may drift the samples by a cycle or two; arrival times stay close
     assert real.robot_arrival_s == pytest.approx(sim.robot_arrival_s, abs=0.05)
+
+
+def test_the_real_clock_gives_the_thread_back_its_scheduling_policy(config):
+    """Under SCHED_FIFO while a trial runs (where the OS allows it), the normal policy after it: a
+    real-time trial run on a caller's own thread must not leave that thread real-time."""
+    import os
+    import sys
+
+    before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, sys.getswitchinterval())
+    clock = RealClock(500)
+    clock.start()
+    try:
+        during = os.sched_getscheduler(0)
+        assert during == (os.SCHED_FIFO if clock.priority_raised else before[0])
+        assert sys.getswitchinterval() <= 0.0002
+    finally:
+        clock.stop()
+    assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
+            sys.getswitchinterval()) == before
+    record = simulate_trial(config.model_copy(update={"loop": LoopConfig(rate_hz=125)}), REACTIVE,
+                            Scenario.STRAIGHTFORWARD, seed=9, realtime=True)
+    assert record.summary.outcome == Outcome.COMPLETED
+    assert (os.sched_getscheduler(0), sys.getswitchinterval()) == (before[0], before[2])
