@@ -50,8 +50,10 @@ def step_times(config: ControllerConfig, trials: int) -> tuple[np.ndarray, np.nd
     return np.array(coupled) * 1e6, np.array(uncoupled) * 1e6
 
 
-def realtime_figures(config: ControllerConfig, rate: int, seconds: float) -> dict[str, float]:
-    config = config.model_copy(update={"loop": LoopConfig(rate_hz=rate)})
+def realtime_figures(config: ControllerConfig, rate: int, seconds: float,
+                     priority: bool = False) -> dict[str, float]:
+    config = config.model_copy(update={"loop": LoopConfig(rate_hz=rate,
+                                                          realtime_priority=priority)})
     cycles = misses = 0
     lateness, compute = [], []
     seed = 0
@@ -75,6 +77,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=12.0, help="real-time handovers per rate [s]")
     parser.add_argument("--trials", type=int, default=20, help="perturbed trials for the step timing")
+    parser.add_argument("--realtime-priority", action="store_true",
+                        help="control thread under SCHED_FIFO (needs root or CAP_SYS_NICE)")
     args = parser.parse_args()
     config = ControllerConfig()
 
@@ -86,7 +90,7 @@ def main() -> None:
     print(f"  baseline, uncoupled DMP step: median {base:.1f} µs, p99 {np.percentile(plain, 99):.1f} µs"
           f" -> coupled/uncoupled median ratio {median / base:.2f}")
     for rate in (125, 500):
-        fig = realtime_figures(config, rate, args.seconds)
+        fig = realtime_figures(config, rate, args.seconds, args.realtime_priority)
         print(f"{rate} Hz real time, mock arm, {fig['seconds']:.1f} s in {fig['handovers']} handovers: "
               f"{fig['missed']} of {fig['cycles']} cycles missed their deadline "
               f"({fig['miss_share_pct']:.3f} %, goal < 0.5 % at 500 Hz); start lateness median "

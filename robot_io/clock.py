@@ -86,17 +86,19 @@ class RealClock:
 
     Sleeps until ``spin_s`` before the deadline, then spins: ``time.sleep`` alone overshoots by tens to
     hundreds of µs, a large share of a 2 ms period. Starting it lowers the interpreter's thread switch
-    interval so that a busy thread holding the GIL delays a cycle by at most a fraction of a period,
-    and runs the calling thread under SCHED_FIFO where the OS allows it (root or CAP_SYS_NICE: with a
-    browser and the learner on a 2-core machine this took 500 Hz deadline misses from 2.5 % to 0.2 %).
-    :meth:`stop` undoes both.
+    interval so that a busy thread holding the GIL delays a cycle by at most a fraction of a period.
+    With ``realtime_priority`` it also runs the calling thread under SCHED_FIFO where the OS allows it
+    (root or CAP_SYS_NICE): with a browser and the learner on a 2-core machine this took 500 Hz
+    deadline misses from 2.5 % to 0.1–0.3 %. :meth:`stop` undoes both.
     A cycle more than ``resync_cycles`` late moves the grid instead of catching up in a burst.
     """
 
     realtime = True
 
-    def __init__(self, rate_hz: float, spin_s: float = 2e-4, resync_cycles: int = 10) -> None:
+    def __init__(self, rate_hz: float, spin_s: float = 2e-4, resync_cycles: int = 10,
+                 realtime_priority: bool = False) -> None:
         self.period = 1.0 / rate_hz
+        self.realtime_priority = realtime_priority
         self.spin_s = spin_s
         self.resync_cycles = resync_cycles
         self._origin = time.monotonic()
@@ -122,7 +124,7 @@ class RealClock:
     def start(self) -> None:
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(min(self._switch_interval, self.period / 10.0))
-        self._policy_before = _raise_priority()
+        self._policy_before = _raise_priority() if self.realtime_priority else None
         self._origin = time.monotonic()
         self._next = 0.0
 

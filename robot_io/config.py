@@ -111,6 +111,9 @@ class LoopConfig(_Frozen):
     staleness_limit_s: Positive = Field(
         0.1, description="a hand sample older than this means the tracker is lost: stop [s]")
     timeout_s: Positive = Field(20.0, description="a trial longer than this ends as 'timeout' [s]")
+    realtime_priority: bool = Field(
+        False, description="run the control thread under SCHED_FIFO on the wall clock (needs root "
+                           "or CAP_SYS_NICE; see docs/controller.md)")
 
 
 class URConfig(_Frozen):

@@ -16,7 +16,9 @@ from robot_io.theta import Theta
 
 
 def make_clock(config: ControllerConfig, realtime: bool) -> Clock:
-    return (RealClock if realtime else SimClock)(config.loop.rate_hz)
+    if realtime:
+        return RealClock(config.loop.rate_hz, realtime_priority=config.loop.realtime_priority)
+    return SimClock(config.loop.rate_hz)
 
 
 def make_coupling(config: ControllerConfig, theta: Theta | None, dt: float) -> Coupling:

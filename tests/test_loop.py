@@ -251,7 +251,11 @@ def test_the_real_clock_gives_the_thread_back_its_scheduling_policy(config):
     import sys
 
     before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority, sys.getswitchinterval())
-    clock = RealClock(500)
+    plain = RealClock(500)
+    plain.start()
+    assert not plain.priority_raised and os.sched_getscheduler(0) == before[0]  # opt-in only
+    plain.stop()
+    clock = RealClock(500, realtime_priority=True)
     clock.start()
     try:
         during = os.sched_getscheduler(0)
@@ -261,7 +265,8 @@ def test_the_real_clock_gives_the_thread_back_its_scheduling_policy(config):
         clock.stop()
     assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
             sys.getswitchinterval()) == before
-    record = simulate_trial(config.model_copy(update={"loop": LoopConfig(rate_hz=125)}), REACTIVE,
-                            Scenario.STRAIGHTFORWARD, seed=9, realtime=True)
+    record = simulate_trial(config.model_copy(update={"loop": LoopConfig(
+        rate_hz=125, realtime_priority=True)}), REACTIVE, Scenario.STRAIGHTFORWARD, seed=9,
+        realtime=True)
     assert record.summary.outcome == Outcome.COMPLETED
     assert (os.sched_getscheduler(0), sys.getswitchinterval()) == (before[0], before[2])

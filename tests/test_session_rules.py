@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sqlite3
 
+import numpy as np
 import pytest
 from pydantic import ValidationError
 from session_helpers import drive_until, new_engine, short_config
@@ -185,3 +186,17 @@ def test_forward_migrations_run_once_and_a_failing_one_changes_nothing(tmp_path,
         assert conn.execute("PRAGMA user_version").fetchone()[0] == 2
         columns = [row[1] for row in conn.execute("PRAGMA table_info(trials)")]
     assert "half_done" not in columns
+
+
+def test_the_engine_hands_the_dashboard_the_posterior_slices(engine):
+    assert engine.posterior_slices == []
+    for position in (0.3, 0.7, 0.5):  # the initial batch: its placements give comparisons
+        drive_until(engine, Step.PLACE)
+        engine.place(position=position)
+    engine.plan_next()
+    slices = engine.posterior_slices
+    assert [s.parameter for s in slices] == ["a", "delta", "k"]
+    for s in slices:
+        low, high = engine.config.theta_bounds[s.parameter]
+        assert (s.values[0], s.values[-1]) == (low, high)
+        assert all(np.isfinite(s.mean))

@@ -191,8 +191,13 @@ def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
         assert tablet_screen(tablet, not_="place") == "wait"
         reload(tablet)
         assert tablet_screen(tablet) == "wait"
+        # 2 ≻ 1 gives the learner its first model: θ* and the posterior slices reach the dashboard
+        dashboard.get_by_text("Learner", exact=True).first.click()
+        wait_text(dashboard, "θ* (best so far)")
+        wait_text(dashboard, "u along k")
+        shot(dashboard, screens, "dashboard-learner")
         served.shutdown()
-    publish([screens / "dashboard-stopped.png"])
+    publish([screens / "dashboard-stopped.png", screens / "dashboard-learner.png"])
     store = ParticipantStore.open(served.study, "P02")
     try:
         trials = store.rows("trials", order_by="trial_index")

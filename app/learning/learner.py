@@ -29,6 +29,7 @@ from app.learning.models import (
     Comparison,
     FitReport,
     Interaction,
+    PosteriorSlice,
     Slot,
     SlotKind,
     Suggestion,
@@ -130,6 +131,29 @@ class PreferenceLearner:
         unit = self._query(slot) if slot.kind is SlotKind.QUERY else self._sobol(slot)
         return Suggestion(theta=self.config.box.from_unit(unit.tolist()), slot=slot,
                           fit=self.last_fit)  # after _query, which may have refitted
+
+    def posterior_slices(self, points: int = 41) -> list[PosteriorSlice]:
+        """The posterior utility along each parameter through θ* (the others held at θ*), for the
+        experimenter's learner panel; empty before a model exists."""
+        best = self.model.best(self.data)
+        model = self.model.model
+        if best is None or model is None:
+            return []
+        center = torch.tensor(self.data.points[best[0]], dtype=torch.float64)
+        grid = torch.linspace(0.0, 1.0, points, dtype=torch.float64)
+        box = self.config.box
+        slices = []
+        for i, name in enumerate(box.names):
+            X = center.repeat(points, 1)
+            X[:, i] = grid
+            with torch.no_grad():
+                posterior = model.posterior(X)
+            mean = posterior.mean.reshape(-1)
+            std = posterior.variance.clamp_min(0.0).sqrt().reshape(-1)
+            values = box.lower[i] + grid * (box.upper[i] - box.lower[i])
+            slices.append(PosteriorSlice(parameter=name, values=tuple(values.tolist()),
+                                         mean=tuple(mean.tolist()), std=tuple(std.tolist())))
+        return slices
 
     def snapshot(self) -> LearnerSnapshot:
         """Plain-data state for storage; :meth:`restore` rebuilds an equivalent learner."""

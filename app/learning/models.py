@@ -185,3 +185,12 @@ class Suggestion(_Frozen):
     fit: FitReport = FitReport()
     fallback: bool = Field(False, description="made by the caller-side fallback, not the learner")
     worker_restarts: int = 0
+
+
+class PosteriorSlice(_Frozen):
+    """The posterior utility of eq. (13) along one parameter through θ*, the others held at θ*."""
+
+    parameter: str
+    values: tuple[float, ...] = Field(description="the parameter's values, in its own units")
+    mean: tuple[float, ...] = Field(description="posterior mean utility at each value")
+    std: tuple[float, ...] = Field(description="posterior standard deviation at each value")

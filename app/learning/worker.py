@@ -36,7 +36,14 @@ from scipy.stats import qmc
 
 from app.learning.config import Hyperparameters, LearnerConfig, LearnerSnapshot
 from app.learning.errors import LearningError, WorkerError
-from app.learning.models import BestPoint, Comparison, Interaction, SlotKind, Suggestion
+from app.learning.models import (
+    BestPoint,
+    Comparison,
+    Interaction,
+    PosteriorSlice,
+    SlotKind,
+    Suggestion,
+)
 from app.learning.rng import derive_seed
 
 logger = logging.getLogger(__name__)
@@ -65,6 +72,7 @@ class WorkerReply(BaseModel):
     best: BestPoint | None = None
     hyperparameters: Hyperparameters | None = None
     state: LearnerSnapshot | None = None
+    slices: list[PosteriorSlice] = []
     error: str | None = None
 
 
@@ -103,7 +111,7 @@ def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, A
             reply = WorkerReply(request_id=request.request_id, suggestion=learner.suggest(),
                                 best=learner.best(),
                                 hyperparameters=learner.model.hyperparameters,
-                                state=learner.snapshot())
+                                state=learner.snapshot(), slices=learner.posterior_slices())
         except LearningError as exc:
             reply = WorkerReply(request_id=request.request_id, error=str(exc))
         replies.put(reply.model_dump(mode="json"))
@@ -120,6 +128,8 @@ class LearnerClient:
         self.best: BestPoint | None = None
         #: the worker's exact state after its latest reply (what a session stores to resume)
         self.state: LearnerSnapshot | None = snapshot
+        #: the posterior utility along each parameter through θ*, from the latest reply
+        self.slices: list[PosteriorSlice] = []
         self._snapshot = snapshot
         self._context = mp.get_context(start_method)
         self._history: list[ObserveRequest] = []  # answered requests, replayed after a crash
@@ -238,6 +248,7 @@ class LearnerClient:
             self._hyperparameters = reply.hyperparameters
         if reply.state is not None:
             self.state = reply.state
+            self.slices = reply.slices
         if self._pending is None or reply.request_id != self._pending.request_id:
             logger.debug("dropped late reply to request %d", reply.request_id)
             return

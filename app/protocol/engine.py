@@ -19,7 +19,7 @@ from scipy.stats import qmc
 
 from app.learning.config import LearnerConfig, LearnerSnapshot
 from app.learning.models import Comparison as LearnerComparison
-from app.learning.models import Interaction, ParameterBox, SlotKind, Suggestion
+from app.learning.models import Interaction, ParameterBox, PosteriorSlice, SlotKind, Suggestion
 from app.learning.models import Placement as ScalePlacement
 from app.learning.planner import BatchSchedule
 from app.learning.scale import comparisons_for_newest
@@ -93,6 +93,8 @@ class SessionEngine:
         self.state: SessionState = replay(self.slots, store.events())
         self._learner_factory = learner_factory
         self._learner: LearnerClient | None = None
+        #: the posterior utility through θ* after the latest learner reply (for the dashboard)
+        self.posterior_slices: list[PosteriorSlice] = []
 
     # -- lifecycle --------------------------------------------------------------------------------
     @classmethod
@@ -309,7 +311,9 @@ class SessionEngine:
 
     def _suggestion(self, timeout: float) -> tuple[Suggestion, LearnerClient]:
         learner = self._ensure_learner()
-        return learner.get(timeout), learner
+        suggestion = learner.get(timeout)
+        self.posterior_slices = learner.slices or self.posterior_slices
+        return suggestion, learner
 
     def _snapshot_row(self, learner: LearnerClient, after: int, suggestion: Suggestion
                       ) -> LearnerSnapshotRow:

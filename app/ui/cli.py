@@ -35,6 +35,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="TOML with protocol counts for new sessions (initial_trials, "
                             "batch_size, learning_batches, best_trials, validation_batches, "
                             "acquisition); the paper's by default")
+    serve.add_argument("--realtime-priority", action="store_true",
+                       help="run the control thread under SCHED_FIFO (needs root or CAP_SYS_NICE; "
+                            "keeps 500 Hz cycles on time beside the browser and the learner)")
     serve.add_argument("--auto-participant", action="store_true",
                        help="the simulated participant rates and answers (demos, dry runs)")
     serve.set_defaults(func=serve_command)
@@ -50,7 +53,8 @@ def load_protocol(path: Path | None) -> dict:
 
 
 def serve_command(args: argparse.Namespace) -> int:
-    runner = SessionRunner(args.study, rate_hz=args.rate, protocol=load_protocol(args.protocol))
+    runner = SessionRunner(args.study, rate_hz=args.rate, protocol=load_protocol(args.protocol),
+                           realtime_priority=args.realtime_priority)
     servers = HandoverServers(runner, ServeOptions(host=args.host, tablet_port=args.tablet_port,
                                                    dashboard_port=args.dashboard_port,
                                                    token=args.token))

@@ -14,8 +14,11 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
+import numpy as np
 import viser
+import viser.uplot
 
+from app.learning.models import PosteriorSlice
 from app.protocol.state import Step
 from app.ui.live_view import STRIDE, LiveView
 from app.ui.session_runner import RunnerView, SessionRunner
@@ -67,9 +70,30 @@ def devices_markdown(view: RunnerView) -> str:
                       "", "Recent events:", *[f"- {m}" for m in view.messages]])
 
 
+#: Colours of the posterior slices along a, δ and k.
+SLICE_COLOURS = ("#1c7ed6", "#e8590c", "#2b8a3e")
+
+
+def posterior_plot(gui: viser.GuiApi) -> viser.GuiUplotHandle:
+    """The posterior utility along a, δ and k through θ* (eq. 13), each against its position in Θ
+    (0 = lower bound, 1 = upper bound of Table I)."""
+    series = [viser.uplot.Series(label="position in Θ")] + [
+        viser.uplot.Series(label=f"u along {name}", stroke=colour, width=2)
+        for name, colour in zip(("a", "δ", "k"), SLICE_COLOURS, strict=True)]
+    return gui.add_uplot(tuple(np.zeros(1) for _ in series), tuple(series),
+                         scales={"x": viser.uplot.Scale(time=False, auto=True)},
+                         legend=viser.uplot.Legend(show=True), aspect=2.0)
+
+
+def posterior_data(slices: list[PosteriorSlice]) -> tuple[np.ndarray, ...]:
+    """uPlot columns: the common position in Θ, then the posterior mean along each parameter."""
+    position = np.linspace(0.0, 1.0, len(slices[0].values))
+    return (position, *(np.asarray(s.mean) for s in slices))
+
+
 def learner_markdown(view: RunnerView, rows: int = 10) -> str:
-    """θ* after each learner update and the θ of the latest attempts (the posterior itself stays
-    in the learner's process)."""
+    """θ* after each learner update and the θ of the latest attempts (the posterior slices are
+    drawn below it)."""
     star = view.theta_star[-1] if view.theta_star else None
     head = (f"θ* (best so far): **a {star.a:.2f}, δ {star.delta:.2f}, k {star.k:.2f}** after "
             f"interaction {star.after_interaction}" if star else "θ*: none yet")
@@ -137,6 +161,8 @@ class DashboardClient:
             self.progress.content = progress_markdown(view)
             self.devices.content = devices_markdown(view)
             self.learner.content = learner_markdown(view)
+            if view.posterior:
+                self.posterior.data = posterior_data(view.posterior)
             self.controls.enable_for(view)
 
     def tick(self) -> None:
@@ -162,6 +188,7 @@ class DashboardClient:
                 self.live = LiveView(self.client, self.runner.scene_config())
             with gui.add_folder("Learner", expand_by_default=False):
                 self.learner = gui.add_markdown("")
+                self.posterior = posterior_plot(gui)
 
     def _participant(self, gui: viser.GuiApi, view: RunnerView) -> None:
         if view.code is not None:

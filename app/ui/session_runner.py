@@ -24,6 +24,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from app.learning.errors import LearningError
+from app.learning.models import PosteriorSlice
 from app.protocol.auto import step_once
 from app.protocol.engine import SessionEngine, TrialPlan
 from app.protocol.simulated_participant import SimulatedParticipant
@@ -81,6 +82,7 @@ class RunnerView(BaseModel):
     messages: list[str] = []  # the latest events, newest last
     trials: list[Trial] = []
     theta_star: list[ThetaStar] = []
+    posterior: list[PosteriorSlice] = []  # posterior utility through θ*, per parameter
 
     @property
     def step(self) -> Step | None:
@@ -94,9 +96,11 @@ T = TypeVar("T")
 class SessionRunner:
     """One participant at a time. Actions raise :class:`RefusedAction` with the reason."""
 
-    def __init__(self, study: Path, rate_hz: int = 500, protocol: dict | None = None) -> None:
+    def __init__(self, study: Path, rate_hz: int = 500, protocol: dict | None = None,
+                 realtime_priority: bool = False) -> None:
         self.study = study
         self.rate_hz = rate_hz
+        self.realtime_priority = realtime_priority
         self.protocol = protocol or {}
         self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="engine")
         self._engine_thread = self._executor.submit(threading.get_ident).result()
@@ -239,7 +243,7 @@ class SessionRunner:
         engine = self._require_engine()
         plan = engine.start_trial()
         config = engine.config.controller
-        clock = RealClock(config.loop.rate_hz)
+        clock = RealClock(config.loop.rate_hz, realtime_priority=self.realtime_priority)
         hand = SimulatedHand(engine.config.scenario, config.scene, config.hand,
                              plan.trial.hand_seed)
         self._arm = MockArm(clock, config.scene.point("robot_start"))
@@ -314,7 +318,7 @@ class SessionRunner:
             hand=f"simulated hand ({engine.config.scenario.value})",
             messages=list(self._messages),
             trials=engine.store.rows("trials", order_by="trial_index"),
-            theta_star=self._theta_star, **devices)
+            theta_star=self._theta_star, posterior=engine.posterior_slices, **devices)
 
     # -- internals: other threads -----------------------------------------------------------------
     def _halt(self, reason: str) -> None:
