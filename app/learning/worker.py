@@ -13,7 +13,7 @@ method (torch lives only in the child, single-threaded). The caller's side,
     client.pending                         # True until the reply has arrived (non-blocking)
     client.poll()                          # the reply if it has arrived, else None
     client.best                            # θ* from the latest reply
-    client.snapshot()                      # LearnerSnapshot for storage
+    client.state                           # the worker's exact LearnerSnapshot, for storage
     client.close()
 
 Fallback: when ``get`` times out, the caller receives a Sobol point of the box (or the last known
@@ -190,7 +190,11 @@ class LearnerClient:
         return self._take()  # type: ignore[return-value]
 
     def snapshot(self) -> LearnerSnapshot:
-        """Everything submitted so far plus the latest hyperparameters, for the session store."""
+        """Everything submitted so far (pending requests included) plus the latest hyperparameters.
+
+        Not an exact learner state: the hyperparameters may lag the newest observations and
+        ``fitted_comparisons`` is not known here. To store and resume a learner use :attr:`state`,
+        the worker's own snapshot as of its latest reply."""
         requests = self._history + ([self._pending] if self._pending else [])
         start = self._snapshot
         return LearnerSnapshot(
