@@ -22,7 +22,7 @@ from botorch.acquisition import AcquisitionFunction
 from botorch.acquisition.logei import qLogNoisyExpectedImprovement
 from botorch.acquisition.monte_carlo import qNoisyExpectedImprovement
 from botorch.acquisition.preference import AnalyticExpectedUtilityOfBestOption
-from botorch.exceptions.warnings import NumericsWarning
+from botorch.exceptions.warnings import BadInitialCandidatesWarning, NumericsWarning
 from botorch.models.pairwise_gp import PairwiseGP
 from botorch.optim import optimize_acqf
 from botorch.sampling.normal import SobolQMCNormalSampler
@@ -68,9 +68,12 @@ def propose(name: AcquisitionName, model: PairwiseGP, best_x: torch.Tensor,
     dim = best_x.shape[-1]
     bounds = torch.stack([torch.zeros(dim, dtype=torch.float64),
                           torch.ones(dim, dtype=torch.float64)])
-    with seeded(seed), expected_warnings(NumericalWarning, context=f"acquisition {name}"):
+    with seeded(seed), expected_warnings(NumericalWarning, BadInitialCandidatesWarning,
+                                         context=f"acquisition {name}"):
         # NumericalWarning: jitter added to a near-singular joint posterior covariance, e.g. when a
-        # candidate approaches an observed point.
+        # candidate approaches an observed point. BadInitialCandidatesWarning: the model is sure
+        # that no raw sample improves on θ* (noiseless data near convergence), so the starts of
+        # L-BFGS-B are drawn at random, which is BoTorch's designed fallback.
         acqf = build_acquisition(name, model, best_x, config, seed)
         candidate, _ = optimize_acqf(acqf, bounds=bounds, q=1, num_restarts=config.num_restarts,
                                      raw_samples=config.raw_samples)

@@ -34,7 +34,7 @@ from app.learning.models import (
     SlotKind,
     Suggestion,
 )
-from app.learning.preference_model import PreferenceModel
+from app.learning.preference_model import PreferenceModel, posterior_at
 from app.learning.rng import derive_seed, seeded
 
 logger = logging.getLogger(__name__)
@@ -146,10 +146,7 @@ class PreferenceLearner:
         for i, name in enumerate(box.names):
             X = center.repeat(points, 1)
             X[:, i] = grid
-            with torch.no_grad():
-                posterior = model.posterior(X)
-            mean = posterior.mean.reshape(-1)
-            std = posterior.variance.clamp_min(0.0).sqrt().reshape(-1)
+            mean, std = posterior_at(model, X)
             values = box.lower[i] + grid * (box.upper[i] - box.lower[i])
             slices.append(PosteriorSlice(parameter=name, values=tuple(values.tolist()),
                                          mean=tuple(mean.tolist()), std=tuple(std.tolist())))

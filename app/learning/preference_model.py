@@ -94,10 +94,18 @@ def fit_model(data: PreferenceData, config: ModelConfig,
     return model.eval()
 
 
+def posterior_at(model: PairwiseGP, X: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Posterior mean E[u(x) | 𝒟] and standard deviation of the utility at the rows of ``X``."""
+    # NumericalWarning: jitter added when rows of X (nearly) coincide with observed points.
+    with torch.no_grad(), expected_warnings(NumericalWarning, context="posterior"):
+        posterior = model.posterior(X)
+    return (posterior.mean.reshape(-1),
+            posterior.variance.clamp_min(0.0).sqrt().reshape(-1))
+
+
 def posterior_mean(model: PairwiseGP, X: torch.Tensor) -> torch.Tensor:
     """Posterior mean utility E[u(x) | 𝒟] at the rows of ``X`` (unit cube)."""
-    with torch.no_grad():
-        return model.posterior(X).mean.reshape(-1)
+    return posterior_at(model, X)[0]
 
 
 class PreferenceModel:
