@@ -34,7 +34,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict
 from scipy.stats import qmc
 
-from app.learning.config import Hyperparameters, LearnerConfig, LearnerSnapshot
+from app.learning.config import LearnerConfig, LearnerSnapshot
 from app.learning.errors import LearningError, WorkerError
 from app.learning.models import (
     BestPoint,
@@ -70,7 +70,6 @@ class WorkerReply(BaseModel):
     request_id: int
     suggestion: Suggestion | None = None
     best: BestPoint | None = None
-    hyperparameters: Hyperparameters | None = None
     state: LearnerSnapshot | None = None
     slices: list[PosteriorSlice] = []
     error: str | None = None
@@ -109,9 +108,8 @@ def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, A
         try:
             learner.observe_many(request.interactions, request.comparisons)
             reply = WorkerReply(request_id=request.request_id, suggestion=learner.suggest(),
-                                best=learner.best(),
-                                hyperparameters=learner.model.hyperparameters,
-                                state=learner.snapshot(), slices=learner.posterior_slices())
+                                best=learner.best(), state=learner.snapshot(),
+                                slices=learner.posterior_slices())
         except LearningError as exc:
             reply = WorkerReply(request_id=request.request_id, error=str(exc))
         replies.put(reply.model_dump(mode="json"))
@@ -136,7 +134,6 @@ class LearnerClient:
         self._pending: ObserveRequest | None = None
         self._next_id = 0
         self._n_interactions = len(snapshot.interactions) if snapshot else 0
-        self._hyperparameters: Hyperparameters | None = None
         self._ready: Suggestion | None = None
         self._fallback_engine = qmc.Sobol(config.box.dim, scramble=True,
                                           seed=derive_seed(config.seed, 3) % 2**32)
@@ -189,22 +186,6 @@ class LearnerClient:
             self._collect(block=True, timeout=min(remaining, _LIVENESS_PERIOD))
         return self._take()  # type: ignore[return-value]
 
-    def snapshot(self) -> LearnerSnapshot:
-        """Everything submitted so far (pending requests included) plus the latest hyperparameters.
-
-        Not an exact learner state: the hyperparameters may lag the newest observations and
-        ``fitted_comparisons`` is not known here. To store and resume a learner use :attr:`state`,
-        the worker's own snapshot as of its latest reply."""
-        requests = self._history + ([self._pending] if self._pending else [])
-        start = self._snapshot
-        return LearnerSnapshot(
-            config=self.config,
-            interactions=(start.interactions if start else []) + [
-                i for r in requests for i in r.interactions],
-            comparisons=(start.comparisons if start else []) + [
-                c for r in requests for c in r.comparisons],
-            hyperparameters=self._hyperparameters)
-
     def close(self, timeout: float = 5.0) -> None:
         """Stop the worker: a polite request first, then terminate if it does not exit."""
         if self._process.is_alive():
@@ -249,7 +230,6 @@ class LearnerClient:
         reply = WorkerReply.model_validate(message)
         if reply.best is not None:
             self.best = reply.best
-            self._hyperparameters = reply.hyperparameters
         if reply.state is not None:
             self.state = reply.state
             self.slices = reply.slices

@@ -9,6 +9,7 @@ import time
 import pytest
 
 from app.learning.config import LearnerConfig
+from app.learning.learner import PreferenceLearner
 from app.learning.models import Comparison, Interaction, ParameterBox, SlotKind
 from app.learning.planner import BatchSchedule
 from app.learning.worker import LearnerClient
@@ -55,9 +56,10 @@ def test_real_suggestions_follow_and_theta_star_is_reported(client):
         assert suggestion is not None and not suggestion.fallback
     assert suggestion.slot.kind is SlotKind.BEST
     assert client.best is not None and suggestion.theta == client.best.theta
-    snapshot = client.snapshot()
-    assert [i.interaction_id for i in snapshot.interactions] == ["1", "2", "3"]
-    assert snapshot.hyperparameters is not None
+    state = client.state  # the worker's own snapshot as of its latest reply
+    assert [i.interaction_id for i in state.interactions] == ["1", "2", "3"]
+    assert state.hyperparameters is not None
+    assert PreferenceLearner.restore(state).best().theta == client.best.theta
 
 
 def test_a_killed_worker_is_detected_and_restarted_with_its_history(client):
