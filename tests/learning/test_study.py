@@ -107,19 +107,23 @@ def test_cli_rejects_more_initial_points_than_queries(capsys):
     assert "--initial = 9 must not exceed --queries = 5" in capsys.readouterr().err
 
 
+NOISE_LIMIT = pytest.mark.xfail(strict=True, reason=(
+    "acceptance criterion of issue 3 not met at σ = 0.05: with y = u + j·N(0, σ²) read literally "
+    "(noise sd j·σ, up to 0.25 at j = 5), qNEI q=5 finds good points but cannot identify θ* among "
+    "them; N=100, seed 2024: 0.221 [0.193, 0.249] vs Sobol 0.237 [0.213, 0.260] (ratio 0.93). "
+    "It holds up to σ = 0.03. See docs/learning.md. strict: an XPASS fails the suite."))
+
+
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "acceptance criterion of issue 3 not met by this implementation: with y = u + j·N(0, σ²) "
-    "read literally (noise sd j·σ, up to 0.25 at j = 5), qNEI q=5 finds good points but cannot "
-    "identify θ* among them; N=100, seed 2024: 0.221 [0.193, 0.249] vs Sobol 0.237 "
-    "[0.213, 0.260] (ratio 0.93). See docs/learning.md. strict: an XPASS fails the suite."))
-def test_qnei_q5_beats_the_sobol_baseline_on_the_same_seeds(tmp_path):
+@pytest.mark.parametrize("noise", [0.03, pytest.param(0.05, marks=NOISE_LIMIT)])
+def test_qnei_q5_beats_the_sobol_baseline_on_the_same_seeds(tmp_path, noise):
     """Acceptance: qNEI (q = 5, σ = 0.05, 25 queries) ends at ≤ 0.7× Sobol's mean distance,
-    with non-overlapping 95 % CIs, on the same targets and noise."""
+    with non-overlapping 95 % CIs, on the same targets and noise. σ = 0.03 is the largest noise of
+    the sweep in docs/learning.md at which the rule holds; it shows that the learner learns."""
     trials = 16  # keeps the suite short; the N = 100 figures are in docs/learning.md
     finals = {}
     for acq in (AcquisitionName.QNEI, AcquisitionName.SOBOL):
-        condition = StudyCondition(acquisition=acq, q=5, noise=0.05)
+        condition = StudyCondition(acquisition=acq, q=5, noise=noise)
         summary, _ = run_condition(condition, trials=trials, seed=7, jobs=1, out=tmp_path,
                                    progress=False)
         finals[acq] = summary
