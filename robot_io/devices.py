@@ -6,7 +6,6 @@ import time
 
 import numpy as np
 
-from robot_io.clock import RealClock
 from robot_io.config import ControllerConfig
 from robot_io.errors import RobotIOError
 from robot_io.frame import FrameTransform
@@ -15,7 +14,7 @@ from robot_io.hand import HandSource
 from robot_io.loop import TrialRecord
 from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
-from robot_io.trial import make_loop
+from robot_io.trial import make_clock, make_loop
 from robot_io.ur_arm import URArm
 
 
@@ -44,7 +43,7 @@ def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: 
 def ur_trial(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: URArm) -> TrialRecord:
     """One real-time handover on the UR at the controller's rate (125 or 500 Hz)."""
     config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": arm.rate_hz})})
-    return make_loop(config, theta, hand, arm, RealClock(arm.rate_hz)).run()
+    return make_loop(config, theta, hand, arm, make_clock(config, realtime=True)).run()
 
 
 def check_devices(config: ControllerConfig, listen_s: float = 1.0) -> tuple[list[str], bool]:

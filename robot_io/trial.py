@@ -15,9 +15,13 @@ from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
 
 
-def make_clock(config: ControllerConfig, realtime: bool) -> Clock:
+def make_clock(config: ControllerConfig, realtime: bool, *, realtime_priority: bool = False) -> Clock:
+    """The wall clock at the loop's rate (``realtime``) or the simulated one. The wall clock raises the
+    control thread's priority when ``[loop] realtime_priority`` or the caller (``serve
+    --realtime-priority``) asks for it."""
     if realtime:
-        return RealClock(config.loop.rate_hz, realtime_priority=config.loop.realtime_priority)
+        return RealClock(config.loop.rate_hz,
+                         realtime_priority=realtime_priority or config.loop.realtime_priority)
     return SimClock(config.loop.rate_hz)
 
 

@@ -16,7 +16,7 @@ from robot_io.loop import Outcome
 from robot_io.mock_arm import MockArm
 from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
-from robot_io.trial import make_loop, simulate_trial
+from robot_io.trial import make_clock, make_loop, simulate_trial
 
 REACTIVE = Theta(a=5.0, delta=-0.2, k=15.0)
 NON_REACTIVE = Theta(a=5.0, delta=-0.2, k=0.01)
@@ -242,6 +242,20 @@ def test_real_clock_completes_a_handover_like_the_simulated_clock(config):
     assert real.outcome == sim.outcome == Outcome.COMPLETED
     # the wall clock may drift the samples by a cycle or two; arrival times stay close
     assert real.robot_arrival_s == pytest.approx(sim.robot_arrival_s, abs=0.05)
+
+
+@pytest.mark.parametrize(("in_config", "by_caller", "expected"), [
+    (False, False, False), (True, False, True), (False, True, True)])
+def test_real_time_priority_comes_from_the_config_or_the_caller(config, in_config, by_caller,
+                                                               expected):
+    """One factory for every wall-clock loop (simulated trial, web app, UR): ``[loop]
+    realtime_priority`` is honoured everywhere, and ``serve --realtime-priority`` can add it."""
+    loop = config.loop.model_copy(update={"rate_hz": 125, "realtime_priority": in_config})
+    clock = make_clock(config.model_copy(update={"loop": loop}), realtime=True,
+                       realtime_priority=by_caller)
+    assert isinstance(clock, RealClock) and clock.period == pytest.approx(1 / 125)
+    assert clock.realtime_priority is expected
+    assert isinstance(make_clock(config, realtime=False), SimClock)
 
 
 def test_the_real_clock_gives_the_thread_back_its_scheduling_policy(config):

@@ -29,13 +29,12 @@ from app.protocol.auto import step_once
 from app.protocol.engine import SessionEngine, TrialPlan
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import SessionState, Step
-from robot_io.clock import RealClock
 from robot_io.config import ControllerConfig, SceneConfig
 from robot_io.errors import RobotIOError
 from robot_io.loop import HandoverLoop
 from robot_io.mock_arm import MockArm
 from robot_io.simulated_hand import Scenario, SimulatedHand
-from robot_io.trial import make_loop
+from robot_io.trial import make_clock, make_loop
 from session_store.errors import RefusedAction, StoreError
 from session_store.models import StudyConfig, Trial
 from session_store.store import ParticipantStore, participant_codes
@@ -243,7 +242,7 @@ class SessionRunner:
         engine = self._require_engine()
         plan = engine.start_trial()
         config = engine.config.controller
-        clock = RealClock(config.loop.rate_hz, realtime_priority=self.realtime_priority)
+        clock = make_clock(config, realtime=True, realtime_priority=self.realtime_priority)
         hand = SimulatedHand(engine.config.scenario, config.scene, config.hand,
                              plan.trial.hand_seed)
         self._arm = MockArm(clock, config.scene.point("robot_start"))
