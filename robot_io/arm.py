@@ -38,6 +38,9 @@ class Arm(Protocol):
     def read_pose(self) -> np.ndarray:
         """The measured TCP position."""
 
+    def read_force(self) -> np.ndarray:
+        """The force at the TCP [N], base frame (the participant's pull while holding)."""
+
     def stop(self) -> None:
         """Halt now. Must work in any state, and never raise."""
 

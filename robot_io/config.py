@@ -90,6 +90,10 @@ class HandProfile(_Frozen):
         (0.25, 0.50), description="pause to grasp the box at B and to put it down at C [s]")
     noise_std_m: float = Field(0.0, ge=0, description="tracker noise, std per axis [m]")
     dropout_rate: float = Field(0.0, ge=0, lt=1, description="share of tracker samples lost")
+    pull_n: float = Field(15.0, ge=0, le=100, description="pull on the object once grasped [N]; 0: "
+                                                         "never takes it (see robot_io.simulated_pull)")
+    grasp_delay_s: float = Field(0.5, ge=0, le=10, description="from touching the object to pulling "
+                                                               "[s]; longer than [release] baseline_s")
 
     @model_validator(mode="after")
     def _ranges_ordered(self) -> HandProfile:
@@ -174,9 +178,36 @@ class ReleaseConfig(_Frozen):
     timeout_s: Positive = Field(10.0, description="no release within this long: give up, keep holding")
 
 
+class ArmConfig(_Frozen):
+    """Which arm the rig drives: the kinematic mock (no hardware) or a UR over RTDE (``[ur]``)."""
+
+    kind: Literal["mock", "ur"] = Field("mock", description="mock: kinematic mock arm; ur: a UR5 "
+                                                            "over RTDE at [ur] host (moves it!)")
+
+
+class CycleConfig(_Frozen):
+    """The whole handover cycle around the coupled reach (DESIGN.md §2): prepare → ready → go →
+    reach → hold → release (or not taken) → retract."""
+
+    start_zone_m: float = Field(
+        0.15, gt=0, le=0.5, description="ready: the hand must be within this radius of A [m]")
+    ready_timeout_s: float = Field(
+        30.0, gt=0, le=600, description="no live tracker with the hand at A within this long: the "
+                                        "trial is aborted [s]")
+    hold_settle_speed: float = Field(
+        0.02, gt=0, le=0.2, description="hold starts when the robot is at H below this speed [m/s]")
+    release_linger_s: float = Field(
+        0.2, ge=0, le=2.0, description="after the release the arm keeps holding still this long, so "
+                                       "the participant takes the object clear [s]")
+    retract_speed: float = Field(
+        0.25, gt=0, le=0.5, description="retract to R (and prepare) at this TCP speed [m/s]")
+
+
 class ControllerConfig(_Frozen):
     """Everything the controller needs; the TOML file has one table per field."""
 
+    arm: ArmConfig = ArmConfig()
+    cycle: CycleConfig = CycleConfig()
     dmp: DMPConstants = DMPConstants()
     scene: SceneConfig = SceneConfig()
     safety: SafetyLimits = SafetyLimits()
@@ -199,8 +230,8 @@ class ControllerConfig(_Frozen):
 
 
 def load_config(path: Path | None = None) -> ControllerConfig:
-    """Read a TOML file (tables ``[dmp]``, ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``,
-    ``[hand_source]``, ``[gripper]``, ``[release]``);
+    """Read a TOML file (tables ``[arm]``, ``[cycle]``, ``[dmp]``, ``[scene]``, ``[safety]``,
+    ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``, ``[gripper]``, ``[release]``);
     missing keys take their documented defaults. ``None`` gives the defaults."""
     if path is None:
         return ControllerConfig()

@@ -16,9 +16,32 @@ log = logging.getLogger(__name__)
 
 
 class Gripper(Protocol):
+    @property
+    def holding(self) -> bool:
+        """Closed on the object (as last commanded)."""
+
     def open(self) -> None: ...
 
     def close(self) -> None: ...
+
+    def disconnect(self) -> None: ...
+
+
+class NoGripper:
+    """``[gripper] kind = "none"``: nothing to switch; only remembers what it was told, so the cycle
+    and the simulated participant's pull see the same open/closed state as with a real gripper."""
+
+    def __init__(self) -> None:
+        self.holding = False
+
+    def open(self) -> None:
+        self.holding = False
+
+    def close(self) -> None:
+        self.holding = True
+
+    def disconnect(self) -> None:
+        pass
 
 
 class ToolOutputGripper:
@@ -28,6 +51,7 @@ class ToolOutputGripper:
         import rtde_io
 
         self.config = config
+        self.holding = False
         try:
             self._io = rtde_io.RTDEIOInterface(host)
         except RuntimeError as exc:
@@ -41,9 +65,11 @@ class ToolOutputGripper:
 
     def open(self) -> None:
         self._set(self.config.open_level, "open")
+        self.holding = False
 
     def close(self) -> None:
         self._set(not self.config.open_level, "close")
+        self.holding = True
 
     def disconnect(self) -> None:
         self._io.disconnect()

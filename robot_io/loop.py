@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -24,9 +25,14 @@ from robot_io.config import LoopConfig
 from robot_io.coupling import Coupling, HandCoupling
 from robot_io.dmp import DMP
 from robot_io.errors import ArmFault
+from robot_io.gripper import Gripper
 from robot_io.hand import HandSample, HandSource
 from robot_io.recorder import SLICES, TrialRecorder
+from robot_io.release import ForceRelease
 from robot_io.safety import SafetyLimiter
+from robot_io.stages import SAMPLE_CODE, Stage
+
+StageCallback = Callable[[Stage, float], None]
 
 log = logging.getLogger(__name__)
 
@@ -37,7 +43,8 @@ STOP_CONFIRM_S = 1.0
 
 
 class Outcome(StrEnum):
-    COMPLETED = "completed"
+    COMPLETED = "completed"  # with a hold phase: the object was released on the participant's pull
+    NOT_TAKEN = "not_taken"  # held out, but no pull within [release] timeout_s
     TIMEOUT = "timeout"
     TRACKER_LOST = "tracker_lost"
     ARM_FAULT = "arm_fault"
@@ -66,6 +73,24 @@ class TrialSummary(BaseModel):
     compute_us_p99: float
     last_hand_sample_s: float | None
     stop_commanded_s: float | None
+    first_target_s: float | None = None
+    hold_s: float | None = None
+    release_s: float | None = None
+    peak_pull_n: float | None = None
+    retract_end_s: float | None = None
+
+
+@dataclass
+class HoldPhase:
+    """What the loop needs to hold the object out at H and let go on the participant's pull:
+    the force-threshold release (armed only while holding), the gripper, and how long to wait."""
+
+    release: ForceRelease
+    gripper: Gripper
+    read_force: Callable[[], np.ndarray]
+    timeout_s: float
+    linger_s: float
+    settle_speed: float
 
 
 @dataclass
@@ -75,16 +100,29 @@ class TrialRecord:
 
 
 class HandoverLoop:
-    """One handover: call :meth:`run` on this thread, or :meth:`start` for a worker thread."""
+    """One handover: call :meth:`run` on this thread, or :meth:`start` for a worker thread.
+
+    Without a ``hold`` phase the loop ends when robot and hand are both at H and the robot is still
+    (one reach, Fig. 4). With one, it goes on streaming at H: the hold begins when the robot is at H
+    and still, the release is armed, the coupling adds the k_ext compliance term while the object is
+    grasped (``coupling`` should be a :class:`~robot_io.compliance.CompliantCoupling` over the same
+    release), and the loop ends ``linger_s`` after the gripper opens, or ``not_taken`` after
+    ``timeout_s`` of holding without a pull. ``on_stage`` hears each stage as it begins; ``stop``,
+    if given, is the event that requests a stop (shared with whoever owns the trial).
+    """
 
     def __init__(self, dmp: DMP, coupling: Coupling, hand: HandSource, arm: Arm, clock: Clock,
-                 limiter: SafetyLimiter, config: LoopConfig) -> None:
+                 limiter: SafetyLimiter, config: LoopConfig, hold: HoldPhase | None = None,
+                 on_stage: StageCallback | None = None,
+                 recorder: TrialRecorder | None = None,
+                 stop: threading.Event | None = None) -> None:
         self.dmp, self.coupling, self.hand, self.arm = dmp, coupling, hand, arm
         self.clock, self.limiter, self.config = clock, limiter, config
-        self._stop_requested = threading.Event()
+        self.hold, self.on_stage = hold, on_stage or (lambda stage, t: None)
+        self._stop_requested = stop or threading.Event()
         self._thread: threading.Thread | None = None
         self.result: TrialRecord | None = None
-        self._recorder: TrialRecorder | None = None
+        self._recorder: TrialRecorder | None = recorder
 
     # -- threading --------------------------------------------------------------------------------
     def start(self) -> threading.Thread:
@@ -110,16 +148,21 @@ class HandoverLoop:
 
     # -- the loop ---------------------------------------------------------------------------------
     def run(self) -> TrialRecord:
-        cfg, clock, dt = self.config, self.clock, self.clock.period
+        cfg, clock, dt, hold = self.config, self.clock, self.clock.period, self.hold
         goal = self.dmp.goal
-        recorder = self._recorder = TrialRecorder(int((cfg.timeout_s + 1.0) * cfg.rate_hz))
+        if self._recorder is None:
+            held = 0.0 if hold is None else hold.timeout_s + hold.linger_s
+            self._recorder = TrialRecorder(int((cfg.timeout_s + held + 1.0) * cfg.rate_hz))
+        recorder = self._recorder
         self._last: HandSample | None = None
         self._seen_t = -np.inf
         self._invalid = 0
-        robot_arrival = hand_arrival = None
+        robot_arrival = hand_arrival = first_target = hold_at = release_at = None
+        stage, peak_pull = Stage.GO, 0.0
         outcome, reason = Outcome.TIMEOUT, f"no handover within timeout_s = {cfg.timeout_s}"
         misses, lateness, prev_measured, started = 0, 0.0, None, False
         clock.start()
+        self.on_stage(Stage.GO, 0.0)
         try:
             self.arm.begin_stream()
             measured = self.arm.read_pose()
@@ -154,6 +197,9 @@ class HandoverLoop:
                     x = self.dmp.step(dt, terms)
                     commanded, flags = self.limiter.limit(x)
                     self.arm.command(commanded)
+                    if first_target is None:
+                        first_target, stage = t, Stage.REACH
+                        self.on_stage(Stage.REACH, t)
                     self._record(row, last, commanded, flags)
                     if robot_arrival is None and np.linalg.norm(measured - goal) < \
                             cfg.robot_arrival_tolerance_m:
@@ -161,12 +207,38 @@ class HandoverLoop:
                     if hand_arrival is None and np.linalg.norm(last.position - goal) < \
                             cfg.hand_arrival_tolerance_m:
                         hand_arrival = last.t
+                row[SLICES["stage"]] = SAMPLE_CODE.get(stage, np.nan)
                 speed = 0.0 if prev_measured is None else np.linalg.norm(measured - prev_measured) / dt
                 prev_measured = measured
-                if robot_arrival is not None and hand_arrival is not None and speed < SETTLE_SPEED:
-                    outcome, reason = Outcome.COMPLETED, None
-                    break
-                if t >= cfg.timeout_s:
+                if hold is None:
+                    if robot_arrival is not None and hand_arrival is not None and speed < SETTLE_SPEED:
+                        outcome, reason = Outcome.COMPLETED, None
+                        break
+                else:
+                    if hold_at is None and robot_arrival is not None and speed < hold.settle_speed:
+                        hold_at, stage = t, Stage.HOLD
+                        hold.release.reset()
+                        self.on_stage(Stage.HOLD, t)
+                    if hold_at is not None:
+                        force = hold.read_force()
+                        row[SLICES["force"]] = force
+                        if release_at is None and hold.release.update(force, in_handover=True):
+                            hold.gripper.open()
+                            release_at, stage = t, Stage.RELEASE
+                            self.on_stage(Stage.RELEASE, t)
+                        if hold.release.baseline is not None:
+                            row[SLICES["pull"]] = hold.release.pull
+                            peak_pull = max(peak_pull, hold.release.pull)
+                        if release_at is not None and t - release_at >= hold.linger_s:
+                            outcome, reason = Outcome.COMPLETED, None
+                            break
+                        if release_at is None and t - hold_at >= hold.timeout_s:
+                            outcome = Outcome.NOT_TAKEN
+                            reason = (f"no pull above {hold.release.config.threshold_n} N within "
+                                      f"[release] timeout_s = {hold.timeout_s} s of holding")
+                            self.on_stage(Stage.NOT_TAKEN, t)
+                            break
+                if hold_at is None and t >= cfg.timeout_s:
                     break
                 row[SLICES["compute_s"]] = time.perf_counter() - began
                 lateness, missed = clock.wait_next_cycle()
@@ -180,9 +252,11 @@ class HandoverLoop:
             stop_at = self._halt()
             clock.stop()
         samples = recorder.columns()
-        self.result = TrialRecord(
-            self._summarise(samples, outcome, reason, robot_arrival, hand_arrival, misses, stop_at),
-            samples)
+        summary = self._summarise(samples, outcome, reason, robot_arrival, hand_arrival, misses,
+                                  stop_at)
+        self.result = TrialRecord(summary.model_copy(update={
+            "first_target_s": first_target, "hold_s": hold_at, "release_s": release_at,
+            "peak_pull_n": None if hold_at is None else peak_pull}), samples)
         log.info("handover ended: %s (%s)", outcome, reason)
         return self.result
 

@@ -13,6 +13,7 @@ that the safety limiter let through is checked again here. ``stop()`` decelerate
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 
 import numpy as np
 
@@ -25,8 +26,10 @@ log = logging.getLogger(__name__)
 
 class MockArm:
     def __init__(self, clock: Clock, start: np.ndarray, max_speed: float = 1.5,
-                 max_acceleration: float = 10.0, stop_deceleration: float = 10.0) -> None:
+                 max_acceleration: float = 10.0, stop_deceleration: float = 10.0,
+                 force: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
         self.clock = clock
+        self._force = force
         self.max_speed = max_speed
         self.max_acceleration = max_acceleration
         self.stop_deceleration = stop_deceleration
@@ -83,6 +86,12 @@ class MockArm:
     def read_pose(self) -> np.ndarray:
         self._advance()
         return self.position.copy()
+
+    def read_force(self) -> np.ndarray:
+        """The force on the TCP [N]: what ``force(position)`` says (the simulated participant's
+        pull), zero without it."""
+        position = self.read_pose()
+        return np.zeros(3) if self._force is None else np.asarray(self._force(position), dtype=float)
 
     def stop(self) -> None:
         self._advance()

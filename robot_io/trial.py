@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import threading
+
 from robot_io.arm import Arm
 from robot_io.clock import Clock, RealClock, SimClock
+from robot_io.compliance import CompliantCoupling
 from robot_io.config import ControllerConfig
 from robot_io.coupling import Coupling, HandCoupling, NoCoupling
 from robot_io.dmp import DMP
 from robot_io.hand import HandSource
-from robot_io.loop import HandoverLoop, TrialRecord
+from robot_io.loop import HandoverLoop, HoldPhase, StageCallback, TrialRecord
 from robot_io.mock_arm import MockArm
+from robot_io.recorder import TrialRecorder
 from robot_io.safety import SafetyLimiter
 from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
@@ -33,16 +37,26 @@ def make_coupling(config: ControllerConfig, theta: Theta | None, dt: float) -> C
 
 
 def make_loop(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: Arm,
-              clock: Clock) -> HandoverLoop:
-    """A handover from the robot start R to the handover point H; the arm is first moved to R."""
+              clock: Clock, *, hold: HoldPhase | None = None, on_stage: StageCallback | None = None,
+              recorder: TrialRecorder | None = None,
+              stop: threading.Event | None = None) -> HandoverLoop:
+    """A handover from the robot start R to the handover point H; the arm is first moved to R.
+    With ``hold``, the robot then holds the object out at H with the k_ext compliance term of
+    Table I while the participant grasps it (:class:`~robot_io.compliance.CompliantCoupling`)."""
     start, goal = config.scene.point("robot_start"), config.scene.point("handover_point")
     arm.move_to(start)
+    coupling = make_coupling(config, theta, clock.period)
+    if hold is not None:
+        release = hold.release
+        coupling = CompliantCoupling(coupling, hold.read_force, config.dmp.k_ext,
+                                     grasped=lambda: release.grasped,
+                                     baseline=lambda: release.baseline)
     return HandoverLoop(
         dmp=DMP.from_minimum_jerk(start, goal, config.dmp),
-        coupling=make_coupling(config, theta, clock.period),
+        coupling=coupling,
         hand=hand, arm=arm, clock=clock,
         limiter=SafetyLimiter(config.safety, clock.period),
-        config=config.loop,
+        config=config.loop, hold=hold, on_stage=on_stage, recorder=recorder, stop=stop,
     )
 
 

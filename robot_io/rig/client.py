@@ -1,0 +1,246 @@
+"""The application's handle on the rig process: start it, send commands, hear its reports, read its
+samples, and stop the arm even when the rig itself no longer answers.
+
+Stop has two paths. The normal one is a :class:`~robot_io.rig.messages.Stop` message: the loop
+stops the arm within one cycle. If the rig does not acknowledge it within ``STOP_ACK_S`` (the loop
+is stuck, the process hangs), :meth:`RigClient.backstop` acts without it: on a UR it sends the
+controller's dashboard ``stop`` (the program ends and the arm halts; the control script's watchdog
+would end it anyway within 1/watchdog_hz), and it kills the rig process. The same backstop fires by
+itself when the rig stops writing samples for ``HANG_S`` while it streams.
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing
+import threading
+import time
+from collections.abc import Callable
+
+from robot_io.errors import RobotIOError
+from robot_io.rig import process
+from robot_io.rig.messages import (
+    Command,
+    DeviceReport,
+    Go,
+    ObjectLoaded,
+    Report,
+    RigDied,
+    RigFailed,
+    RigOpened,
+    RigSpec,
+    RunTrial,
+    Shutdown,
+    StageReached,
+    Stop,
+    StopReceived,
+    TrialDone,
+)
+from robot_io.rig.stream import SampleStream, capacity_for
+from robot_io.stages import Stage
+
+log = logging.getLogger(__name__)
+
+#: How long the rig may take to open its devices [s] (a UR connects, uploads its script).
+OPEN_TIMEOUT_S = 30.0
+#: A Stop not acknowledged within this long fires the backstop [s].
+STOP_ACK_S = 0.3
+#: While streaming, no new sample row for this long means the rig hangs [s].
+HANG_S = 0.5
+#: Stages during which the rig writes one sample row per cycle.
+STREAMING = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
+
+
+class RigError(RobotIOError):
+    """The rig process could not be started or is gone."""
+
+
+Listener = Callable[[Report | RigDied], None]
+
+
+class RigClient:
+    """Starts the rig process for ``spec`` and waits until its devices are open (or raises
+    :class:`RigError` with the rig's reason). ``listener`` hears every report on a reader thread,
+    and a :class:`RigDied` if the process ends without being told to."""
+
+    def __init__(self, spec: RigSpec, listener: Listener) -> None:
+        self.spec, self._listener = spec, listener
+        # a UR's rate (125 or 500 Hz) is known only once connected: room for the faster
+        rate = spec.config.loop.rate_hz if spec.config.arm.kind == "mock" else 500
+        self.stream = SampleStream(capacity_for(spec.config, rate))
+        context = multiprocessing.get_context("spawn")
+        self._conn, child = context.Pipe()
+        # not a daemon: the rig starts its own child (the ur_rtde control worker)
+        self.process = context.Process(target=process.main, name="handover-rig",
+                                       args=(child, spec, self.stream.name, len(self.stream.rows)))
+        self.process.start()
+        child.close()
+        self.stage: Stage | None = None
+        self.running: int | None = None  # the trial index the rig is running
+        self._closing = False
+        self._stop_ack = threading.Event()
+        self._send_lock = threading.Lock()
+        self._stopper = None
+        try:
+            self.devices = self._await_open()
+        except BaseException:
+            self.kill()
+            self.stream.close(unlink=True)
+            raise
+        self._reader = threading.Thread(target=self._read, name="rig-reader", daemon=True)
+        self._reader.start()
+        self._watchdog = threading.Thread(target=self._watch, name="rig-watchdog", daemon=True)
+        self._watchdog.start()
+
+    # -- starting ----------------------------------------------------------------------------------
+    def _await_open(self) -> DeviceReport:
+        if not self._conn.poll(OPEN_TIMEOUT_S):
+            raise RigError(f"the rig process did not open its devices within {OPEN_TIMEOUT_S} s")
+        try:
+            report = self._conn.recv()
+        except (EOFError, OSError) as exc:
+            raise RigError(f"the rig process exited while opening its devices (exit code "
+                           f"{self.process.exitcode})") from exc
+        if isinstance(report, RigFailed):
+            raise RigError(f"the rig could not open its devices: {report.reason}")
+        assert isinstance(report, RigOpened), report
+        if self.spec.config.arm.kind == "ur":
+            self._stopper = DashboardStop(self.spec.config.ur.host)
+        return report.devices
+
+    # -- commands ----------------------------------------------------------------------------------
+    @property
+    def alive(self) -> bool:
+        return self.process.is_alive()
+
+    @property
+    def pid(self) -> int | None:
+        return self.process.pid
+
+    def _send(self, command: Command) -> bool:
+        with self._send_lock:
+            try:
+                self._conn.send(command)
+                return True
+            except (OSError, ValueError):
+                return False
+
+    def run_trial(self, command: RunTrial) -> None:
+        if not self.alive:
+            raise RigError("the rig process is not running")
+        self.running, self.stage = command.trial_index, None
+        if not self._send(command):
+            self.running = None
+            raise RigError("the rig process is not reachable")
+
+    def object_loaded(self) -> None:
+        self._send(ObjectLoaded())
+
+    def go(self) -> None:
+        self._send(Go())
+
+    def stop(self, reason: str) -> bool:
+        """Stop the arm. True if the rig acknowledged; otherwise the backstop fired."""
+        self._stop_ack.clear()
+        if self._send(Stop(reason=reason)) and self._stop_ack.wait(STOP_ACK_S):
+            return True
+        self.backstop(f"the rig did not acknowledge Stop within {STOP_ACK_S} s")
+        return False
+
+    def backstop(self, why: str) -> None:
+        """Stop the arm without the rig: the controller's own stop (UR), and kill the rig."""
+        log.error("backstop: %s", why)
+        if self._stopper is not None:
+            self._stopper.stop()
+        self.kill()
+
+    def kill(self) -> None:
+        if self.process.is_alive():
+            self.process.kill()
+        self.process.join(2.0)
+
+    def close(self) -> None:
+        """Shut the rig down (it stops the arm and releases its devices); kill it if it hangs."""
+        self._closing = True
+        self._send(Shutdown())
+        self.process.join(5.0)
+        if self.process.is_alive():
+            log.error("the rig process did not exit within 5 s: killing it")
+            self.backstop("the rig did not shut down")
+        self._conn.close()
+        if self._stopper is not None:
+            self._stopper.close()
+        self.stream.close(unlink=True)
+
+    # -- reports -----------------------------------------------------------------------------------
+    def _read(self) -> None:
+        while True:
+            try:
+                report = self._conn.recv()
+            except (EOFError, OSError):
+                break
+            if isinstance(report, StopReceived):
+                self._stop_ack.set()
+            elif isinstance(report, StageReached):
+                self.stage = report.stage
+            elif isinstance(report, TrialDone):
+                self.running, self.stage = None, None
+            self._notify(report)
+        self.process.join(1.0)
+        if not self._closing:
+            code = self.process.exitcode
+            how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
+            stage = self.stage
+            self._notify(RigDied(trial_index=self.running, reason=(
+                f"the rig process ended ({how})" + (f" during {stage.value}" if stage else "")
+                + "; the arm was stopped by its control worker or the controller's watchdog")))
+            self.running = None
+
+    def _notify(self, report: Report | RigDied) -> None:
+        try:
+            self._listener(report)
+        except Exception:
+            log.exception("handling a rig report failed")
+
+    def _watch(self) -> None:
+        """Fire the backstop when the rig stops writing samples while it streams."""
+        last_count, last_change = -1, time.monotonic()
+        while self.alive and not self._closing:
+            time.sleep(HANG_S / 5)
+            count = self.stream.count if self.stream.header is not None else 0
+            now = time.monotonic()
+            if count != last_count or self.stage not in STREAMING or not self.spec.realtime:
+                last_count, last_change = count, now
+            elif now - last_change > HANG_S:
+                self.backstop(f"the rig wrote no sample for {HANG_S} s while streaming "
+                              f"({self.stage.value})")
+                return
+
+
+class DashboardStop:
+    """The UR controller's dashboard server as an independent stop path (port 29999)."""
+
+    def __init__(self, host: str) -> None:
+        import dashboard_client
+
+        self.host = host
+        self._client = dashboard_client.DashboardClient(host)
+        try:
+            self._client.connect(2000)
+        except RuntimeError as exc:
+            log.error("no dashboard connection to %s for the backstop: %s", host, exc)
+
+    def stop(self) -> None:
+        try:
+            if not self._client.isConnected():
+                self._client.connect(1000)
+            self._client.stop()
+        except Exception:
+            log.critical("the dashboard stop of %s failed: use the emergency stop", self.host,
+                         exc_info=True)
+
+    def close(self) -> None:
+        try:
+            self._client.disconnect()
+        except Exception:
+            log.warning("closing the dashboard connection failed", exc_info=True)

@@ -1,0 +1,129 @@
+"""The rig's devices, opened once per rig process from the configuration, and the per-trial set the
+cycle runs on (DESIGN.md §1).
+
+``[arm] kind``: ``mock`` (kinematic :class:`~robot_io.mock_arm.MockArm`, made anew each trial on
+the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.ur_arm.URArm`
+over ur_rtde, connected once). ``[hand_source] kind``: ``simulated`` (a seeded
+:class:`~robot_io.simulated_hand.SimulatedHand` per trial), ``lsl`` or ``udp`` (opened once).
+``[gripper] kind``: ``tool_output`` (the UR's tool digital output) or ``none``.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from robot_io.cycle import CycleDevices
+from robot_io.devices import open_hand
+from robot_io.errors import ConfigError
+from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
+from robot_io.hand import HandSource
+from robot_io.mock_arm import MockArm
+from robot_io.rig.messages import DeviceReport, RigSpec
+from robot_io.simulated_hand import SimulatedHand
+from robot_io.simulated_pull import SimulatedPull
+from robot_io.trial import make_clock
+from robot_io.ur_arm import URArm
+
+log = logging.getLogger(__name__)
+
+
+def check_spec(spec: RigSpec) -> None:
+    """Refuse combinations that cannot work, before anything is opened."""
+    config = spec.config
+    if config.gripper.kind == "tool_output" and config.arm.kind != "ur":
+        raise ConfigError("gripper.kind = 'tool_output' needs arm.kind = 'ur' (the output is the "
+                          f"UR's), not {config.arm.kind!r}")
+    if config.hand_source.kind == "simulated" and spec.scenario is None:
+        raise ConfigError("hand_source.kind = 'simulated' needs the session's scenario")
+    if not spec.realtime and (config.arm.kind != "mock" or config.hand_source.kind != "simulated"):
+        raise ConfigError("simulated time needs arm.kind = 'mock' and hand_source.kind = "
+                          "'simulated'; real devices run on the wall clock")
+
+
+class RigDevices:
+    """Everything the rig process owns; :meth:`close` releases it all."""
+
+    def __init__(self, spec: RigSpec) -> None:
+        check_spec(spec)
+        self.spec = spec
+        config = spec.config
+        self.ur: URArm | None = None
+        self.tracked: HandSource | None = None
+        self.gripper: Gripper = NoGripper()
+        self._mock_position = config.scene.point("robot_start")
+        self._mock: MockArm | None = None
+        try:
+            if config.arm.kind == "ur":
+                self.ur = URArm(config.ur, config.safety)
+            if config.hand_source.kind != "simulated":
+                self.tracked = open_hand(config)
+            if config.gripper.kind == "tool_output":
+                self.gripper = ToolOutputGripper(config.ur.host, config.gripper)
+        except BaseException:
+            self.close()
+            raise
+        rate = self.ur.rate_hz if self.ur is not None else config.loop.rate_hz
+        self.config = config.model_copy(update={"loop": config.loop.model_copy(
+            update={"rate_hz": rate})})
+
+    def report(self) -> DeviceReport:
+        config, ur, tracked = self.config, self.ur, self.tracked
+        if ur is not None:
+            arm_detail = f"UR at {config.ur.host}, PolyScope {ur.polyscope_version}, {ur.rate_hz} Hz"
+        else:
+            arm_detail = f"mock arm, {config.loop.rate_hz} Hz"
+        source = config.hand_source
+        if source.kind == "lsl":
+            hand_detail = f"LSL stream {getattr(tracked, 'name', '?')!r} ({source.lsl_stream_type})"
+        elif source.kind == "udp":
+            hand_detail = "UDP on {}:{}".format(*getattr(tracked, "address", ("?", "?")))
+        else:
+            hand_detail = f"simulated hand ({self.spec.scenario.value})"
+        gripper_detail = (f"tool digital output {config.gripper.tool_output}"
+                          if config.gripper.kind == "tool_output" else "no gripper")
+        return DeviceReport(arm=config.arm.kind, arm_detail=arm_detail,
+                            polyscope_version=None if ur is None else ur.polyscope_version,
+                            rate_hz=config.loop.rate_hz, hand_source=source.kind,
+                            hand_detail=hand_detail, gripper=config.gripper.kind,
+                            gripper_detail=gripper_detail)
+
+    def for_trial(self, hand_seed: int) -> CycleDevices:
+        """The arm, hand, gripper and a fresh clock for one trial."""
+        config, spec = self.config, self.spec
+        clock = make_clock(config, realtime=spec.realtime, realtime_priority=spec.realtime_priority)
+        hand = self.tracked or SimulatedHand(spec.scenario, config.scene, config.hand, hand_seed)
+        arm = self.ur
+        if arm is None:
+            if self._mock is not None:
+                self._mock_position = self._mock.read_pose()
+            pull = SimulatedPull(config.scene.point("hand_start") - config.scene.point("handover_point"),
+                                 config.hand.pull_n, config.hand.grasp_delay_s)
+            gripper = self.gripper
+
+            def force(tcp: np.ndarray) -> np.ndarray:
+                now = clock.now()
+                sample = hand.latest(now)
+                return pull.force(now, None if sample is None else sample.position, tcp,
+                                  gripper.holding)
+
+            arm = self._mock = MockArm(clock, self._mock_position, force=force)
+        return CycleDevices(arm=arm, hand=hand, gripper=self.gripper, clock=clock)
+
+    def stop_arm(self) -> None:
+        """Stop the arm between trials (never raises)."""
+        arm = self.ur or self._mock
+        if arm is not None:
+            arm.stop()
+
+    def close(self) -> None:
+        """Stop the arm, then release everything (never raises)."""
+        for name, action in (("arm", self.stop_arm),
+                             ("gripper", lambda: self.gripper.disconnect()),
+                             ("hand source", lambda: self.tracked and self.tracked.close()),
+                             ("UR", lambda: self.ur and self.ur.close())):
+            try:
+                action()
+            except Exception:
+                log.exception("closing the rig's %s failed", name)

@@ -1,0 +1,126 @@
+"""The typed messages between the application and the rig process (one pipe each way).
+
+Application → rig: :class:`RunTrial`, :class:`ObjectLoaded`, :class:`Go`, :class:`Stop`,
+:class:`Shutdown`. Rig → application: :class:`RigOpened` or :class:`RigFailed` once, then per trial
+:class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is not at A, and
+:class:`TrialDone` with the summary; :class:`StopReceived` acknowledges a stop at once. Samples do not
+travel here: the rig writes them into shared memory (:mod:`robot_io.rig.stream`).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from robot_io.config import ControllerConfig
+from robot_io.loop import TrialSummary
+from robot_io.simulated_hand import Scenario
+from robot_io.stages import Stage
+from robot_io.theta import Theta
+
+
+class _Message(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+
+class RigSpec(_Message):
+    """What the rig process opens and how it keeps time."""
+
+    config: ControllerConfig
+    scenario: Scenario | None = Field(None, description="the simulated hand's scenario (simulated "
+                                                        "hand source only)")
+    realtime: bool = Field(True, description="wall clock; False: simulated time (mock arm and "
+                                             "simulated hand only)")
+    realtime_priority: bool = False
+
+
+# -- application → rig ---------------------------------------------------------------------------
+class RunTrial(_Message):
+    kind: Literal["run_trial"] = "run_trial"
+    trial_index: int
+    theta: Theta | None
+    hand_seed: int
+    auto_loaded: bool = Field(description="the object counts as loaded without a confirmation")
+    auto_go: bool = Field(description="Go as soon as the hand is ready")
+
+
+class ObjectLoaded(_Message):
+    kind: Literal["object_loaded"] = "object_loaded"
+
+
+class Go(_Message):
+    kind: Literal["go"] = "go"
+
+
+class Stop(_Message):
+    kind: Literal["stop"] = "stop"
+    reason: str
+
+
+class Shutdown(_Message):
+    kind: Literal["shutdown"] = "shutdown"
+
+
+Command = RunTrial | ObjectLoaded | Go | Stop | Shutdown
+
+
+# -- rig → application ---------------------------------------------------------------------------
+class DeviceReport(_Message):
+    """The devices the rig actually opened, in words and in fields (stored with the session)."""
+
+    arm: str = Field(description="mock or ur")
+    arm_detail: str = Field(description="e.g. 'UR at 127.0.0.5, PolyScope 3.15.7, 125 Hz'")
+    polyscope_version: str | None = None
+    rate_hz: int
+    hand_source: str = Field(description="simulated, lsl or udp")
+    hand_detail: str
+    gripper: str = Field(description="none or tool_output")
+    gripper_detail: str
+
+
+class RigOpened(_Message):
+    kind: Literal["rig_opened"] = "rig_opened"
+    devices: DeviceReport
+    pid: int
+
+
+class RigFailed(_Message):
+    kind: Literal["rig_failed"] = "rig_failed"
+    reason: str
+
+
+class StageReached(_Message):
+    kind: Literal["stage"] = "stage"
+    trial_index: int
+    stage: Stage
+    t: float | None = Field(description="trial time since Go [s]; None before Go")
+    monotonic: float = Field(description="time.monotonic() of this machine when it began")
+
+
+class ReadyWaiting(_Message):
+    kind: Literal["ready_waiting"] = "ready_waiting"
+    trial_index: int
+    why: str | None = Field(description="why the hand is not ready; None: it is")
+
+
+class StopReceived(_Message):
+    kind: Literal["stop_received"] = "stop_received"
+
+
+class TrialDone(_Message):
+    kind: Literal["trial_done"] = "trial_done"
+    trial_index: int
+    summary: TrialSummary
+    rows: int = Field(description="sample rows written to the shared stream")
+
+
+class RigDied(_Message):
+    """Made by the application's client, not sent: the rig process ended without being told to."""
+
+    kind: Literal["rig_died"] = "rig_died"
+    trial_index: int | None
+    reason: str
+
+
+Report = RigOpened | RigFailed | StageReached | ReadyWaiting | StopReceived | TrialDone

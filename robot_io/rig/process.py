@@ -1,0 +1,142 @@
+"""The rig process's main function: open the devices, then run one handover cycle per
+:class:`~robot_io.rig.messages.RunTrial` until told to shut down or until the application is gone.
+
+Its main thread runs the control loop (under SCHED_FIFO where allowed, ``[loop] realtime_priority``);
+an inbox thread receives commands, so a Stop reaches the running loop within one cycle. When the
+pipe to the application closes (the application exited or was killed), the arm is stopped and the
+process exits; when this process dies, the UR's control worker sees its pipe close and stops the arm
+(servoStop, stopScript), and the controller's watchdog stops the program anyway.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import math
+import os
+import queue
+import threading
+import time
+from multiprocessing.connection import Connection
+
+from robot_io.cycle import Gates, run_cycle
+from robot_io.errors import RobotIOError, explain
+from robot_io.rig.devices import RigDevices
+from robot_io.rig.messages import (
+    Go,
+    ObjectLoaded,
+    ReadyWaiting,
+    Report,
+    RigFailed,
+    RigOpened,
+    RigSpec,
+    RunTrial,
+    Shutdown,
+    StageReached,
+    Stop,
+    StopReceived,
+    TrialDone,
+)
+from robot_io.rig.stream import SampleStream, StreamRecorder
+from robot_io.stages import Stage
+
+log = logging.getLogger(__name__)
+
+
+class Outbox:
+    """Sends reports from any thread of the rig (one at a time)."""
+
+    def __init__(self, conn: Connection) -> None:
+        self._conn, self._lock = conn, threading.Lock()
+
+    def send(self, report: Report) -> None:
+        # if the application is gone the inbox sees it and shuts the rig down
+        with self._lock, contextlib.suppress(OSError, ValueError):
+            self._conn.send(report)
+
+
+class Inbox:
+    """Receives commands: RunTrial and Shutdown are queued for the main thread; ObjectLoaded, Go and
+    Stop act at once on the running trial's gates (a Stop between trials stops the arm here)."""
+
+    def __init__(self, conn: Connection, outbox: Outbox, devices: RigDevices) -> None:
+        self._conn, self._outbox, self._devices = conn, outbox, devices
+        self.commands: queue.Queue[tuple[RunTrial, Gates] | None] = queue.Queue()
+        self.gates: Gates | None = None
+        self.running = False
+        threading.Thread(target=self._receive, name="rig-inbox", daemon=True).start()
+
+    def _receive(self) -> None:
+        while True:
+            try:
+                command = self._conn.recv()
+            except (EOFError, OSError):
+                log.warning("the application is gone: stopping the arm and exiting")
+                self._stop()
+                self.commands.put(None)
+                return
+            if isinstance(command, RunTrial):
+                gates = Gates(threading.Event(), threading.Event(), threading.Event())
+                if command.auto_loaded:
+                    gates.loaded.set()
+                if command.auto_go:
+                    gates.go.set()
+                self.gates = gates
+                self.commands.put((command, gates))
+            elif isinstance(command, ObjectLoaded) and self.gates is not None:
+                self.gates.loaded.set()
+            elif isinstance(command, Go) and self.gates is not None:
+                self.gates.go.set()
+            elif isinstance(command, Stop):
+                self._outbox.send(StopReceived())
+                self._stop()
+            elif isinstance(command, Shutdown):
+                self._stop()
+                self.commands.put(None)
+                return
+
+    def _stop(self) -> None:
+        if self.gates is not None:
+            self.gates.stop.set()  # a running (or queued) cycle stops the arm within one cycle
+        if not self.running:
+            self._devices.stop_arm()
+
+
+def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int) -> None:
+    """Entry point of the rig process (``multiprocessing`` spawn)."""
+    logging.basicConfig(level=logging.INFO, format=f"rig[{os.getpid()}] %(levelname)s %(message)s")
+    outbox = Outbox(conn)
+    try:
+        devices = RigDevices(spec)
+    except (RobotIOError, OSError, ValueError) as exc:
+        outbox.send(RigFailed(reason=explain(exc)))
+        return
+    stream = SampleStream(capacity, name=stream_name)
+    inbox = Inbox(conn, outbox, devices)
+    outbox.send(RigOpened(devices=devices.report(), pid=os.getpid()))
+    try:
+        while (item := inbox.commands.get()) is not None:
+            command, gates = item
+            _run(command, gates, devices, stream, outbox, inbox)
+    finally:
+        devices.close()
+        stream.close()
+
+
+def _run(command: RunTrial, gates: Gates, devices: RigDevices, stream: SampleStream,
+         outbox: Outbox, inbox: Inbox) -> None:
+    index = command.trial_index
+
+    def on_stage(stage: Stage, t: float) -> None:
+        outbox.send(StageReached(trial_index=index, stage=stage, t=None if math.isnan(t) else t,
+                                 monotonic=time.monotonic()))
+
+    recorder = StreamRecorder(stream, index)
+    inbox.running = True
+    try:
+        record = run_cycle(devices.config, command.theta, devices.for_trial(command.hand_seed),
+                           gates, on_stage, recorder,
+                           on_waiting=lambda why: outbox.send(ReadyWaiting(trial_index=index, why=why)))
+    finally:
+        inbox.running = False
+    outbox.send(TrialDone(trial_index=index, summary=record.summary, rows=recorder.count))

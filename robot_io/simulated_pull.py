@@ -1,0 +1,39 @@
+"""The simulated participant's pull on the object at the handover point (DESIGN.md §2).
+
+Once the hand has reached the object held by the robot (within ``reach_m`` of the TCP) and the gripper
+still holds it, the participant grasps for ``grasp_delay_s`` and then pulls towards where their hand
+came from, the force ramping linearly to ``pull_n`` over ``ramp_s``:
+
+    F(t) = pull_n · clip((t − t_contact − grasp_delay_s) / ramp_s, 0, 1) · u,   u = (A − H)/‖A − H‖
+
+The force vanishes the moment the gripper opens or the hand leaves. The same model drives the mock
+arm's force reading and the stand-in UR controller's ``actual_TCP_force`` in rehearsals, so the
+force-threshold release (:mod:`robot_io.release`) is exercised on both paths. ``pull_n = 0`` is a
+participant who never takes the object (the trial ends ``not_taken``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class SimulatedPull:
+    def __init__(self, direction: np.ndarray, pull_n: float, grasp_delay_s: float,
+                 ramp_s: float = 0.2, reach_m: float = 0.05) -> None:
+        direction = np.asarray(direction, dtype=float)
+        norm = float(np.linalg.norm(direction))
+        self.direction = direction / norm if norm > 0 else np.zeros(3)
+        self.pull_n, self.grasp_delay_s, self.ramp_s, self.reach_m = pull_n, grasp_delay_s, ramp_s, reach_m
+        self.contact_at: float | None = None
+
+    def force(self, t: float, hand: np.ndarray | None, tcp: np.ndarray, holding: bool) -> np.ndarray:
+        """The force [N] on the TCP at time ``t`` [s] (any monotonic time base)."""
+        touching = (holding and hand is not None and bool(np.all(np.isfinite(hand)))
+                    and float(np.linalg.norm(np.asarray(hand) - tcp)) <= self.reach_m)
+        if not touching:
+            self.contact_at = None
+            return np.zeros(3)
+        if self.contact_at is None:
+            self.contact_at = t
+        ramp = (t - self.contact_at - self.grasp_delay_s) / self.ramp_s
+        return self.pull_n * float(np.clip(ramp, 0.0, 1.0)) * self.direction

@@ -1,0 +1,23 @@
+"""The stages of one handover cycle (DESIGN.md §2), in order; each is reported and recorded when it
+begins. ``release`` and ``not_taken`` are the two ways a hold ends."""
+
+from __future__ import annotations
+
+from enum import StrEnum
+
+
+class Stage(StrEnum):
+    PREPARE = "prepare"  # bounded move to the start pose R; gripper closed on the object
+    LOADED = "loaded"  # the experimenter confirmed the object is loaded (automatic in simulation)
+    READY = "ready"  # tracker alive and the hand inside the start zone around A
+    GO = "go"  # the tablet's cue; the trial clock starts (t = 0)
+    REACH = "reach"  # the first servo target of the coupled DMP is sent
+    HOLD = "hold"  # the robot is at H and still: k_ext compliance, release armed
+    RELEASE = "release"  # the pull passed the threshold: the gripper opens
+    NOT_TAKEN = "not_taken"  # no pull within the release timeout: the robot keeps the object
+    RETRACT = "retract"  # bounded move back to R
+    DONE = "done"  # back at R: the cycle is over
+
+
+#: The value of the ``stage`` sample column in each streamed stage.
+SAMPLE_CODE = {Stage.REACH: 1.0, Stage.HOLD: 2.0, Stage.RELEASE: 3.0}
