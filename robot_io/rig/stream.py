@@ -31,9 +31,9 @@ class SampleStream:
 
     def __init__(self, capacity: int, name: str | None = None) -> None:
         size = (capacity + 1) * WIDTH * 8
+        # the creator (the application) unlinks it; its resource tracker, which a spawned rig
+        # shares, unlinks it if the application is killed
         self.shm = shared_memory.SharedMemory(name=name, create=name is None, size=size)
-        if name is not None:  # attached: the creator, not this process, owns the block's lifetime
-            resource_tracker.unregister(self.shm._name, "shared_memory")
         array = np.ndarray((capacity + 1, WIDTH), dtype=np.float64, buffer=self.shm.buf)
         self.header, self.rows = array[0], array[1:]
         self.name = self.shm.name
