@@ -26,6 +26,10 @@ class FrameTransform(NamedTuple):
     def apply(self, point: np.ndarray) -> np.ndarray:
         return self.rotation @ (np.asarray(point, dtype=float) * self.units_to_m) + self.translation
 
+    def invert(self, base_point: np.ndarray) -> np.ndarray:
+        """Robot base [m] → tracker coordinates (tracker units): the inverse of :meth:`apply`."""
+        return self.rotation.T @ (np.asarray(base_point, dtype=float) - self.translation) / self.units_to_m
+
     @classmethod
     def identity(cls) -> FrameTransform:
         return cls(np.eye(3), np.zeros(3))

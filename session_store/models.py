@@ -106,7 +106,8 @@ class Participant(_Row):
 
 # -- what happens ---------------------------------------------------------------------------------
 class TrialOutcome(StrEnum):
-    COMPLETED = "completed"
+    COMPLETED = "completed"  # the participant took the object (released on their pull)
+    NOT_TAKEN = "not_taken"  # held out at H, but nobody pulled within the release timeout
     ABORTED = "aborted"
 
 
@@ -129,8 +130,9 @@ class Trial(_Row):
     hand_seed: int = Field(description="seed of the simulated hand (same for every attempt)")
     started_at: str = Field(description="UTC ISO-8601 time of Start")
     ended_at: str | None = Field(None, description="UTC ISO-8601 time the trial ended")
-    outcome: TrialOutcome | None = Field(None, description="completed, or aborted (repeated, "
-                                                           "never rated); empty while running")
+    outcome: TrialOutcome | None = Field(None, description="completed, not_taken or aborted (both "
+                                                           "repeated, never rated); empty while "
+                                                           "running")
     reason: str | None = Field(None, description="why it was aborted")
     robot_arrival_s: float | None = Field(None, description="robot at the handover point, "
                                                             "seconds after Go")
@@ -142,6 +144,15 @@ class Trial(_Row):
     max_tau: float | None = Field(None, description="largest τ = τ0(1 + C_t) of the trial [s]")
     deadline_misses: int | None = Field(None, description="control cycles that missed their "
                                                           "deadline (real time only)")
+    go_at: str | None = Field(None, description="UTC ISO-8601 time of Go (the tablet's cue and the "
+                                                "robot's start); the *_s times count from it")
+    hold_s: float | None = Field(None, description="robot at H and still: hold begins, release "
+                                                   "armed, seconds after Go")
+    release_s: float | None = Field(None, description="the pull passed the threshold and the "
+                                                      "gripper opened, seconds after Go")
+    retract_end_s: float | None = Field(None, description="robot back at R, seconds after Go")
+    peak_pull_n: float | None = Field(None, description="largest baseline-subtracted, filtered "
+                                                        "pull while holding [N]")
 
     @property
     def theta(self) -> Theta:
@@ -261,7 +272,8 @@ class Event(_Row):
 
     KINDS: ClassVar[tuple[str, ...]] = (
         "session_created", "session_resumed", "theta_planned", "trial_started", "trial_ended",
-        "placement_made", "validation_rated", "answer_given", "paused", "resumed")
+        "placement_made", "validation_rated", "answer_given", "paused", "resumed", "trial_stage",
+        "devices_recorded", "rig_change_confirmed")
 
     seq: int | None = Field(None, description="position in the log, 1…")
     at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")

@@ -85,5 +85,21 @@ def _create_v1(db: Database) -> None:
     db["events"].create_index(["kind"])
 
 
-MIGRATIONS: dict[int, Callable[[Database], None]] = {1: _create_v1}
+#: Version 2 (the whole handover cycle on the rig): each trial's cycle times and peak pull, and the
+#: samples' cycle stage, force and pull. Literal, so that it means the same whatever the models become.
+V2_TRIAL_COLUMNS = {"go_at": str, "hold_s": float, "release_s": float, "retract_end_s": float,
+                    "peak_pull_n": float}
+V2_SAMPLE_COLUMNS = {"stage": float, "force_x": float, "force_y": float, "force_z": float,
+                     "pull": float}
+
+
+def _add_cycle_columns(db: Database) -> None:
+    for table, columns in (("trials", V2_TRIAL_COLUMNS), ("samples", V2_SAMPLE_COLUMNS)):
+        existing = db[table].columns_dict
+        for name, kind in columns.items():
+            if name not in existing:  # a file created by this version has them already
+                db[table].add_column(name, kind)
+
+
+MIGRATIONS: dict[int, Callable[[Database], None]] = {1: _create_v1, 2: _add_cycle_columns}
 SCHEMA_VERSION = max(MIGRATIONS)

@@ -166,24 +166,25 @@ def test_forward_migrations_run_once_and_a_failing_one_changes_nothing(tmp_path,
     def add_notes(db) -> None:
         db["trials"].add_column("notes", str)
 
-    monkeypatch.setattr(store, "MIGRATIONS", {**schema.MIGRATIONS, 2: add_notes})
-    monkeypatch.setattr(store, "SCHEMA_VERSION", 2)
+    n = schema.SCHEMA_VERSION
+    monkeypatch.setattr(store, "MIGRATIONS", {**schema.MIGRATIONS, n + 1: add_notes})
+    monkeypatch.setattr(store, "SCHEMA_VERSION", n + 1)
     migrated = ParticipantStore.open(tmp_path, "S01")
-    assert migrated.db.execute("PRAGMA user_version").fetchone()[0] == 2
+    assert migrated.db.execute("PRAGMA user_version").fetchone()[0] == n + 1
     assert "notes" in migrated.db["trials"].columns_dict
     migrated.close()
-    ParticipantStore.open(tmp_path, "S01").close()  # already at 2: nothing runs again
+    ParticipantStore.open(tmp_path, "S01").close()  # already there: nothing runs again
 
     def broken(db) -> None:
         db["trials"].add_column("half_done", str)
         raise RuntimeError("migration bug")
 
-    monkeypatch.setattr(store, "MIGRATIONS", {**schema.MIGRATIONS, 2: add_notes, 3: broken})
-    monkeypatch.setattr(store, "SCHEMA_VERSION", 3)
+    monkeypatch.setattr(store, "MIGRATIONS", {**schema.MIGRATIONS, n + 1: add_notes, n + 2: broken})
+    monkeypatch.setattr(store, "SCHEMA_VERSION", n + 2)
     with pytest.raises(RuntimeError, match="migration bug"):
         ParticipantStore.open(tmp_path, "S01")
     with sqlite3.connect(tmp_path / "S01.sqlite") as conn:
-        assert conn.execute("PRAGMA user_version").fetchone()[0] == 2
+        assert conn.execute("PRAGMA user_version").fetchone()[0] == n + 1
         columns = [row[1] for row in conn.execute("PRAGMA table_info(trials)")]
     assert "half_done" not in columns
 

@@ -27,6 +27,7 @@ from app.learning.worker import LearnerClient
 from app.protocol.plan import Slot, protocol_slots
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
 from robot_io.loop import Outcome, TrialRecord
+from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.errors import RefusedAction
 from session_store.models import (
@@ -51,6 +52,16 @@ log = logging.getLogger(__name__)
 LearnerFactory = Callable[[LearnerConfig, LearnerSnapshot | None], LearnerClient]
 ORIGIN_OF_KIND = {SlotKind.INITIAL: ThetaOrigin.SOBOL, SlotKind.BEST: ThetaOrigin.BEST,
                   SlotKind.QUERY: ThetaOrigin.LEARNED}
+
+
+#: The tables of the configuration that name the devices (the rig): a resume on a different rig
+#: needs the experimenter's confirmation.
+RIG_TABLES = ("arm", "ur", "hand_source", "gripper")
+
+
+def rig_of(config: dict) -> dict:
+    """The rig tables of a configuration (as JSON)."""
+    return {table: config.get(table) for table in RIG_TABLES}
 
 
 def learner_config(config: StudyConfig) -> LearnerConfig:
@@ -165,14 +176,19 @@ class SessionEngine:
         summary = record.summary if record is not None else None
         completed = abort_reason is None and summary is not None and \
             summary.outcome is Outcome.COMPLETED
+        not_taken = abort_reason is None and summary is not None and \
+            summary.outcome is Outcome.NOT_TAKEN
         reason = abort_reason or (None if completed else
                                   f"{summary.outcome.value}: {summary.reason}" if summary else None)
-        update = {"ended_at": utc_now(), "reason": reason,
-                  "outcome": TrialOutcome.COMPLETED if completed else TrialOutcome.ABORTED}
+        outcome = (TrialOutcome.COMPLETED if completed else
+                   TrialOutcome.NOT_TAKEN if not_taken else TrialOutcome.ABORTED)
+        update = {"ended_at": utc_now(), "reason": reason, "outcome": outcome,
+                  "go_at": self.state.go_at}
         if summary is not None:
             update |= summary.model_dump(include={"robot_arrival_s", "hand_arrival_s",
                                                   "arrival_gap_s", "peak_speed_mps", "max_tau",
-                                                  "deadline_misses"})
+                                                  "deadline_misses", "hold_s", "release_s",
+                                                  "retract_end_s", "peak_pull_n"})
         ended = trial.model_copy(update=update)
 
         def write() -> None:
@@ -185,6 +201,31 @@ class SessionEngine:
                            payload={"trial_index": trial_index,
                                     "outcome": ended.outcome.value, "reason": reason}), write)
         return ended
+
+    def record_stage(self, trial_index: int, stage: Stage, t: float | None) -> None:
+        """A stage of the running trial's handover cycle began (``t``: seconds after Go)."""
+        if self.state.running_trial != trial_index:
+            raise RefusedAction(f"stage {stage.value} of trial {trial_index} refused: the running "
+                                f"trial is {self.state.running_trial}")
+        self._commit(Event(actor=Actor.SYSTEM, kind="trial_stage",
+                           payload={"trial_index": trial_index, "stage": stage.value, "t": t}))
+
+    def record_devices(self, config: dict, devices: dict, changed_from: dict | None = None) -> None:
+        """The configuration in force and the devices actually opened (at creation and every
+        resume). ``changed_from``: the rig recorded before, when the experimenter confirmed that
+        this session continues on a different one."""
+        if changed_from is not None:
+            self._commit(Event(actor=Actor.EXPERIMENTER, kind="rig_change_confirmed",
+                               payload={"from": changed_from, "to": rig_of(config)}))
+        self._commit(Event(actor=Actor.SYSTEM, kind="devices_recorded",
+                           payload={"config": config, "devices": devices}))
+
+    def recorded_rig(self) -> dict:
+        """The rig tables the session last ran on (its creation's, for a file from before v2)."""
+        for event in reversed(self.store.events()):
+            if event.kind == "devices_recorded":
+                return rig_of(event.payload["config"])
+        return rig_of(self.config.controller.model_dump(mode="json"))
 
     def place(self, position: float | None = None, equal_to: int | None = None) -> list[Comparison]:
         """The participant's placement of the last interaction on the relative scale: a position

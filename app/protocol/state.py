@@ -12,6 +12,7 @@ from enum import StrEnum
 from pydantic import BaseModel, Field
 
 from app.protocol.plan import Rating, Slot
+from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.models import QUESTIONS, Event, Phase, ThetaOrigin
 
@@ -55,6 +56,8 @@ class SessionState(BaseModel):
     markers: list[Marker] = Field(default_factory=list)
     answers: dict[str, str] = Field(default_factory=dict)
     paused: bool = False
+    stage: Stage | None = None  # the running trial's stage of the handover cycle
+    go_at: str | None = None  # UTC time of the running trial's Go
     last_event: int = 0
 
     @property
@@ -118,8 +121,14 @@ def apply(state: SessionState, event: Event) -> SessionState:
         state.running_trial = p["trial_index"]
         state.attempts[p["interaction"]] = p["attempt"]
         state.next_trial_index = p["trial_index"] + 1
+        state.stage = state.go_at = None
+    elif kind == "trial_stage":
+        state.stage = Stage(p["stage"])
+        if state.stage is Stage.GO:
+            state.go_at = event.at
     elif kind == "trial_ended":
         state.running_trial = None
+        state.stage = None
         if p["outcome"] == "completed":
             slot = state.slots[state.cursor]
             state.completed_trial[slot.interaction] = p["trial_index"]

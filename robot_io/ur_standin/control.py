@@ -7,7 +7,9 @@ Each request is one JSON object with ``"op"``; each reply one JSON object (``{"o
 data package: ``[t, command id, doubles]``, ``t`` in the stand-in's ``time.monotonic``);
 ``protective_stop``; ``emergency_stop``; ``release_emergency_stop``; ``drop_sockets`` (close every
 client connection on every port); ``stall`` with ``seconds`` (no cycles, no output packages);
-``set_force`` with ``force`` (6 values, N and N·m); ``set_pose`` with ``pose`` (6 values).
+``set_force`` with ``force`` (6 values, N and N·m); ``set_pose`` with ``pose`` (6 values);
+``set_hand`` with ``position`` (3 values, or null) and ``configure_pull`` with ``direction``,
+``pull_n``, ``grasp_delay_s``, ``tool_output``, ``open_level`` (the rehearsal's simulated pull).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from robot_io.simulated_pull import SimulatedPull
 from robot_io.ur_standin.listener import read_lines
 from robot_io.ur_standin.model import Controller
 
@@ -53,6 +56,18 @@ def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int
             return {"ok": True}
         if op == "set_force":
             controller.force = np.asarray(request["force"], dtype=float).reshape(6)
+            return {"ok": True}
+        if op == "set_hand":
+            hand = request["position"]
+            controller.hand = None if hand is None else np.asarray(hand, dtype=float).reshape(3)
+            return {"ok": True}
+        if op == "configure_pull":
+            controller.pull = SimulatedPull(np.asarray(request["direction"], dtype=float),
+                                            float(request["pull_n"]),
+                                            float(request["grasp_delay_s"]))
+            controller.pull_output = int(request["tool_output"])
+            controller.pull_open_level = bool(request["open_level"])
+            controller.event(f"simulated pull of {request['pull_n']} N configured")
             return {"ok": True}
         if op == "set_pose":
             controller.arm.pose = np.asarray(request["pose"], dtype=float).reshape(6)

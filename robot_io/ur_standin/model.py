@@ -6,8 +6,10 @@ write registers and by the tick thread while it advances the model one controlle
 The arm is a bounded first-order follower: each cycle the TCP moves towards the current servo target
 with time constant ``lookahead_time`` of the last ``servoL``, its speed capped at ``max_speed``. A
 ``moveL`` goes in a straight line at its speed and acceleration; a stop decelerates at the given rate.
-Orientation is carried, not modelled. The measured force is what the test sets (``set_force``); it
-stays exactly that — no contact model.
+Orientation is carried, not modelled. The measured force is what the test sets (``set_force``) —
+no contact model — unless a rehearsal configured the simulated participant's pull
+(``configure_pull``, :mod:`robot_io.simulated_pull`): then each cycle it is the pull of the hand
+last reported with ``set_hand`` on the object the TCP holds.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from enum import IntEnum
 
 import numpy as np
 
+from robot_io.simulated_pull import SimulatedPull
 from robot_io.ur_standin.rtde_protocol import FORMATS, OUTPUT_TYPES
 
 log = logging.getLogger(__name__)
@@ -139,6 +142,10 @@ class Controller:
         self.last_script = ""
         self.stalled_until = 0.0
         self.time = 0.0
+        # the rehearsal's simulated participant: where their hand is, and their pull once holding
+        self.hand: np.ndarray | None = None
+        self.pull: SimulatedPull | None = None
+        self.pull_output, self.pull_open_level = 0, True
 
     # -- what the RTDE outputs report ------------------------------------------------------------
     def output_value(self, name: str) -> object:
@@ -242,8 +249,15 @@ class Controller:
         self.events.append(text)
 
     # -- one controller cycle ----------------------------------------------------------------------
+    @property
+    def holding(self) -> bool:
+        """The gripper on the pull's tool output is closed (its level is not the opening one)."""
+        return bool(self.tool_outputs >> self.pull_output & 1) != self.pull_open_level
+
     def tick(self) -> None:
         self.time += self.period
+        if self.pull is not None:
+            self.force[:3] = self.pull.force(self.time, self.hand, self.arm.pose[:3], self.holding)
         if self.program is not None:
             if not self.program.step(self, self.period):
                 self.end_program("finished")

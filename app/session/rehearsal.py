@@ -1,0 +1,105 @@
+"""Rehearsal without hardware on the real code path (``serve --rehearse``, ``run-session --rehearse``).
+
+It starts the project's stand-in UR controller (:mod:`robot_io.ur_standin`) on a free loopback
+address and a hand publisher (:mod:`robot_io.hand_publisher`) that plays the simulated participant's
+hand on LSL (or UDP) and makes the stand-in pull on the object once the hand holds it at H. The lab
+configuration is pointed at them — ``[arm] kind = "ur"`` at that address, ``[hand_source]`` the
+publisher's stream, ``[gripper]`` the UR's tool output — so a session runs through ``ur_rtde``,
+``pylsl``, the gripper's tool output and the force release exactly as on the rig.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import random
+import socket
+import subprocess
+import sys
+from typing import Literal
+
+from app.session.config import LabConfig
+from robot_io.hand_publisher import HandPublisher, PublisherSpec
+from robot_io.simulated_hand import Scenario
+from robot_io.ur_standin.control import ControlClient
+from robot_io.ur_standin.standin import RTDE_PORT
+
+log = logging.getLogger(__name__)
+
+HandKind = Literal["lsl", "udp"]
+
+
+def free_loopback_host() -> str:
+    """A 127.0.0.x address whose RTDE port is free (the stand-in's ports are fixed, as a UR's)."""
+    for _ in range(200):
+        host = f"127.0.{random.randint(1, 254)}.{random.randint(2, 254)}"
+        with socket.socket() as probe, contextlib.suppress(OSError):
+            probe.bind((host, RTDE_PORT))
+            return host
+    raise OSError("no free loopback address for the stand-in controller")
+
+
+def free_udp_port(host: str) -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+        probe.bind((host, 0))
+        return probe.getsockname()[1]
+
+
+class Rehearsal:
+    """The stand-in controller and the hand publisher; :meth:`close` ends both."""
+
+    def __init__(self, lab: LabConfig, hand: HandKind = "lsl", series: str = "cb3") -> None:
+        self.host = free_loopback_host()
+        self.standin = subprocess.Popen(
+            [sys.executable, "-m", "robot_io.ur_standin", "--host", self.host, "--series", series,
+             "--exit-with-stdin"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self.publisher: HandPublisher | None = None
+        try:
+            line = self.standin.stdout.readline()
+            if line.strip() != f"ready {self.host}":
+                raise OSError(f"the stand-in controller did not start ({line.strip()!r})")
+            stream = f"handover-rehearsal-{os.getpid()}-{self.host}"
+            source = lab.hand_source.model_copy(update={"kind": hand, "lsl_stream_name": stream})
+            if hand == "udp":
+                source = source.model_copy(update={"udp_host": "127.0.0.1",
+                                                   "udp_port": free_udp_port("127.0.0.1")})
+            self.lab = lab.with_rig(
+                arm=lab.arm.model_copy(update={"kind": "ur"}),
+                ur=lab.ur.model_copy(update={"host": self.host}),
+                hand_source=source,
+                gripper=lab.gripper.model_copy(update={"kind": "tool_output"}))
+            self.control = ControlClient(self.host)
+            scene = self.lab.scene
+            self.control("configure_pull", direction=list(scene.point("hand_start")
+                                                          - scene.point("handover_point")),
+                         pull_n=self.lab.hand.pull_n, grasp_delay_s=self.lab.hand.grasp_delay_s,
+                         tool_output=self.lab.gripper.tool_output,
+                         open_level=self.lab.gripper.open_level)
+            self.publisher = HandPublisher(PublisherSpec(
+                config=self.lab.controller, standin_host=self.host,
+                lsl_name=stream if hand == "lsl" else None,
+                udp_target=(source.udp_host, source.udp_port) if hand == "udp" else None))
+        except BaseException:
+            self.close()
+            raise
+        log.info("rehearsal: stand-in UR at %s, simulated hand on %s", self.host, hand)
+
+    def play(self, scenario: Scenario, seed: int, go_monotonic: float) -> None:
+        self.publisher.play(scenario, seed, go_monotonic)
+
+    def rest(self) -> None:
+        self.publisher.rest()
+
+    def close(self) -> None:
+        if self.publisher is not None:
+            self.publisher.close()
+        with contextlib.suppress(Exception):
+            self.control.close()
+        if self.standin.stdin:
+            self.standin.stdin.close()
+        try:
+            self.standin.wait(5)
+        except subprocess.TimeoutExpired:
+            self.standin.kill()
+            self.standin.wait(5)

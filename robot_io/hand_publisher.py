@@ -1,0 +1,118 @@
+"""The rehearsal's simulated participant as a tracker would deliver them: a process that plays the
+simulated hand (:class:`~robot_io.simulated_hand.SimulatedHand`) on a Lab Streaming Layer outlet
+and/or as UDP datagrams, in tracker coordinates (the inverse of ``[hand_source]``'s calibration), at
+the tracker rate, and tells a stand-in UR controller where the hand is so that it pulls on the object
+(:mod:`robot_io.simulated_pull`).
+
+Between trials the hand rests at the start A (so the cycle's ready check passes); :meth:`play` starts
+a trial's trajectory at the Go instant, on this machine's monotonic clock, which is also LSL's.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import multiprocessing
+import socket
+import time
+from multiprocessing.connection import Connection
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from robot_io.config import ControllerConfig
+from robot_io.devices import tracker_transform
+from robot_io.simulated_hand import Scenario, SimulatedHand
+
+log = logging.getLogger(__name__)
+
+
+class PublisherSpec(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    config: ControllerConfig
+    lsl_name: str | None = None  # publish an LSL stream of [hand_source] lsl_stream_type
+    udp_target: tuple[str, int] | None = None  # send UDP datagrams there
+    standin_host: str | None = None  # report the hand to this stand-in's control port
+
+
+def _serve(conn: Connection, spec: PublisherSpec) -> None:
+    import pylsl
+
+    from robot_io.ur_standin.control import ControlClient
+
+    config = spec.config
+    transform = tracker_transform(config)
+    rate = config.hand.tracker_rate_hz
+    outlet = None
+    if spec.lsl_name is not None:
+        info = pylsl.StreamInfo(spec.lsl_name, config.hand_source.lsl_stream_type, 3, rate,
+                                pylsl.cf_double64, f"{spec.lsl_name}-source")
+        outlet = pylsl.StreamOutlet(info)
+    udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM) if spec.udp_target else None
+    standin = ControlClient(spec.standin_host) if spec.standin_host else None
+    rest = config.scene.point("hand_start")
+    hand: SimulatedHand | None = None
+    go = 0.0
+    conn.send("ready")
+    next_at = time.monotonic()
+    while True:
+        while conn.poll():
+            try:
+                message = conn.recv()
+            except (EOFError, OSError):
+                return
+            if message[0] == "play":
+                _, scenario, seed, go = message
+                hand = SimulatedHand(Scenario(scenario), config.scene, config.hand, seed)
+            else:
+                hand = None
+        now = time.monotonic()
+        if hand is None or now < go:
+            position, exact = rest, rest
+        else:
+            sample = hand.latest(now - go)
+            position = np.full(3, np.nan) if sample is None else sample.position
+            exact = hand.position_at(now - go)
+        tracker = transform.invert(position)
+        if outlet is not None:
+            outlet.push_sample(tracker.tolist(), pylsl.local_clock())
+        if udp is not None:
+            datagram = {axis: (None if not np.isfinite(v) else float(v))
+                        for axis, v in zip("xyz", tracker, strict=True)}
+            udp.sendto(json.dumps(datagram | {"t": now}).encode(), spec.udp_target)
+        if standin is not None:
+            standin("set_hand", position=exact.tolist())
+        next_at += 1.0 / rate
+        time.sleep(max(0.0, next_at - time.monotonic()))
+        if conn.closed:
+            return
+
+
+class HandPublisher:
+    """Runs :func:`_serve` in a process of its own; it exits when this object's process ends."""
+
+    def __init__(self, spec: PublisherSpec, timeout: float = 10.0) -> None:
+        context = multiprocessing.get_context("spawn")
+        self._conn, child = context.Pipe()
+        self.process = context.Process(target=_serve, args=(child, spec), name="hand-publisher",
+                                       daemon=True)
+        self.process.start()
+        child.close()
+        if not self._conn.poll(timeout) or self._conn.recv() != "ready":
+            self.close()
+            raise RuntimeError("the hand publisher did not start")
+
+    def play(self, scenario: Scenario, seed: int, go_monotonic: float) -> None:
+        """Play a trial's hand from the Go instant ``go_monotonic`` (``time.monotonic()``)."""
+        self._conn.send(("play", scenario.value, seed, go_monotonic))
+
+    def rest(self) -> None:
+        """Back to the start A."""
+        self._conn.send(("rest",))
+
+    def close(self) -> None:
+        self._conn.close()
+        self.process.join(2.0)
+        if self.process.is_alive():
+            self.process.kill()
