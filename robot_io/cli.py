@@ -11,7 +11,6 @@ from typing import TypeVar
 
 import numpy as np
 
-from robot_io.config import load_config
 from robot_io.errors import explain
 from robot_io.simulated_hand import Scenario
 from robot_io.theta import Theta
@@ -52,12 +51,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--rate", type=int, choices=(125, 500), help="control rate [Hz]")
     parser.add_argument("--realtime", action="store_true",
                         help="run on the wall clock (default: simulated time, as fast as possible)")
-    parser.add_argument("--config", type=Path, help="TOML configuration file")
+    parser.add_argument("--config", type=Path, help="the lab configuration file (TOML, docs/hardware.md)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", type=Path, metavar="FILE.png",
                         help="write the Fig. 4 style distance plot")
-    parser.add_argument("--arm", choices=("mock", "ur"), default="mock",
-                        help="mock: the kinematic mock arm; ur: a UR over RTDE (real time, moves it!)")
+    parser.add_argument("--arm", choices=("mock", "ur"),
+                        help="mock: the kinematic mock arm; ur: a UR over RTDE (real time, moves it!); "
+                             "default: [arm] kind of the config")
     parser.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
     parser.add_argument("--samples", type=Path, metavar="FILE.npz", help="write the per-cycle samples")
     parser.set_defaults(func=run)
@@ -66,7 +66,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "check-devices", help="connect to the configured arm, hand source and gripper; move nothing",
         description="Connect to the configured UR arm, hand source and gripper and report versions, "
                     "rates and faults in plain words. Nothing moves and no output is switched.")
-    check.add_argument("--config", type=Path, help="TOML configuration file")
+    check.add_argument("--config", type=Path, help="the lab configuration file (TOML, docs/hardware.md)")
     check.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
     check.set_defaults(func=run_check_devices)
 
@@ -79,6 +79,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     calibrate.add_argument("pairs", type=Path, help="CSV file: tx,ty,tz,bx,by,bz per line")
     calibrate.add_argument("--config", type=Path, help="TOML configuration file (for units_to_m)")
     calibrate.set_defaults(func=run_calibrate_tracker)
+
+
+def load_config(path: Path | None):
+    """The controller part of the lab configuration file (``--config lab.toml``, one file for every
+    command: the whole file is validated, its [protocol] and [learner] tables included)."""
+    from app.session.config import load_lab_config  # the CLI is the composition root
+
+    return load_lab_config(path).controller
 
 
 def run_calibrate_tracker(args: argparse.Namespace) -> int:
@@ -139,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     if args.rate is not None:
         config = config.model_copy(
             update={"loop": config.loop.model_copy(update={"rate_hz": args.rate})})
-    if args.arm == "ur":
+    if (args.arm or config.arm.kind) == "ur":
         record = _run_on_ur(config, args)
     else:
         record = simulate_trial(config, args.theta, args.scenario, args.seed, realtime=args.realtime)

@@ -90,12 +90,12 @@ def hand_at_start(hand: HandSource, config: ControllerConfig) -> str | None:
     return None
 
 
-def not_started(config: ControllerConfig, clock: Clock, outcome: Outcome, reason: str) -> TrialRecord:
+def not_started(config: ControllerConfig, realtime: bool, outcome: Outcome, reason: str) -> TrialRecord:
     """The record of a cycle that ended before Go (nothing streamed)."""
     recorder = TrialRecorder(1)
     summary = TrialSummary(
         outcome=outcome, reason=reason, rate_hz=config.loop.rate_hz,
-        realtime=bool(getattr(clock, "realtime", False)), cycles=0, duration_s=0.0,
+        realtime=realtime, cycles=0, duration_s=0.0,
         robot_arrival_s=None, hand_arrival_s=None, arrival_gap_s=None, peak_speed_mps=0.0,
         max_tau=config.dmp.tau0, deadline_misses=0, limited_cycles=0, invalid_hand_samples=0,
         compute_us_median=0.0, compute_us_p99=0.0, last_hand_sample_s=None, stop_commanded_s=None)
@@ -108,6 +108,7 @@ def run_cycle(config: ControllerConfig, theta: Theta | None, devices: CycleDevic
     """One trial's whole cycle; never raises for what the arm, hand or operator do (it is in the
     outcome). ``on_waiting`` hears, while ready is awaited, why the hand is not ready (None: ready)."""
     arm, hand, gripper, clock = devices.arm, devices.hand, devices.gripper, devices.clock
+    realtime = bool(getattr(clock, "realtime", False))
     start = config.scene.point("robot_start")
     release = ForceRelease(config.release, clock.period)
     hold = HoldPhase(release=release, gripper=gripper, read_force=arm.read_force,
@@ -121,17 +122,17 @@ def run_cycle(config: ControllerConfig, theta: Theta | None, devices: CycleDevic
     except RobotIOError as exc:
         arm.stop()
         outcome = Outcome.ARM_FAULT if isinstance(exc, ArmFault) else Outcome.ERROR
-        return not_started(config, clock, outcome, f"prepare: {exc}")
+        return not_started(config, realtime, outcome, f"prepare: {exc}")
     if not gates.wait(gates.loaded):
-        return not_started(config, clock, Outcome.STOPPED, "stop requested")
+        return not_started(config, realtime, Outcome.STOPPED, "stop requested")
     on_stage(Stage.LOADED, float("nan"))
     waiting = _await_ready(hand, config, gates, on_waiting or (lambda why: None))
     if waiting is not None:
         outcome = Outcome.STOPPED if gates.stop.is_set() else Outcome.TRACKER_LOST
-        return not_started(config, clock, outcome, waiting)
+        return not_started(config, realtime, outcome, waiting)
     on_stage(Stage.READY, float("nan"))
     if not gates.wait(gates.go):
-        return not_started(config, clock, Outcome.STOPPED, "stop requested")
+        return not_started(config, realtime, Outcome.STOPPED, "stop requested")
     record = loop.run()
     if record.summary.outcome not in (Outcome.COMPLETED, Outcome.NOT_TAKEN):
         return record

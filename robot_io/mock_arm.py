@@ -106,7 +106,13 @@ class MockArm:
         self._advance()
         self._trip(reason)
 
-    def clear_fault(self) -> None:
+    @property
+    def safety_stopped(self) -> bool:
+        """Every mock fault stands for a protective stop: inspect before :meth:`recover`."""
+        return self._state is ArmState.FAULT
+
+    def recover(self) -> None:
+        """Clear the fault (the experimenter has inspected its cause); moves nothing."""
         self._fault = None
         self._state = ArmState.IDLE
 

@@ -52,7 +52,7 @@ class URArm:
     def __init__(self, config: URConfig, limits: SafetyLimits) -> None:
         self.config, self.limits = config, limits
         self._state, self._fault = ArmState.IDLE, None
-        self._fault_at = 0.0
+        self._fault_at, self._fault_safety = 0.0, False
         self._low = np.asarray(limits.workspace_min, dtype=float)
         self._high = np.asarray(limits.workspace_max, dtype=float)
         self._worker: ControlWorker | None = None
@@ -149,11 +149,11 @@ class URArm:
         safety = self._bits("getSafetyStatusBits")
         if any(safety >> bit & 1 for bit in EMERGENCY_STOPPED_BITS):
             self._trip("emergency stop: release the emergency stop button and power the arm on "
-                       "again, then call recover()")
+                       "again, then call recover()", safety=True)
         elif safety >> PROTECTIVE_STOPPED_BIT & 1:
             self._trip("protective stop: the controller stopped the arm (collision, following error "
                        "or a safety limit); inspect the cause, then call recover() — the controller "
-                       f"unlocks no sooner than {UNLOCK_DELAY_S:g} s after the stop")
+                       f"unlocks no sooner than {UNLOCK_DELAY_S:g} s after the stop", safety=True)
         elif self._state is ArmState.STREAMING:
             if self._worker is None or not self._worker.alive:
                 self._trip("the ur_rtde control process exited; call recover()")
@@ -172,9 +172,20 @@ class URArm:
             self._stamp, self._stamp_seen = stamp, now
         return now - self._stamp_seen > STATE_SILENCE_S
 
-    def _trip(self, reason: str) -> None:
+    @property
+    def safety_stopped(self) -> bool:
+        """In FAULT because the controller's safety system stopped the arm (protective or emergency
+        stop): someone must inspect the cause before :meth:`recover`."""
+        if self._state is not ArmState.FAULT:
+            return False
+        safety = self._bits("getSafetyStatusBits") if self._receive is not None else 0
+        return self._fault_safety or bool(safety >> PROTECTIVE_STOPPED_BIT & 1) or any(
+            safety >> bit & 1 for bit in EMERGENCY_STOPPED_BITS)
+
+    def _trip(self, reason: str, safety: bool = False) -> None:
         log.error("UR arm fault: %s", reason)
         self._state, self._fault, self._fault_at = ArmState.FAULT, reason, time.monotonic()
+        self._fault_safety = safety
         if self._dashboard is not None and self._receive.isConnected():  # not on a dead link
             try:
                 self._dashboard.addToLog(f"handover-lab: {reason}"[:200])

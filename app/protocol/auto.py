@@ -1,16 +1,13 @@
-"""A whole session headless: the engine drives the protocol, the controller runs each handover on the
-mock arm on simulated time, and the simulated participant rates and answers."""
+"""The simulated participant's actions on a session: placing, rating and answering as a person would
+(:func:`rate_once`, used by the session runner when "Simulated participant rates" is on)."""
 
 from __future__ import annotations
-
-import sys
-
-from tqdm import tqdm
 
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from robot_io.trial import simulate_trial
+from session_store.errors import RefusedAction
 from session_store.models import QUESTIONS, Phase, Trial
 
 
@@ -19,20 +16,11 @@ def _trial(engine: SessionEngine, interaction: int) -> Trial:
     return next(t for t in engine.store.rows("trials") if t.trial_index == index)
 
 
-def step_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
-    """Do whatever the session waits for, once."""
+def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
+    """The simulated participant places, rates or answers whatever the session waits for, once."""
     state = engine.state
     step, slot = state.step, state.slot
-    if state.paused:
-        engine.resume_session()
-    elif step is Step.PLAN:
-        engine.plan_next()
-    elif step is Step.READY:
-        plan = engine.start_trial()
-        record = simulate_trial(engine.config.controller, plan.theta, engine.config.scenario,
-                                plan.trial.hand_seed)
-        engine.end_trial(plan.trial.trial_index, record)
-    elif step is Step.PLACE:
+    if step is Step.PLACE:
         earlier = [(m, _trial(engine, m.interaction)) for m in state.markers]
         position, equal_to = participant.place(_trial(engine, slot.interaction), slot.position,
                                                earlier)
@@ -45,13 +33,22 @@ def step_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
         best_trial = _trial(engine, best[-1]) if best else None
         question = next(q.id for q in QUESTIONS if q.id not in state.answers)
         engine.answer(question, participant.answer(question, best_trial))
+    else:
+        raise RefusedAction(f"the simulated participant has nothing to do at {step.value!r}")
 
 
-def run_auto(engine: SessionEngine, participant: SimulatedParticipant, progress: bool = True) -> None:
-    """Run the session to its end (a resumed one from where it stopped)."""
-    with tqdm(total=engine.config.interactions, initial=engine.state.completed, unit="handover",
-              disable=not progress, file=sys.stderr, desc=engine.participant.code) as bar:
-        while engine.state.step is not Step.DONE:
-            before = engine.state.completed
-            step_once(engine, participant)
-            bar.update(engine.state.completed - before)
+def step_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
+    """Do whatever the session waits for, once, in this process: a trial is one reach of the mock
+    arm on simulated time (the protocol engine's own tests; sessions run trials on the rig)."""
+    state = engine.state
+    if state.paused:
+        engine.resume_session()
+    elif state.step is Step.PLAN:
+        engine.plan_next()
+    elif state.step is Step.READY:
+        plan = engine.start_trial()
+        record = simulate_trial(engine.config.controller, plan.theta, engine.config.scenario,
+                                plan.trial.hand_seed)
+        engine.end_trial(plan.trial.trial_index, record)
+    else:
+        rate_once(engine, participant)

@@ -4,26 +4,31 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+import threading
 import time
 from pathlib import Path
 
-from app.protocol.auto import run_auto
-from app.protocol.engine import SessionEngine
-from app.protocol.simulated_participant import SimulatedParticipant
+from tqdm import tqdm
+
+from app.protocol.state import Step
+from app.session.cli import add_rig_arguments, open_runner
+from app.session.config import load_lab_config
+from app.session.runner import RunnerView, SessionRunner, recorded_session
 from robot_io.cli import argument_type
-from robot_io.config import load_config
 from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.export import FORMATS, export_study
-from session_store.models import StudyConfig
 from session_store.store import ParticipantStore, participant_path
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     run = subparsers.add_parser(
         "run-session", help="run a participant's whole session headless",
-        description="Run the paper's protocol for one participant, headless, with the simulated "
-                    "participant rating (--auto). --resume continues an interrupted session.")
+        description="Run the paper's protocol for one participant, headless, on the devices of the "
+                    "lab configuration, with the simulated participant rating (--auto) and each trial "
+                    "started automatically. With the mock arm and the simulated hand trials run on "
+                    "simulated time unless --realtime. --resume continues an interrupted session.")
     run.add_argument("--study", type=Path, required=True, help="study folder (one .sqlite per code)")
     run.add_argument("--participant", required=True, help="pseudonymous participant code")
     run.add_argument("--scenario", type=argument_type(Scenario.parse),
@@ -34,7 +39,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     run.add_argument("--resume", action="store_true",
                      help="continue an interrupted session (with --scenario: start it if it never "
                           "got created)")
-    run.add_argument("--config", type=Path, help="controller TOML configuration (new sessions)")
+    run.add_argument("--config", type=Path, help="the lab configuration file (TOML, docs/hardware.md)")
+    add_rig_arguments(run)
+    run.add_argument("--realtime", action="store_true",
+                     help="run the mock arm and simulated hand on the wall clock, as on a rig")
+    run.add_argument("--accept-rig-change", action="store_true",
+                     help="continue a session recorded on a different rig (the change is recorded)")
     run.add_argument("--json", action="store_true", help="print a JSON summary at the end")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.set_defaults(func=run_session)
@@ -54,28 +64,36 @@ def run_session(args: argparse.Namespace) -> int:
         raise StoreError("a headless session needs --auto (the simulated participant); a session "
                          "with a person runs from the tablet and dashboard")
     exists = ParticipantStore.exists(args.study, args.participant)
-    if args.resume and (exists or args.scenario is None):
-        engine = SessionEngine.resume(args.study, args.participant)
-        if args.scenario is not None and args.scenario != engine.config.scenario:
+    resume = args.resume and (exists or args.scenario is None)
+    if resume:
+        session, _ = recorded_session(args.study, args.participant)
+        if args.scenario is not None and args.scenario != session.scenario:
             raise StoreError(f"--scenario {args.scenario.value} differs from the session's "
-                             f"{engine.config.scenario.value}")
-    else:
-        if exists:
-            raise StoreError(f"participant {args.participant!r} already has a session in "
-                             f"{args.study}: add --resume to continue it")
-        if args.scenario is None:
-            raise StoreError("--scenario is required for a new session")
-        config = StudyConfig(scenario=args.scenario, seed=args.seed,
-                             controller=load_config(args.config))
-        engine = SessionEngine.create(args.study, args.participant, config)
+                             f"{session.scenario.value}")
+    elif exists:
+        raise StoreError(f"participant {args.participant!r} already has a session in "
+                         f"{args.study}: add --resume to continue it")
+    elif args.scenario is None:
+        raise StoreError("--scenario is required for a new session")
+    lab = load_lab_config(args.config)
+    simulated = lab.arm.kind == "mock" and lab.hand_source.kind == "simulated"
     began = time.monotonic()
+    with open_runner(args, lab, realtime=args.realtime or args.rehearse or not simulated,
+                     auto_experimenter=True) as runner:
+        runner.set_auto(True)
+        runner.open(args.participant, args.scenario, args.seed,
+                    confirm_rig_change=args.accept_rig_change)
+        view = wait_until_done(runner, progress=not args.no_progress)
+    if view.failed is not None:
+        raise StoreError(f"the session stopped: {view.failed}")
+    store = ParticipantStore.open(args.study, args.participant)
     try:
-        run_auto(engine, SimulatedParticipant(engine.config.seed), progress=not args.no_progress)
-        counts = engine.store.counts()
-        snapshot = engine.store.rows("learner_snapshots")[-1]
+        counts = store.counts()
+        snapshot = store.rows("learner_snapshots")[-1]
     finally:
-        engine.close()
-    summary = {"participant": args.participant, "completed": engine.state.completed,
+        store.close()
+    summary = {"participant": args.participant, "completed": view.state.completed,
+               "rig": view.arm, "hand": view.hand,
                "theta_star": {"a": snapshot.theta_star_a, "delta": snapshot.theta_star_delta,
                               "k": snapshot.theta_star_k},
                "seconds": round(time.monotonic() - began, 2),
@@ -85,10 +103,28 @@ def run_session(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         star = summary["theta_star"]
-        print(f"{args.participant}: {summary['completed']} handovers completed; θ* = (a "
-              f"{star['a']:.2f}, δ {star['delta']:.2f}, k {star['k']:.2f}); "
+        print(f"{args.participant}: {summary['completed']} handovers completed on {view.arm}; "
+              f"θ* = (a {star['a']:.2f}, δ {star['delta']:.2f}, k {star['k']:.2f}); "
               f"{summary['seconds']} s; database {summary['database_bytes'] / 1e6:.1f} MB")
     return 0
+
+
+def wait_until_done(runner: SessionRunner, progress: bool) -> RunnerView:
+    """Block until the session is done or the simulated experimenter gave up; a progress bar."""
+    done = threading.Event()
+    with tqdm(total=None, unit="handover", disable=not progress, file=sys.stderr) as bar:
+        def listen(view: RunnerView) -> None:
+            if view.state is not None:
+                bar.total = view.interactions
+                bar.n = view.state.completed
+                bar.refresh()
+            if view.step is Step.DONE or view.failed is not None:
+                done.set()
+
+        runner.subscribe(listen)
+        listen(runner.view)
+        done.wait()
+    return runner.view
 
 
 def export_command(args: argparse.Namespace) -> int:

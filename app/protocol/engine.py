@@ -220,13 +220,6 @@ class SessionEngine:
         self._commit(Event(actor=Actor.SYSTEM, kind="devices_recorded",
                            payload={"config": config, "devices": devices}))
 
-    def recorded_rig(self) -> dict:
-        """The rig tables the session last ran on (its creation's, for a file from before v2)."""
-        for event in reversed(self.store.events()):
-            if event.kind == "devices_recorded":
-                return rig_of(event.payload["config"])
-        return rig_of(self.config.controller.model_dump(mode="json"))
-
     def place(self, position: float | None = None, equal_to: int | None = None) -> list[Comparison]:
         """The participant's placement of the last interaction on the relative scale: a position
         in [0, 1] ("Strongly Worse" … "Strongly Better") or ``equal_to`` an earlier marker of the

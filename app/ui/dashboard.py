@@ -20,11 +20,12 @@ import viser.uplot
 
 from app.learning.models import PosteriorSlice
 from app.protocol.state import Step
+from app.session.runner import RunnerView, SessionRunner
 from app.ui.live_view import STRIDE, LiveView
-from app.ui.session_runner import RunnerView, SessionRunner
 from app.ui.style import DASHBOARD_CSS, style_block
 from robot_io.errors import RobotIOError
 from robot_io.simulated_hand import Scenario
+from robot_io.stages import Stage
 from session_store.errors import StoreError
 
 log = logging.getLogger(__name__)
@@ -32,7 +33,7 @@ log = logging.getLogger(__name__)
 NEXT: dict[Step, str] = {
     Step.PLAN: "the learner chooses the next θ; then Start trial",
     Step.READY: "press Start trial when the participant is ready",
-    Step.RUNNING: "the handover runs (Abort repeats it later; Stop stops the arm)",
+    Step.RUNNING: "the handover cycle runs (Abort repeats it later; Stop stops the arm)",
     Step.PLACE: "the participant places the handover on the tablet's scale",
     Step.RATE: "the participant rates this handover against the previous one",
     Step.ANSWER: "the participant answers the questionnaire on the tablet",
@@ -55,6 +56,8 @@ def progress_markdown(view: RunnerView) -> str:
                      f"attempt {attempt}")
     elif state.step is Step.ANSWER:
         lines.append(f"phase **questionnaire** · {len(state.answers)} of 3 answered")
+    if state.step is Step.RUNNING:
+        lines.append(cycle_markdown(view))
     status = "**paused**" if state.paused else f"waiting for **{state.step.value}**"
     if view.preparing:
         status = "**preparing** (the learner is fitting)"
@@ -62,10 +65,34 @@ def progress_markdown(view: RunnerView) -> str:
     return "  \n".join(lines)
 
 
+#: The handover cycle as the dashboard draws it, and what each stage waits for.
+CYCLE = (Stage.PREPARE, Stage.LOADED, Stage.READY, Stage.GO, Stage.REACH, Stage.HOLD,
+         Stage.RELEASE, Stage.RETRACT, Stage.DONE)
+WAITING_TEXT = {"loaded": "load the object into the gripper, then press **Object loaded**",
+                "go": "the participant's hand rests at the start: press **Go**"}
+
+
+def cycle_markdown(view: RunnerView) -> str:
+    """The running trial's stage within the cycle, the current one in bold, and what it waits for."""
+    stage = view.stage
+    shown = [f"**[{s.value}]**" if s is stage else s.value for s in CYCLE]
+    if stage is Stage.NOT_TAKEN:
+        shown[CYCLE.index(Stage.RELEASE)] = "**[not taken]**"
+    line = "cycle: " + " → ".join(shown)
+    if view.waiting_for is not None:
+        line += f"  \n⏳ {WAITING_TEXT[view.waiting_for]}"
+    if view.ready_wait and stage in (Stage.LOADED, Stage.PREPARE):
+        line += f"  \n⏳ not ready: {view.ready_wait}"
+    return line
+
+
 def devices_markdown(view: RunnerView) -> str:
     def line(name: str, text: str, fault: str | None) -> str:
         return f"- **{name}**: {text}" + (f" — ⚠ **{fault}**" if fault else "")
-    return "\n".join([line("arm", view.arm, view.arm_fault), line("hand", view.hand, None),
+    rig = ["- rehearsal: stand-in UR controller and simulated hand (no hardware)"] if view.rehearsal \
+        else []
+    return "\n".join([*rig, line("arm", view.arm, view.arm_fault), line("hand", view.hand, None),
+                      line("gripper", view.gripper, None),
                       line("learner", view.learner, view.learner_fault),
                       "", "Recent events:", *[f"- {m}" for m in view.messages]])
 
@@ -109,8 +136,11 @@ def learner_markdown(view: RunnerView, rows: int = 10) -> str:
 @dataclass
 class Controls:
     start: viser.GuiButtonHandle
+    loaded: viser.GuiButtonHandle
+    go: viser.GuiButtonHandle
     abort: viser.GuiButtonHandle
     stop: viser.GuiButtonHandle
+    recover: viser.GuiButtonHandle
     pause: viser.GuiButtonHandle
     resume: viser.GuiButtonHandle
     auto: viser.GuiCheckboxHandle
@@ -119,7 +149,10 @@ class Controls:
         step, state = view.step, view.state
         paused = state is not None and state.paused
         self.start.disabled = step is not Step.READY or paused
+        self.loaded.disabled = view.waiting_for != "loaded"
+        self.go.disabled = view.waiting_for != "go"
         self.abort.disabled = step is not Step.RUNNING
+        self.recover.disabled = view.arm_fault is None or step is Step.RUNNING
         self.pause.disabled = state is None or paused or step in (Step.RUNNING, Step.DONE)
         self.resume.disabled = not paused
         self.auto.value = view.auto
@@ -201,22 +234,30 @@ class DashboardClient:
         scenario = gui.add_dropdown("Scenario", [s.value for s in Scenario],
                                     initial_value=Scenario.PERTURBED.value)
         seed = gui.add_number("Seed", 0, step=1)
+        rig_change = gui.add_checkbox("Confirm a rig change (resume on other devices)", False)
         open_button = gui.add_button("Create or resume")
         open_button.on_click(lambda _: self._act(lambda: self.runner.open(
-            code.value.strip(), Scenario(scenario.value), int(seed.value))))
+            code.value.strip(), Scenario(scenario.value), int(seed.value),
+            confirm_rig_change=rig_change.value)))
 
     def _controls(self, gui: viser.GuiApi) -> Controls:
         controls = Controls(
             start=gui.add_button("Start trial", color="green", icon=viser.Icon.PLAYER_PLAY),
+            loaded=gui.add_button("Object loaded", color="blue"),
+            go=gui.add_button("Go", color="green"),
             abort=gui.add_button("Abort trial", color="orange"),
             stop=gui.add_button("STOP ARM", color="red", icon=viser.Icon.HAND_STOP),
+            recover=gui.add_button("Recover arm (cause inspected)", color="yellow"),
             pause=gui.add_button("Pause session"),
             resume=gui.add_button("Resume session"),
             auto=gui.add_checkbox("Simulated participant rates", False),
         )
         controls.start.on_click(lambda _: self._act(self.runner.start_trial))
+        controls.loaded.on_click(lambda _: self._act(self.runner.object_loaded))
+        controls.go.on_click(lambda _: self._act(self.runner.go))
         controls.abort.on_click(lambda _: self._act(self.runner.abort_trial))
         controls.stop.on_click(lambda _: self._act(self.runner.stop))
+        controls.recover.on_click(lambda _: self._act(self.runner.recover_arm))
         controls.pause.on_click(lambda _: self._act(self.runner.pause))
         controls.resume.on_click(lambda _: self._act(self.runner.resume))
         controls.auto.on_update(lambda _: self._act(

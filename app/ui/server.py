@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 import viser
 
+from app.session.runner import SessionRunner
 from app.ui.dashboard import Dashboard
-from app.ui.session_runner import SessionRunner
 from app.ui.tablet import Tablet
 
 log = logging.getLogger(__name__)

@@ -17,9 +17,10 @@ import viser
 from pydantic import BaseModel, ConfigDict
 
 from app.protocol.state import Marker, Step
+from app.session.runner import RunnerView, SessionRunner
 from app.ui.scale_view import render_scale, screen_text, snap
-from app.ui.session_runner import RunnerView, SessionRunner
 from app.ui.style import TABLET_CSS, audio_cue, style_block
+from robot_io.stages import Stage
 from session_store.errors import RefusedAction
 from session_store.models import QUESTION_BY_ID, QUESTIONS
 
@@ -28,6 +29,9 @@ log = logging.getLogger(__name__)
 #: Validation ratings as the participant reads them → the engine's values.
 RATINGS: tuple[tuple[str, str], ...] = (("Better", "better"), ("The same", "equal"),
                                         ("Worse", "worse"))
+
+#: The stages of the handover cycle during which the tablet shows "Go!" (before it: please wait).
+GO_STAGES = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
 
 ScreenKind = Literal["wait", "go", "place", "rate", "question", "done"]
 
@@ -50,7 +54,7 @@ def screen_for(view: RunnerView) -> Screen:
     if state is None:
         return Screen(kind="wait")
     step, slot = state.step, state.slot
-    if step is Step.RUNNING:
+    if step is Step.RUNNING and state.stage in GO_STAGES:  # the cue: the robot starts with it
         return Screen(kind="go", interaction=slot.interaction)
     if step is Step.PLACE:
         return Screen(kind="place", interaction=slot.interaction, label=slot.position,

@@ -24,6 +24,8 @@ from robot_io.rig.messages import (
     DeviceReport,
     Go,
     ObjectLoaded,
+    Recover,
+    Recovered,
     Report,
     RigDied,
     RigFailed,
@@ -72,13 +74,16 @@ class RigClient:
         self._conn, child = context.Pipe()
         # not a daemon: the rig starts its own child (the ur_rtde control worker)
         self.process = context.Process(target=process.main, name="handover-rig",
-                                       args=(child, spec, self.stream.name, len(self.stream.rows)))
+                                       args=(child, spec, self.stream.name, len(self.stream.rows),
+                                             logging.getLogger().getEffectiveLevel()))
         self.process.start()
         child.close()
         self.stage: Stage | None = None
         self.running: int | None = None  # the trial index the rig is running
         self._closing = False
         self._stop_ack = threading.Event()
+        self._recovered = threading.Event()
+        self._recovery: Recovered | None = None
         self._send_lock = threading.Lock()
         self._stopper = None
         try:
@@ -139,6 +144,15 @@ class RigClient:
     def go(self) -> None:
         self._send(Go())
 
+    def recover(self, inspected: bool, timeout: float = 20.0) -> Recovered:
+        """Ask the rig to clear the arm's fault (it waits out a UR's 5 s protective-stop rule)."""
+        self._recovered.clear()
+        if not self._send(Recover(inspected=inspected)):
+            raise RigError("the rig process is not reachable")
+        if not self._recovered.wait(timeout):
+            raise RigError(f"the rig did not answer the recovery within {timeout} s")
+        return self._recovery
+
     def stop(self, reason: str) -> bool:
         """Stop the arm. True if the rig acknowledged; otherwise the backstop fired."""
         self._stop_ack.clear()
@@ -181,6 +195,9 @@ class RigClient:
                 break
             if isinstance(report, StopReceived):
                 self._stop_ack.set()
+            elif isinstance(report, Recovered):
+                self._recovery = report
+                self._recovered.set()
             elif isinstance(report, StageReached):
                 self.stage = report.stage
             elif isinstance(report, TrialDone):

@@ -14,9 +14,10 @@ import logging
 
 import numpy as np
 
+from robot_io.arm import ArmState
 from robot_io.cycle import CycleDevices
 from robot_io.devices import open_hand
-from robot_io.errors import ConfigError
+from robot_io.errors import ArmFault, ConfigError
 from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
 from robot_io.hand import HandSource
 from robot_io.mock_arm import MockArm
@@ -110,6 +111,19 @@ class RigDevices:
 
             arm = self._mock = MockArm(clock, self._mock_position, force=force)
         return CycleDevices(arm=arm, hand=hand, gripper=self.gripper, clock=clock)
+
+    def recover(self, inspected: bool) -> str:
+        """Clear the arm's fault; moves nothing. A safety stop (protective or emergency) is cleared
+        only once someone inspected its cause. Returns what was done; raises ArmFault if refused."""
+        arm = self.ur or self._mock
+        if arm is None or arm.state is not ArmState.FAULT:
+            return "the arm has no fault"
+        fault = arm.fault
+        if arm.safety_stopped and not inspected:
+            raise ArmFault(f"not recovered: {fault} — inspect the cause, then recover from the "
+                           "dashboard")
+        arm.recover()
+        return f"recovered from: {fault}"
 
     def stop_arm(self) -> None:
         """Stop the arm between trials (never raises)."""

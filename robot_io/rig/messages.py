@@ -1,10 +1,11 @@
 """The typed messages between the application and the rig process (one pipe each way).
 
 Application → rig: :class:`RunTrial`, :class:`ObjectLoaded`, :class:`Go`, :class:`Stop`,
-:class:`Shutdown`. Rig → application: :class:`RigOpened` or :class:`RigFailed` once, then per trial
-:class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is not at A, and
-:class:`TrialDone` with the summary; :class:`StopReceived` acknowledges a stop at once. Samples do not
-travel here: the rig writes them into shared memory (:mod:`robot_io.rig.stream`).
+:class:`Recover`, :class:`Shutdown`. Rig → application: :class:`RigOpened` or :class:`RigFailed`
+once, then per trial :class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is
+not at A, and :class:`TrialDone` with the summary; :class:`Recovered` answers a :class:`Recover`;
+:class:`StopReceived` acknowledges a stop at once. Samples do not travel here: the rig writes them
+into shared memory (:mod:`robot_io.rig.stream`).
 """
 
 from __future__ import annotations
@@ -58,11 +59,19 @@ class Stop(_Message):
     reason: str
 
 
+class Recover(_Message):
+    """Clear an arm fault (moves nothing). ``inspected``: someone inspected the cause, as a
+    protective or emergency stop requires; without it only other faults are cleared."""
+
+    kind: Literal["recover"] = "recover"
+    inspected: bool
+
+
 class Shutdown(_Message):
     kind: Literal["shutdown"] = "shutdown"
 
 
-Command = RunTrial | ObjectLoaded | Go | Stop | Shutdown
+Command = RunTrial | ObjectLoaded | Go | Stop | Recover | Shutdown
 
 
 # -- rig → application ---------------------------------------------------------------------------
@@ -108,6 +117,12 @@ class StopReceived(_Message):
     kind: Literal["stop_received"] = "stop_received"
 
 
+class Recovered(_Message):
+    kind: Literal["recovered"] = "recovered"
+    ok: bool
+    message: str
+
+
 class TrialDone(_Message):
     kind: Literal["trial_done"] = "trial_done"
     trial_index: int
@@ -123,4 +138,5 @@ class RigDied(_Message):
     reason: str
 
 
-Report = RigOpened | RigFailed | StageReached | ReadyWaiting | StopReceived | TrialDone
+Report = (RigOpened | RigFailed | StageReached | ReadyWaiting | StopReceived | Recovered
+          | TrialDone)

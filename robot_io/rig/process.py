@@ -26,6 +26,8 @@ from robot_io.rig.messages import (
     Go,
     ObjectLoaded,
     ReadyWaiting,
+    Recover,
+    Recovered,
     Report,
     RigFailed,
     RigOpened,
@@ -61,7 +63,7 @@ class Inbox:
 
     def __init__(self, conn: Connection, outbox: Outbox, devices: RigDevices) -> None:
         self._conn, self._outbox, self._devices = conn, outbox, devices
-        self.commands: queue.Queue[tuple[RunTrial, Gates] | None] = queue.Queue()
+        self.commands: queue.Queue[tuple[RunTrial, Gates] | Recover | None] = queue.Queue()
         self.gates: Gates | None = None
         self.running = False
         threading.Thread(target=self._receive, name="rig-inbox", daemon=True).start()
@@ -90,6 +92,8 @@ class Inbox:
             elif isinstance(command, Stop):
                 self._outbox.send(StopReceived())
                 self._stop()
+            elif isinstance(command, Recover):
+                self.commands.put(command)
             elif isinstance(command, Shutdown):
                 self._stop()
                 self.commands.put(None)
@@ -102,9 +106,9 @@ class Inbox:
             self._devices.stop_arm()
 
 
-def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int) -> None:
-    """Entry point of the rig process (``multiprocessing`` spawn)."""
-    logging.basicConfig(level=logging.INFO, format=f"rig[{os.getpid()}] %(levelname)s %(message)s")
+def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_level: int) -> None:
+    """Entry point of the rig process (``multiprocessing`` spawn); logs at the application's level."""
+    logging.basicConfig(level=log_level, format=f"rig[{os.getpid()}] %(levelname)s %(name)s: %(message)s")
     outbox = Outbox(conn)
     try:
         devices = RigDevices(spec)
@@ -116,6 +120,12 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int) -> No
     outbox.send(RigOpened(devices=devices.report(), pid=os.getpid()))
     try:
         while (item := inbox.commands.get()) is not None:
+            if isinstance(item, Recover):
+                try:
+                    outbox.send(Recovered(ok=True, message=devices.recover(item.inspected)))
+                except RobotIOError as exc:
+                    outbox.send(Recovered(ok=False, message=explain(exc)))
+                continue
             command, gates = item
             _run(command, gates, devices, stream, outbox, inbox)
     finally:

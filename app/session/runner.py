@@ -1,0 +1,595 @@
+"""The running session behind both screens and the headless command (DESIGN.md §1).
+
+One :class:`SessionRunner` owns the participant's :class:`SessionEngine` and the rig process that
+runs each trial's handover cycle on the configured devices (:class:`~robot_io.rig.client.RigClient`);
+``handover serve`` renders it on the tablet and the dashboard, ``handover run-session`` drives it
+headless, so both run the same trials on the same devices. A background worker asks the learner for
+the next θ and, when switched on, lets the simulated participant rate (and, headless, the simulated
+experimenter start each trial). Every change is published as a :class:`RunnerView` — a consistent copy
+of the engine's state plus device status — to the subscribed screens, which render nothing else.
+
+The engine (and its SQLite connection, which belongs to one thread) is only touched on one engine
+thread, one call at a time. :meth:`SessionRunner.stop` never waits for it: it goes straight to the rig
+(and past it, to the controller, if the rig does not answer), so Stop reaches the arm whatever else is
+going on.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Literal, TypeVar
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict
+
+from app.learning.errors import LearningError
+from app.learning.models import PosteriorSlice
+from app.protocol.auto import rate_once
+from app.protocol.engine import RIG_TABLES, SessionEngine, TrialPlan, rig_of
+from app.protocol.simulated_participant import SimulatedParticipant
+from app.protocol.state import SessionState, Step
+from app.session.config import LabConfig
+from app.session.rehearsal import Rehearsal
+from robot_io.config import ControllerConfig, SceneConfig
+from robot_io.cycle import not_started
+from robot_io.errors import RobotIOError, explain
+from robot_io.loop import Outcome, TrialRecord
+from robot_io.rig.client import RigClient
+from robot_io.rig.messages import (
+    DeviceReport,
+    ReadyWaiting,
+    Report,
+    RigDied,
+    RigSpec,
+    RunTrial,
+    StageReached,
+    TrialDone,
+)
+from robot_io.simulated_hand import Scenario
+from robot_io.stages import Stage
+from session_store.errors import RefusedAction, StoreError
+from session_store.models import StudyConfig, Trial
+from session_store.store import ParticipantStore, participant_codes
+
+log = logging.getLogger(__name__)
+
+#: How long the planner waits for the learner before it falls back to a flagged Sobol point [s].
+PLAN_TIMEOUT_S = 60.0
+#: The simulated participant's pause before it rates, so that each screen is seen [s].
+AUTO_DELAY_S = 0.6
+#: The reasons recorded with a trial the experimenter aborted or stopped.
+ABORT_REASON = "aborted by the experimenter"
+STOP_REASON = "stopped by the experimenter (Stop)"
+#: How many recent events the dashboard lists.
+MESSAGES = 5
+#: The simulated experimenter gives up after this many trials in a row that did not complete.
+MAX_FAILED_TRIALS = 5
+
+Waiting = Literal["loaded", "go"]
+
+
+class ThetaStar(BaseModel):
+    after_interaction: int
+    a: float
+    delta: float
+    k: float
+
+
+class RunnerView(BaseModel):
+    """Everything a screen shows, copied at one moment. ``state`` is None before a session is open."""
+
+    model_config = ConfigDict(frozen=True)
+
+    version: int = 0
+    code: str | None = None
+    scenario: Scenario | None = None
+    state: SessionState | None = None
+    interactions: int = 0
+    preparing: bool = False
+    auto: bool = False
+    rehearsal: bool = False
+    arm: str = "no rig open"
+    arm_fault: str | None = None
+    hand: str = ""
+    gripper: str = ""
+    waiting_for: Waiting | None = None  # the cycle waits for the experimenter's confirmation
+    ready_wait: str | None = None  # why the hand is not ready at the start A
+    learner: str = "idle"
+    learner_fault: str | None = None
+    failed: str | None = None  # the simulated experimenter gave up (headless): why
+    messages: list[str] = []  # the latest events, newest last
+    trials: list[Trial] = []
+    theta_star: list[ThetaStar] = []
+    posterior: list[PosteriorSlice] = []  # posterior utility through θ*, per parameter
+
+    @property
+    def step(self) -> Step | None:
+        return None if self.state is None else self.state.step
+
+    @property
+    def stage(self) -> Stage | None:
+        return None if self.state is None else self.state.stage
+
+
+Listener = Callable[[RunnerView], None]
+T = TypeVar("T")
+
+
+class SessionRunner:
+    """One participant at a time, on the devices of ``lab`` (or of the ``rehearsal``, which the
+    runner then owns). Actions raise :class:`RefusedAction` with the reason.
+
+    ``realtime=False`` runs trials on simulated time (only the mock arm with the simulated hand);
+    ``auto_experimenter`` starts every trial by itself (headless sessions)."""
+
+    def __init__(self, study: Path, lab: LabConfig, *, realtime: bool = True,
+                 realtime_priority: bool = False, rehearsal: Rehearsal | None = None,
+                 auto_experimenter: bool = False) -> None:
+        self.study = study
+        self.rehearsal = rehearsal
+        self.lab = rehearsal.lab if rehearsal is not None else lab
+        self.realtime = realtime
+        self.realtime_priority = realtime_priority
+        self.auto_experimenter = auto_experimenter
+        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="engine")
+        self._engine_thread = self._executor.submit(threading.get_ident).result()
+        self._engine: SessionEngine | None = None
+        self._participant: SimulatedParticipant | None = None
+        self._rig: RigClient | None = None
+        self._devices: DeviceReport | None = None
+        self._rig_fault: str | None = None
+        self._plan: TrialPlan | None = None
+        self._abort_reason: str | None = None
+        self._ready_wait: str | None = None
+        self._auto = False
+        self._preparing = False
+        self._failed_in_a_row = 0
+        self._failed: str | None = None
+        self._messages: deque[str] = deque(maxlen=MESSAGES)
+        self._learner_fault: str | None = None
+        self._theta_star: list[ThetaStar] = []
+        self._theta_star_key = -1
+        self._listeners: list[Listener] = []
+        self._view = RunnerView()
+        self._wake = threading.Event()
+        self._closing = False
+        self._worker = threading.Thread(target=self._work, name="session-worker", daemon=True)
+        self._worker.start()
+
+    # -- reading --------------------------------------------------------------------------------
+    @property
+    def view(self) -> RunnerView:
+        """The latest published view (never blocks)."""
+        return self._view
+
+    def subscribe(self, listener: Listener) -> None:
+        self._listeners.append(listener)
+
+    def live(self, stride: int = 1) -> tuple[TrialPlan | None, dict[str, np.ndarray] | None]:
+        """The running (or last) trial and its rows so far, for live displays (never blocks)."""
+        rig = self._rig
+        if rig is None or self._plan is None or rig.stream.trial_index != self._plan.trial.trial_index:
+            return self._plan, None
+        return self._plan, rig.stream.view(stride)
+
+    def scene_config(self) -> SceneConfig:
+        """The geometry of the open session (the lab's before one is open)."""
+        engine = self._engine
+        return (self.lab if engine is None else engine.config.controller).scene
+
+    def codes(self) -> list[str]:
+        """The participants of the study folder."""
+        return participant_codes(self.study) if self.study.exists() else []
+
+    @property
+    def rig(self) -> RigClient | None:
+        return self._rig
+
+    # -- the experimenter's actions ---------------------------------------------------------------
+    def open(self, code: str, scenario: Scenario | None = None, seed: int = 0,
+             confirm_rig_change: bool = False) -> None:
+        """Resume ``code``'s session, or create it (with ``scenario``) if it has none. The rig is
+        opened first; a session recorded on a different rig is refused unless
+        ``confirm_rig_change``, and then the change is recorded."""
+        self._call(lambda: self._open(code, scenario, seed, confirm_rig_change))
+        self._changed(f"participant {code} open on {self._devices.arm_detail}")
+
+    def start_trial(self) -> None:
+        plan = self._call(self._start_trial)
+        self._changed(f"trial {plan.trial.trial_index} started (interaction "
+                      f"{plan.trial.interaction}, attempt {plan.trial.attempt})")
+
+    def object_loaded(self) -> None:
+        """The experimenter confirms the object is in the gripper."""
+        self._require_waiting("loaded").object_loaded()
+        self._changed("object loaded")
+
+    def go(self) -> None:
+        """The experimenter gives Go: the tablet's cue and the robot's start."""
+        self._require_waiting("go").go()
+        self._changed("Go")
+
+    def recover_arm(self, inspected: bool = True) -> None:
+        """Clear the arm's fault once its cause is inspected (moves nothing); a UR's protective stop
+        is unlocked no sooner than 5 s after it happened."""
+        rig = self._rig
+        if rig is None or not rig.alive:
+            raise RefusedAction("no rig process is running: the next Start trial opens a fresh one")
+        if rig.running is not None:
+            raise RefusedAction("recover refused while a trial runs: Stop it first")
+        try:
+            result = rig.recover(inspected)
+        except RobotIOError as exc:
+            raise RefusedAction(str(exc)) from exc
+        if not result.ok:
+            raise RefusedAction(result.message)
+        self._rig_fault = None
+        self._changed(result.message)
+
+    def abort_trial(self) -> None:
+        """End the running trial now; it is recorded as aborted and will be repeated."""
+        if self._plan is None or self._rig is None or self._rig.running is None:
+            raise RefusedAction("abort refused: no trial is running")
+        self._halt(ABORT_REASON)
+
+    def stop(self) -> None:
+        """Stop the arm, whatever else is going on (never waits for the engine). A running trial
+        is aborted."""
+        self._halt(STOP_REASON)
+        self._changed("Stop: the arm is stopped")
+
+    def pause(self) -> None:
+        self._call(lambda: self._require_engine().pause("paused by the experimenter"))
+        self._changed("session paused")
+
+    def resume(self) -> None:
+        self._call(lambda: self._require_engine().resume_session())
+        self._changed("session resumed")
+
+    def set_auto(self, on: bool) -> None:
+        self._auto = on
+        self._changed(f"simulated participant {'on' if on else 'off'}")
+
+    # -- the participant's actions (each names the interaction its screen showed) -----------------
+    def place(self, interaction: int, position: float | None = None,
+              equal_to: int | None = None) -> None:
+        self._call(lambda: self._require_current(interaction, Step.PLACE).place(
+            position=position, equal_to=equal_to))
+        self._changed(None)
+
+    def rate(self, interaction: int, rating: str) -> None:
+        self._call(lambda: self._require_current(interaction, Step.RATE).rate_validation(rating))
+        self._changed(None)
+
+    def answer(self, question: str, value: str) -> None:
+        self._call(lambda: self._require_engine().answer(question, value))
+        self._changed(None)
+
+    # -- shutdown ---------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Stop the arm first, then close the rig, the engine and its store, and the rehearsal.
+        Closing twice does nothing more."""
+        if self._closing:
+            return
+        self._closing = True
+        rig = self._rig
+        if rig is not None:
+            if rig.running is not None:
+                self._abort_reason = self._abort_reason or "session closed"
+                rig.stop("session closed")
+            rig.close()
+        self._wake.set()
+        self._call(self._close_engine)
+        self._executor.shutdown()
+        self._worker.join(2.0)
+        if self.rehearsal is not None:
+            self.rehearsal.close()
+
+    # -- internals: on the engine thread ----------------------------------------------------------
+    def _call(self, job: Callable[[], T]) -> T:
+        """Run ``job`` on the engine thread and return its result (or raise its exception)."""
+        if threading.get_ident() == self._engine_thread:
+            return job()
+        return self._executor.submit(job).result()
+
+    def _open(self, code: str, scenario: Scenario | None, seed: int, confirm: bool) -> None:
+        if self._engine is not None:
+            raise RefusedAction(f"participant {self._engine.participant.code!r} is open; "
+                                "close the server to switch participants")
+        exists = ParticipantStore.exists(self.study, code)
+        if not exists and scenario is None:
+            raise RefusedAction(f"participant {code!r} has no session yet: choose a scenario "
+                                "to create one")
+        lab = self.lab.model_dump(mode="json")
+        if exists:
+            config, recorded = recorded_session(self.study, code)
+            changed = recorded if recorded != rig_of(lab) else None
+            if changed is not None and not confirm:
+                raise RefusedAction(
+                    f"participant {code!r} was recorded on a different rig "
+                    f"({describe_change(recorded, rig_of(lab))}); confirm the rig change to "
+                    "continue on this one")
+        else:
+            config, changed = self.lab.study_config(scenario, seed), None
+        self._open_rig(config)
+        if exists:
+            engine = SessionEngine.resume(self.study, code)
+        else:
+            engine = SessionEngine.create(self.study, code, config)
+        engine.record_devices(lab, self._devices.model_dump(mode="json"), changed_from=changed)
+        self._engine = engine
+        self._participant = SimulatedParticipant(engine.config.seed)
+        self._theta_star_key = -1
+        log.info("session %s open at step %s", code, engine.state.step)
+
+    def _trial_config(self, session: StudyConfig) -> ControllerConfig:
+        """The session's controller configuration on this lab's rig."""
+        rig = {table: getattr(self.lab, table) for table in RIG_TABLES}
+        return session.controller.model_copy(update=rig)
+
+    def _open_rig(self, session: StudyConfig) -> None:
+        """Start a rig process for the session (the previous one, if any, is closed)."""
+        if self._rig is not None:
+            self._rig.close()
+            self._rig = None
+        spec = RigSpec(config=self._trial_config(session), scenario=session.scenario,
+                       realtime=self.realtime, realtime_priority=self.realtime_priority)
+        try:
+            self._rig = RigClient(spec, self._on_report)
+        except (RobotIOError, OSError) as exc:
+            self._rig_fault = explain(exc)
+            raise RefusedAction(f"the rig could not start: {explain(exc)}") from exc
+        self._devices, self._rig_fault = self._rig.devices, None
+
+    def _start_trial(self) -> TrialPlan:
+        engine = self._require_engine()
+        if self._rig is None or not self._rig.alive:
+            self._open_rig(engine.config)  # a fresh rig process after one died
+        plan = engine.start_trial()
+        auto = self._auto or self.auto_experimenter
+        self._plan, self._abort_reason, self._ready_wait = plan, None, None
+        try:
+            self._rig.run_trial(RunTrial(trial_index=plan.trial.trial_index, theta=plan.theta,
+                                         hand_seed=plan.trial.hand_seed, auto_loaded=auto,
+                                         auto_go=auto))
+        except RobotIOError as exc:
+            engine.end_trial(plan.trial.trial_index, None, f"could not start: {exc}")
+            raise RefusedAction(f"the trial could not start: {exc}") from exc
+        return plan
+
+    def _end_trial(self, trial_index: int, record: TrialRecord, reason: str | None) -> Trial | None:
+        """Record the trial's end, unless it was already recorded."""
+        engine = self._engine
+        if engine is None or engine.state.running_trial != trial_index:
+            return None
+        return engine.end_trial(trial_index, record, reason)
+
+    def _close_engine(self) -> None:
+        if self._engine is None:
+            return
+        self._engine.close()
+        self._engine = None
+
+    def _require_engine(self) -> SessionEngine:
+        if self._engine is None:
+            raise RefusedAction("no participant is open: create or resume one first")
+        return self._engine
+
+    def _require_current(self, interaction: int, step: Step) -> SessionEngine:
+        """The engine, if it still waits for ``step`` of ``interaction`` (a stale screen's action
+        is refused, so a reload or a double tap never rates twice)."""
+        engine = self._require_engine()
+        slot = engine.state.slot
+        if engine.state.step is not step or slot is None or slot.interaction != interaction:
+            raise RefusedAction(f"refused: interaction {interaction} is not waiting for "
+                                f"'{step.value}' (the session waits for "
+                                f"'{engine.state.step.value}')")
+        return engine
+
+    def _require_waiting(self, what: Waiting) -> RigClient:
+        if self._view.waiting_for != what or self._rig is None:
+            raise RefusedAction(f"refused: the trial is not waiting for '{what}'")
+        return self._rig
+
+    def _waiting_for(self, stage: Stage | None) -> Waiting | None:
+        if self._auto or self.auto_experimenter:
+            return None
+        if stage is Stage.PREPARE:
+            return "loaded"
+        if stage is Stage.READY:
+            return "go"
+        return None
+
+    def _make_view(self) -> RunnerView:
+        engine, devices = self._engine, self._devices
+        status = {"arm": "no rig open" if devices is None else devices.arm_detail,
+                  "hand": "" if devices is None else devices.hand_detail,
+                  "gripper": "" if devices is None else devices.gripper_detail,
+                  "arm_fault": self._rig_fault, "rehearsal": self.rehearsal is not None,
+                  "learner": "fitting the next θ" if self._preparing else "idle",
+                  "learner_fault": self._learner_fault, "failed": self._failed,
+                  "ready_wait": self._ready_wait}
+        if engine is None:
+            return RunnerView(version=self._view.version + 1, auto=self._auto,
+                              messages=list(self._messages), **status)
+        state = engine.state
+        if self._theta_star_key != len(state.planned):  # a new θ means a new learner snapshot
+            self._theta_star_key = len(state.planned)
+            self._theta_star = [
+                ThetaStar(after_interaction=r.after_interaction, a=r.theta_star_a,
+                          delta=r.theta_star_delta, k=r.theta_star_k)
+                for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
+        return RunnerView(
+            version=self._view.version + 1, code=engine.participant.code,
+            scenario=engine.config.scenario, state=state.model_copy(deep=True),
+            interactions=engine.config.interactions, preparing=self._preparing, auto=self._auto,
+            waiting_for=self._waiting_for(state.stage) if state.step is Step.RUNNING else None,
+            messages=list(self._messages),
+            trials=engine.store.rows("trials", order_by="trial_index"),
+            theta_star=self._theta_star, posterior=engine.posterior_slices, **status)
+
+    # -- internals: the rig's reports (on its reader thread) --------------------------------------
+    def _on_report(self, report: Report | RigDied) -> None:
+        if isinstance(report, StageReached):
+            self._on_stage(report)
+        elif isinstance(report, ReadyWaiting):
+            self._ready_wait = report.why
+            self._changed(None)
+        elif isinstance(report, TrialDone):
+            self._finish(report.trial_index, TrialRecord(report.summary, self._rig.stream.columns()))
+        elif isinstance(report, RigDied):
+            self._rig_fault = report.reason
+            if report.trial_index is not None:
+                record = not_started(self._rig.spec.config, self.realtime, Outcome.ERROR,
+                                     report.reason)
+                self._finish(report.trial_index, TrialRecord(record.summary,
+                                                             self._rig.stream.columns()),
+                             self._abort_reason or report.reason)
+            else:
+                self._changed(report.reason)
+
+    def _on_stage(self, report: StageReached) -> None:
+        plan = self._plan
+        if report.stage is Stage.GO and self.rehearsal is not None and plan is not None:
+            self.rehearsal.play(self._engine.config.scenario, plan.trial.hand_seed,
+                                report.monotonic)
+        if report.stage is Stage.READY:
+            self._ready_wait = None
+        try:
+            self._call(lambda: self._require_engine().record_stage(report.trial_index, report.stage,
+                                                                   report.t))
+        except (RefusedAction, StoreError) as exc:
+            log.warning("stage %s not recorded: %s", report.stage.value, exc)
+        self._changed(None)
+
+    def _finish(self, trial_index: int, record: TrialRecord, reason: str | None = None) -> None:
+        if self.rehearsal is not None:
+            self.rehearsal.rest()
+        summary = record.summary
+        if summary.outcome is Outcome.ARM_FAULT:
+            self._rig_fault = summary.reason
+        ended = self._call(lambda: self._end_trial(trial_index, record, reason or self._abort_reason))
+        if ended is None:
+            return
+        self._failed_in_a_row = 0 if ended.outcome.value == "completed" else self._failed_in_a_row + 1
+        self._changed(f"trial {ended.trial_index} {ended.outcome.value}"
+                      + (f": {ended.reason}" if ended.reason else ""))
+
+    # -- internals: other threads -----------------------------------------------------------------
+    def _halt(self, reason: str) -> None:
+        rig = self._rig
+        if rig is None:
+            return
+        if rig.running is not None:
+            self._abort_reason = self._abort_reason or reason
+        rig.stop(reason)
+
+    def _changed(self, message: str | None) -> None:
+        if message is not None:
+            self._messages.append(f"{time.strftime('%H:%M:%S')} {message}")
+            log.info("%s", message)
+        self._publish()
+        self._wake.set()
+
+    def _publish(self) -> None:
+        if self._closing:
+            return
+        view = self._view = self._call(self._make_view)
+        for listener in list(self._listeners):
+            try:
+                listener(view)
+            except Exception:
+                log.exception("a screen failed to render")
+
+    def _work(self) -> None:
+        """The background worker: plans the next θ, lets the simulated participant act and, headless,
+        the simulated experimenter start trials."""
+        while not self._closing:
+            self._wake.wait()
+            self._wake.clear()
+            while not self._closing and self._next_job():
+                pass
+
+    def _next_job(self) -> bool:
+        view = self._view
+        if view.state is None or self._failed is not None:
+            return False
+        step = view.step
+        if step is Step.PLAN:
+            self._plan_next()
+            return False
+        if self._auto and step in (Step.PLACE, Step.RATE, Step.ANSWER):
+            if self.realtime:
+                time.sleep(AUTO_DELAY_S)
+            self._call(lambda: self._auto_step(step))
+            self._changed("the simulated participant rated")
+            return True
+        if self.auto_experimenter and step is Step.READY and not view.state.paused:
+            return self._auto_start()
+        return False
+
+    def _auto_start(self) -> bool:
+        if self._failed_in_a_row >= MAX_FAILED_TRIALS:
+            self._failed = (f"{MAX_FAILED_TRIALS} trials in a row did not complete; the last: "
+                            f"{self._view.trials[-1].reason if self._view.trials else '?'}")
+            self._changed(self._failed)
+            return False
+        try:
+            if self._rig_fault is not None and self._rig is not None and self._rig.alive:
+                self.recover_arm(inspected=False)  # never a safety stop: that needs a person
+            self.start_trial()
+        except RefusedAction as exc:
+            self._failed_in_a_row += 1
+            self._changed(str(exc))
+            return self._failed_in_a_row < MAX_FAILED_TRIALS
+        return False
+
+    def _auto_step(self, step: Step) -> None:
+        if self._auto and self._engine is not None and self._engine.state.step is step:
+            rate_once(self._engine, self._participant)
+
+    def _plan_next(self) -> None:
+        self._preparing = True
+        self._publish()
+        try:
+            planned = self._call(lambda: self._require_engine().plan_next(PLAN_TIMEOUT_S))
+            self._learner_fault = ("the learner was late: a Sobol point was used (fallback)"
+                                   if planned.fallback else None)
+        except (LearningError, RefusedAction, StoreError) as exc:
+            log.exception("planning the next θ failed")
+            self._learner_fault = f"{type(exc).__name__}: {exc}"
+        finally:
+            self._preparing = False
+            self._changed(None)
+
+
+def recorded_session(study: Path, code: str) -> tuple[StudyConfig, dict]:
+    """A stored session's plan and the rig it last ran on, read without recording anything."""
+    store = ParticipantStore.open(study, code)
+    try:
+        config = store.participant().config
+        rig = rig_of(config.controller.model_dump(mode="json"))
+        for event in reversed(store.events()):
+            if event.kind == "devices_recorded":
+                rig = rig_of(event.payload["config"])
+                break
+        return config, rig
+    finally:
+        store.close()
+
+
+def describe_change(before: dict, after: dict) -> str:
+    """The rig tables that differ, in words: ``arm.kind 'mock' → 'ur'; ur.host …``."""
+    changes = []
+    for table in before:
+        old, new = before[table] or {}, after[table] or {}
+        for key in sorted(set(old) | set(new)):
+            if old.get(key) != new.get(key):
+                changes.append(f"{table}.{key} {old.get(key)!r} → {new.get(key)!r}")
+    return "; ".join(changes) or "no difference"
