@@ -139,11 +139,10 @@ def run_cycle(config: ControllerConfig, theta: Theta | None, devices: CycleDevic
     on_stage(Stage.RETRACT, clock.now())
     try:
         arm.move_to(start)
-    except RobotIOError as exc:
+    except RobotIOError as exc:  # the handover itself happened: it stands; the fault is reported
         log.error("retract to R failed: %s", exc)
-        summary = record.summary.model_copy(update={"outcome": Outcome.ARM_FAULT,
-                                                    "reason": f"retract: {exc}"})
-        return TrialRecord(summary, record.samples)
+        return TrialRecord(record.summary.model_copy(update={"retract_fault": f"retract: {exc}"}),
+                           record.samples)
     retract_end = clock.now()
     on_stage(Stage.DONE, retract_end)
     return TrialRecord(record.summary.model_copy(update={"retract_end_s": retract_end}),

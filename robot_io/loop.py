@@ -78,6 +78,7 @@ class TrialSummary(BaseModel):
     release_s: float | None = None
     peak_pull_n: float | None = None
     retract_end_s: float | None = None
+    retract_fault: str | None = None  # the retract to R failed after the handover: why
 
 
 @dataclass

@@ -66,20 +66,3 @@ class ForceRelease:
     @property
     def grasped(self) -> bool:
         return self.phase is ReleasePhase.ARMED
-
-
-def await_release(read_force, gripper, release: ForceRelease, clock, timeout_s: float) -> bool:
-    """The handover state after a completed reach: hold, watch the pull, open the gripper when it
-    passes the threshold. ``clock`` paces the reads (its period = ``release.dt``). True if released;
-    False after ``timeout_s`` (the gripper stays closed)."""
-    release.reset()
-    clock.start()
-    try:
-        while clock.now() < timeout_s:
-            if release.update(read_force(), in_handover=True):
-                gripper.open()
-                return True
-            clock.wait_next_cycle()
-        return False
-    finally:
-        clock.stop()

@@ -472,8 +472,8 @@ class SessionRunner:
         if self.rehearsal is not None:
             self.rehearsal.rest()
         summary = record.summary
-        if summary.outcome is Outcome.ARM_FAULT:
-            self._rig_fault = summary.reason
+        if summary.outcome is Outcome.ARM_FAULT or summary.retract_fault is not None:
+            self._rig_fault = summary.retract_fault or summary.reason
         ended = self._call(lambda: self._end_trial(trial_index, record, reason or self._abort_reason))
         if ended is None:
             return

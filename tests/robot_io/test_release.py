@@ -2,21 +2,14 @@
 
 from __future__ import annotations
 
-import threading
-import time
-
 import numpy as np
 import pytest
-from ur_helpers import standin
 
-from robot_io.clock import RealClock
 from robot_io.compliance import CompliantCoupling
-from robot_io.config import ControllerConfig, GripperConfig, ReleaseConfig
+from robot_io.config import ControllerConfig, ReleaseConfig
 from robot_io.coupling import NoCoupling
 from robot_io.dmp import DMP
-from robot_io.gripper import ToolOutputGripper
-from robot_io.release import ForceRelease, ReleasePhase, await_release
-from robot_io.ur_arm import URArm
+from robot_io.release import ForceRelease, ReleasePhase
 
 DT = 1 / 125
 
@@ -74,32 +67,3 @@ def test_k_ext_term_yields_to_a_steady_pull_like_a_spring_and_only_while_grasped
         release.update(force["now"], in_handover=False)  # handover state left: not grasped
         dmp.step(DT, coupling.update(goal))
     assert dmp.x == pytest.approx(goal, abs=1e-3)
-
-
-@pytest.mark.slow
-def test_the_pull_measured_on_the_controller_opens_the_gripper_via_the_tool_output():
-    host = "127.0.0.109"
-    config = ControllerConfig()
-    ur = config.ur.model_copy(update={"host": host})
-    with standin(host) as control:
-        control("set_force", force=[5.0, 0.0, -30.0, 0.0, 0.0, 0.0])
-        arm = URArm(ur, config.safety)
-        gripper = ToolOutputGripper(host, GripperConfig(kind="tool_output", tool_output=0))
-        try:
-            gripper.close()
-            time.sleep(0.05)
-            assert control("state")["tool_outputs"] == 0
-            timer = threading.Timer(0.5, lambda: control("set_force", force=[5.0, 14.0, -30.0, 0, 0, 0]))
-            timer.start()
-            began = time.monotonic()
-            released = await_release(arm.read_force, gripper, ForceRelease(config.release, DT),
-                                     RealClock(125), timeout_s=3.0)
-            took = time.monotonic() - began
-            timer.join()
-            time.sleep(0.05)
-            outputs = control("state")["tool_outputs"]
-        finally:
-            gripper.disconnect()
-            arm.close()
-    assert released and 0.5 < took < 0.8
-    assert outputs == 1
