@@ -53,7 +53,7 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
     standin = ControlClient(spec.standin_host) if spec.standin_host else None
     rest = config.scene.point("hand_start")
     hand: SimulatedHand | None = None
-    go = 0.0
+    go, occluded_until = 0.0, 0.0
     conn.send("ready")
     next_at = time.monotonic()
     while True:
@@ -65,6 +65,8 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
             if message[0] == "play":
                 _, scenario, seed, go = message
                 hand = SimulatedHand(Scenario(scenario), config.scene, config.hand, seed)
+            elif message[0] == "occlude":
+                occluded_until = time.monotonic() + message[1]
             else:
                 hand = None
         now = time.monotonic()
@@ -74,6 +76,8 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
             sample = hand.latest(now - go)
             position = np.full(3, np.nan) if sample is None else sample.position
             exact = hand.position_at(now - go)
+        if now < occluded_until:
+            position = np.full(3, np.nan)  # the marker is hidden: the tracker sends no position
         tracker = transform.invert(position)
         if outlet is not None:
             outlet.push_sample(tracker.tolist(), pylsl.local_clock())
@@ -85,8 +89,6 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
             standin("set_hand", position=exact.tolist())
         next_at += 1.0 / rate
         time.sleep(max(0.0, next_at - time.monotonic()))
-        if conn.closed:
-            return
 
 
 class HandPublisher:
@@ -110,6 +112,11 @@ class HandPublisher:
     def rest(self) -> None:
         """Back to the start A."""
         self._conn.send(("rest",))
+
+    def occlude(self, seconds: float) -> None:
+        """Hide the marker for ``seconds``: the tracker sends occluded (NaN) samples (rehearsing a
+        lost tracker; the hand itself goes on)."""
+        self._conn.send(("occlude", seconds))
 
     def close(self) -> None:
         self._conn.close()

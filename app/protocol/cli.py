@@ -84,6 +84,7 @@ def run_session(args: argparse.Namespace) -> int:
         runner.open(args.participant, args.scenario, args.seed,
                     confirm_rig_change=args.accept_rig_change)
         view = wait_until_done(runner, progress=not args.no_progress)
+        observed = None if runner.rehearsal is None else runner.rehearsal.observed()
     if view.failed is not None:
         raise StoreError(f"the session stopped: {view.failed}")
     store = ParticipantStore.open(args.study, args.participant)
@@ -99,6 +100,8 @@ def run_session(args: argparse.Namespace) -> int:
                "seconds": round(time.monotonic() - began, 2),
                "database_bytes": participant_path(args.study, args.participant).stat().st_size,
                "counts": counts}
+    if observed is not None:
+        summary["rehearsal"] = observed
     if args.json:
         print(json.dumps(summary))
     else:
@@ -106,6 +109,10 @@ def run_session(args: argparse.Namespace) -> int:
         print(f"{args.participant}: {summary['completed']} handovers completed on {view.arm}; "
               f"θ* = (a {star['a']:.2f}, δ {star['delta']:.2f}, k {star['k']:.2f}); "
               f"{summary['seconds']} s; database {summary['database_bytes'] / 1e6:.1f} MB")
+        if observed is not None:
+            print(f"the stand-in saw the gripper open {observed['gripper_opened']} times and "
+                  f"{observed['moves_to_R']} moves to R; the TCP ended "
+                  f"{1e3 * observed['tcp_to_R_m']:.1f} mm from R")
     return 0
 
 

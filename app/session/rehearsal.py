@@ -19,10 +19,13 @@ import subprocess
 import sys
 from typing import Literal
 
+import numpy as np
+
 from app.session.config import LabConfig
 from robot_io.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.simulated_hand import Scenario
 from robot_io.ur_standin.control import ControlClient
+from robot_io.ur_standin.control_script import MOVEL
 from robot_io.ur_standin.standin import RTDE_PORT
 
 log = logging.getLogger(__name__)
@@ -90,6 +93,25 @@ class Rehearsal:
 
     def rest(self) -> None:
         self.publisher.rest()
+
+    def observed(self) -> dict[str, int | float]:
+        """What the stand-in controller saw: gripper openings and closings on the tool output,
+        moves to R, and where the TCP is now (distance to R, m)."""
+        output, level = self.lab.gripper.tool_output, self.lab.gripper.open_level
+        start = self.lab.scene.point("robot_start")
+        opened = closed = 0
+        previous = None
+        for event in self.control("events")["events"]:
+            if event.startswith("tool digital outputs = "):
+                state = bool(int(event.rsplit(" ", 1)[1], 2) >> output & 1) == level
+                if state != previous:
+                    opened, closed = opened + state, closed + (not state)
+                previous = state
+        moves_to_r = sum(1 for _, command, values in self.control("received")["received"]
+                         if command == MOVEL and np.linalg.norm(np.asarray(values[:3]) - start) < 1e-6)
+        pose = np.asarray(self.control("state")["pose"][:3])
+        return {"gripper_opened": opened, "gripper_closed": closed, "moves_to_R": moves_to_r,
+                "tcp_to_R_m": float(np.linalg.norm(pose - start))}
 
     def close(self) -> None:
         if self.publisher is not None:

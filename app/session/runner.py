@@ -351,6 +351,9 @@ class SessionRunner:
         engine = self._require_engine()
         if self._rig is None or not self._rig.alive:
             self._open_rig(engine.config)  # a fresh rig process after one died
+        elif self._rig_fault is not None:
+            raise RefusedAction(f"Start refused: the arm has a fault ({self._rig_fault}); inspect "
+                                "it, then press Recover arm")
         plan = engine.start_trial()
         auto = self._auto or self.auto_experimenter
         self._plan, self._abort_reason, self._ready_wait = plan, None, None
@@ -540,9 +543,14 @@ class SessionRunner:
                             f"{self._view.trials[-1].reason if self._view.trials else '?'}")
             self._changed(self._failed)
             return False
-        try:
-            if self._rig_fault is not None and self._rig is not None and self._rig.alive:
+        if self._rig_fault is not None and self._rig is not None and self._rig.alive:
+            try:
                 self.recover_arm(inspected=False)  # never a safety stop: that needs a person
+            except RefusedAction as exc:
+                self._failed = f"the arm needs a person: {exc}"
+                self._changed(self._failed)
+                return False
+        try:
             self.start_trial()
         except RefusedAction as exc:
             self._failed_in_a_row += 1

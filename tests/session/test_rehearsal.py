@@ -1,0 +1,174 @@
+"""The study on the rehearsal rig — the real code path with no hardware: the stand-in UR controller
+over ur_rtde, the simulated participant's hand on LSL, the tool-output gripper and the force release.
+The paper's whole session through ``handover run-session --rehearse``, then one fault at a time."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from support.runner import SHORT_PROTOCOL, Probe
+
+from app.session.config import LabConfig
+from app.session.runner import SessionRunner
+from robot_io.simulated_hand import Scenario
+from robot_io.stages import Stage
+from session_store.errors import RefusedAction
+
+pytestmark = pytest.mark.slow
+
+
+def handover(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "app.cli", *args], capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_run_session_rehearse_completes_the_papers_34_interactions_through_the_standin(tmp_path):
+    done = handover("run-session", "--study", str(tmp_path), "--participant", "R01", "--scenario",
+                    "perturbed", "--seed", "5", "--auto", "--rehearse", "--realtime-priority",
+                    "--json", "--no-progress")
+    assert done.returncode == 0, done.stderr[-3000:]
+    summary = json.loads(done.stdout.strip().splitlines()[-1])
+    assert summary["completed"] == 34 and "PolyScope 3.15" in summary["rig"]
+    assert "LSL stream" in summary["hand"]
+    with sqlite3.connect(tmp_path / "R01.sqlite") as db:
+        db.row_factory = sqlite3.Row
+        completed = db.execute("SELECT * FROM trials WHERE outcome = 'completed'").fetchall()
+        stages = db.execute("SELECT payload FROM events WHERE kind = 'trial_stage'").fetchall()
+        released_pull = {row["trial_index"]: row["pull"] for row in db.execute(
+            "SELECT trial_index, max(pull) AS pull FROM samples WHERE stage = 3 GROUP BY trial_index")}
+        sampled = {row[0] for row in db.execute("SELECT DISTINCT trial_index FROM samples")}
+    assert len(completed) == 34
+    for trial in completed:
+        assert trial["go_at"] is not None, trial["trial_index"]
+        assert 0 < trial["robot_arrival_s"] <= trial["hold_s"] < trial["release_s"] \
+            < trial["retract_end_s"]
+        assert trial["hand_arrival_s"] is not None
+        assert trial["peak_pull_n"] >= 10.0  # released by force: the pull passed the threshold
+        assert released_pull[trial["trial_index"]] >= 10.0
+        assert trial["trial_index"] in sampled
+    seen = [json.loads(row[0])["stage"] for row in stages]
+    assert seen.count("release") >= 34 and seen.count("done") >= 34
+    # what the stand-in controller itself saw: the tool output switched, the robot went back to R
+    stand_in = summary["rehearsal"]
+    assert stand_in["gripper_opened"] >= 34 and stand_in["gripper_closed"] >= 34
+    assert stand_in["moves_to_R"] >= 2 * 34  # prepare and retract, every trial
+    assert stand_in["tcp_to_R_m"] < 1e-3
+
+
+def ended(view, index: int):
+    return next((t for t in view.trials if t.trial_index == index and t.outcome), None)
+
+
+def start_until(runner: SessionRunner, probe: Probe, stage: Stage) -> None:
+    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start")
+    runner.start_trial()
+    probe.wait(lambda v: v.stage is stage, what=f"stage {stage.value}")
+
+
+def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(rehearsed):
+    runner, probe = rehearsed
+    runner.open("F01", Scenario.STRAIGHTFORWARD, seed=1)
+    start_until(runner, probe, Stage.REACH)
+    runner.rehearsal.publisher.occlude(1.5)
+    view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
+    first = ended(view, 1)
+    state = runner.rehearsal.control("state")
+    scene = runner.lab.scene
+    assert first.outcome.value == "aborted" and first.reason.startswith("tracker_lost")
+    assert state["speed"] < 1e-3  # the arm holds where it stopped, short of H
+    assert np.linalg.norm(np.asarray(state["pose"][:3]) - scene.point("handover_point")) > 0.02
+    time.sleep(1.5)
+    runner.start_trial()
+    view = probe.wait(lambda v: ended(v, 2) is not None, what="trial 2 ended")
+    second = ended(view, 2)
+    assert (second.interaction, second.attempt, second.outcome.value) == (1, 2, "completed")
+
+
+def test_a_protective_stop_during_hold_aborts_and_the_trial_completes_after_recovery(rehearsed):
+    runner, probe = rehearsed
+    runner.open("F02", Scenario.STRAIGHTFORWARD, seed=2)
+    start_until(runner, probe, Stage.HOLD)
+    runner.rehearsal.control("protective_stop")
+    view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
+    assert ended(view, 1).outcome.value == "aborted" and "protective stop" in ended(view, 1).reason
+    assert "protective stop" in view.arm_fault
+    with pytest.raises(RefusedAction, match=r"Start refused: the arm has a fault \(protective stop"):
+        runner.start_trial()  # no trial on an arm in a protective stop
+    runner.recover_arm(inspected=True)  # waits out the controller's 5 s rule
+    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready again")
+    runner.start_trial()
+    view = probe.wait(lambda v: any(t.outcome and t.outcome.value == "completed"
+                                    for t in v.trials), what="a completed trial", timeout=60)
+    assert next(t for t in view.trials if t.outcome.value == "completed").interaction == 1
+
+
+def test_no_pull_ends_the_trial_not_taken_and_it_is_repeated_not_rated(rehearsed):
+    runner, probe = rehearsed
+    control, lab = runner.rehearsal.control, runner.lab
+    pull = {"direction": list(lab.scene.point("hand_start") - lab.scene.point("handover_point")),
+            "grasp_delay_s": 0.5, "tool_output": 0, "open_level": True}
+    control("configure_pull", pull_n=0.0, **pull)  # this participant never takes the object
+    runner.open("F03", Scenario.STRAIGHTFORWARD, seed=3)
+    start_until(runner, probe, Stage.HOLD)
+    view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended", timeout=30)
+    first = ended(view, 1)
+    assert first.outcome.value == "not_taken" and first.release_s is None
+    assert first.hold_s is not None and first.retract_end_s is not None
+    assert view.step.value == "ready"  # repeated, never rated
+    control("configure_pull", pull_n=15.0, **pull)
+    runner.start_trial()
+    view = probe.wait(lambda v: ended(v, 2) is not None, what="trial 2 ended", timeout=30)
+    assert (ended(view, 2).interaction, ended(view, 2).outcome.value) == (1, "completed")
+
+
+def test_the_rig_process_killed_mid_reach_stops_the_arm_and_the_next_trial_completes(rehearsed):
+    runner, probe = rehearsed
+    runner.open("F04", Scenario.STRAIGHTFORWARD, seed=4)
+    start_until(runner, probe, Stage.REACH)
+    killed = runner.rig.pid
+    time.sleep(0.2)
+    os.kill(killed, signal.SIGKILL)
+    view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
+    assert "killed by signal 9" in view.arm_fault and "during reach" in view.arm_fault
+    assert ended(view, 1).outcome.value == "aborted"
+    deadline = time.monotonic() + 2.0
+    while time.monotonic() < deadline:
+        state = runner.rehearsal.control("state")
+        if state["program"] is None and state["speed"] < 1e-3:
+            break
+        time.sleep(0.02)
+    assert state["program"] is None and state["speed"] < 1e-3  # the stand-in saw the stop
+    assert any("ended" in event for event in state["events"])
+    runner.start_trial()  # a fresh rig process
+    view = probe.wait(lambda v: ended(v, 2) is not None, what="trial 2 ended", timeout=60)
+    assert runner.rig.pid != killed and ended(view, 2).outcome.value == "completed"
+
+
+def test_a_resume_on_a_different_arm_is_refused_until_the_experimenter_confirms(rehearsed):
+    runner, _ = rehearsed
+    lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
+    mock = SessionRunner(runner.study, lab, realtime=False)
+    mock.open("F05", Scenario.PERTURBED, seed=5)
+    mock.close()
+    path = runner.study / "F05.sqlite"
+    with sqlite3.connect(path) as db:
+        before = db.execute("SELECT count(*) FROM events").fetchone()[0]
+    with pytest.raises(RefusedAction, match=r"different rig \(arm.kind 'mock' → 'ur'"):
+        runner.open("F05")
+    with sqlite3.connect(path) as db:
+        assert db.execute("SELECT count(*) FROM events").fetchone()[0] == before  # nothing written
+    runner.open("F05", confirm_rig_change=True)
+    with sqlite3.connect(path) as db:
+        kinds = [row[0] for row in db.execute("SELECT kind FROM events WHERE seq > ?", [before])]
+        devices = json.loads(db.execute("SELECT payload FROM events WHERE kind = 'devices_recorded' "
+                                        "ORDER BY seq DESC").fetchone()[0])["devices"]
+    assert kinds[:3] == ["session_resumed", "rig_change_confirmed", "devices_recorded"]
+    assert devices["arm"] == "ur" and devices["polyscope_version"].startswith("3.15")
