@@ -58,7 +58,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--arm", choices=("mock", "ur"),
                         help="mock: the kinematic mock arm; ur: a UR over RTDE (real time, moves it!); "
                              "default: [arm] kind of the config")
-    parser.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
+    parser.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config); "
+                             "implies [arm] kind = ur")
     parser.add_argument("--samples", type=Path, metavar="FILE.npz", help="write the per-cycle samples")
     parser.set_defaults(func=run)
 
@@ -67,7 +68,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description="Connect to the configured UR arm, hand source and gripper and report versions, "
                     "rates and faults in plain words. Nothing moves and no output is switched.")
     check.add_argument("--config", type=Path, help="the lab configuration file (TOML, docs/hardware.md)")
-    check.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config)")
+    check.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config); "
+                             "implies [arm] kind = ur")
     check.set_defaults(func=run_check_devices)
 
     calibrate = subparsers.add_parser(
@@ -110,9 +112,11 @@ def run_calibrate_tracker(args: argparse.Namespace) -> int:
 
 
 def _with_host(config, host: str | None):
+    """``--ur-host`` names a UR controller: it sets [ur] host and [arm] kind = "ur"."""
     if host is None:
         return config
-    return config.model_copy(update={"ur": config.ur.model_copy(update={"host": host})})
+    return config.model_copy(update={"ur": config.ur.model_copy(update={"host": host}),
+                                     "arm": config.arm.model_copy(update={"kind": "ur"})})
 
 
 def run_check_devices(args: argparse.Namespace) -> int:

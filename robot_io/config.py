@@ -7,8 +7,6 @@ robot base frame.
 
 from __future__ import annotations
 
-import tomllib
-from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -227,16 +225,3 @@ class ControllerConfig(_Frozen):
                     f"scene.{name} = {tuple(point)} is outside the workspace box "
                     f"[{self.safety.workspace_min}, {self.safety.workspace_max}]")
         return self
-
-
-def load_config(path: Path | None = None) -> ControllerConfig:
-    """Read a TOML file (tables ``[arm]``, ``[cycle]``, ``[dmp]``, ``[scene]``, ``[safety]``,
-    ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``, ``[gripper]``, ``[release]``);
-    missing keys take their documented defaults. ``None`` gives the defaults."""
-    if path is None:
-        return ControllerConfig()
-    try:
-        data = tomllib.loads(Path(path).read_text())
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise ConfigError(f"config file {path}: {exc}") from exc
-    return ControllerConfig.model_validate(data)

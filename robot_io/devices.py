@@ -50,23 +50,12 @@ def check_devices(config: ControllerConfig, listen_s: float = 1.0) -> tuple[list
     """Connect to the configured arm, hand source and gripper; report in plain words; move nothing.
     Returns the report lines and whether everything is usable."""
     lines, arm_ok = [], True
-    try:
-        arm = URArm(config.ur, config.safety)
-    except RobotIOError as exc:
-        lines.append(f"arm: NOT OK — {exc}")
+    if config.arm.kind == "mock":
+        lines.append("arm: mock arm ([arm] kind = \"mock\": no robot configured)")
     else:
-        try:
-            pose = arm.read_pose()
-            state = arm.state
-            lines.append(f"arm: UR at {config.ur.host}, PolyScope {arm.polyscope_version}, "
-                         f"{arm.rate_hz} Hz, TCP at {np.round(pose, 3).tolist()} m, {state.value}"
-                         + (f" — {arm.fault}" if arm.fault else ""))
-            if not config.safety.contains(pose):
-                lines.append("arm: WARNING — the TCP is outside the workspace box; jog it inside")
-            arm_ok = arm.fault is None
-        finally:
-            arm.close()
+        arm_ok = _check_arm(config, lines)
     lines.extend(_check_hand(config, listen_s))
+
     if config.gripper.kind == "tool_output":
         try:
             ToolOutputGripper(config.ur.host, config.gripper).disconnect()
@@ -77,6 +66,25 @@ def check_devices(config: ControllerConfig, listen_s: float = 1.0) -> tuple[list
     else:
         lines.append("gripper: none configured")
     return lines, arm_ok and not any("NOT OK" in line for line in lines)
+
+
+def _check_arm(config: ControllerConfig, lines: list[str]) -> bool:
+    try:
+        arm = URArm(config.ur, config.safety)
+    except RobotIOError as exc:
+        lines.append(f"arm: NOT OK — {exc}")
+        return True  # said NOT OK in the line
+    try:
+        pose = arm.read_pose()
+        state = arm.state
+        lines.append(f"arm: UR at {config.ur.host}, PolyScope {arm.polyscope_version}, "
+                     f"{arm.rate_hz} Hz, TCP at {np.round(pose, 3).tolist()} m, {state.value}"
+                     + (f" — {arm.fault}" if arm.fault else ""))
+        if not config.safety.contains(pose):
+            lines.append("arm: WARNING — the TCP is outside the workspace box; jog it inside")
+        return arm.fault is None
+    finally:
+        arm.close()
 
 
 def _check_hand(config: ControllerConfig, listen_s: float) -> list[str]:

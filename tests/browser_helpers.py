@@ -28,9 +28,9 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
                  "--autoplay-policy=no-user-gesture-required"]
 TOKEN = "test-token"
-#: The short protocol of tests/session_helpers.SHORT, as `handover serve --protocol` reads it.
-SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
-              "validation_batches = 1\n")
+#: The short protocol of tests/session_helpers.SHORT in a lab configuration file (`--config`).
+SHORT_TOML = ("[protocol]\ninitial_trials = 3\nbatch_size = 3\nlearning_batches = 1\n"
+              "best_trials = 1\nvalidation_batches = 1\n")
 TIMEOUT_MS = 60_000
 
 
@@ -51,9 +51,17 @@ def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0) 
     raise AssertionError(f"tablet shows no known screen: {page.inner_text('body')[:300]}")
 
 
-def run_trial(dashboard: Page, tablet: Page) -> str:
-    """Start trial on the dashboard; the tablet shows "Go!", then the screen after the trial."""
+def start_trial(dashboard: Page) -> None:
+    """The experimenter's part of a trial's cycle: Start trial, Object loaded, then Go once the
+    participant's hand rests at the start (each button waits until it is enabled)."""
     click(dashboard, "Start trial")
+    click(dashboard, "Object loaded")
+    click(dashboard, "Go")
+
+
+def run_trial(dashboard: Page, tablet: Page) -> str:
+    """A trial driven from the dashboard; the tablet shows "Go!", then the screen after the trial."""
+    start_trial(dashboard)
     assert tablet_screen(tablet, not_="wait") == "go"
     return tablet_screen(tablet, not_="go")
 
@@ -99,20 +107,20 @@ class Served:
 @contextmanager
 def serve(tmp: Path, *extra: str, rate: int = 125) -> Iterator[Served]:
     """`handover serve` on two free loopback ports with the short protocol (125 Hz for speed)."""
-    protocol = tmp / "short.toml"
-    protocol.write_text(SHORT_TOML)
+    lab = tmp / "lab.toml"
+    lab.write_text(SHORT_TOML + f"[loop]\nrate_hz = {rate}\n")
     study, log = tmp / "study", tmp / "serve.log"
     tablet, dashboard = free_port(), free_port()
-    command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study), "--rate", str(rate),
+    command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
-               "--protocol", str(protocol), "--token", TOKEN, *extra]
+               "--config", str(lab), "--token", TOKEN, *extra]
     with log.open("w") as out:
         process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
                                    env={**os.environ, "PYTHONUNBUFFERED": "1"})
     served = Served(process, f"http://127.0.0.1:{tablet}", f"http://127.0.0.1:{dashboard}",
                     study, log)
     try:
-        deadline = time.monotonic() + 60
+        deadline = time.monotonic() + 90
         while "dashboard token" not in log.read_text():
             assert process.poll() is None, log.read_text()
             assert time.monotonic() < deadline, "server did not start"

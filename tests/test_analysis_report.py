@@ -18,7 +18,6 @@ from session_helpers import drive_until, short_config
 from app.analysis.report import build_report
 from app.analysis.trajectories import validation_distances
 from app.cli import main
-from app.protocol.auto import run_auto
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
@@ -36,7 +35,7 @@ def study(tmp_path_factory) -> Path:
     study = tmp_path_factory.mktemp("study")
     for seed, (code, scenario) in enumerate(COMPLETE.items(), start=1):
         engine = SessionEngine.create(study, code, short_config(seed=seed, scenario=scenario))
-        run_auto(engine, SimulatedParticipant(seed), progress=False)
+        drive_until(engine, Step.DONE, SimulatedParticipant(seed))
         engine.close()
     engine = SessionEngine.create(study, STOPPED, short_config(seed=5, scenario=Scenario.PERTURBED))
     drive_until(engine, Step.ANSWER)

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from session_helpers import short_config
+from session_helpers import drive_until, short_config
 
 from app.cli import main
-from app.protocol.auto import run_auto
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
+from app.protocol.state import Step
 from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.export import DTYPES, data_dictionary, export_study, read_table
@@ -26,7 +26,7 @@ def study(tmp_path_factory) -> Path:
     study = tmp_path_factory.mktemp("study")
     for code, seed, scenario in (("P01", 1, Scenario.STRAIGHTFORWARD), ("P02", 2, Scenario.PERTURBED)):
         engine = SessionEngine.create(study, code, short_config(seed=seed, scenario=scenario))
-        run_auto(engine, SimulatedParticipant(seed), progress=False)
+        drive_until(engine, Step.DONE, SimulatedParticipant(seed))
         engine.close()
     return study
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from session_helpers import drive_until
 
-from app.protocol.auto import run_auto
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
@@ -17,7 +17,7 @@ from session_store.models import QUESTION_BY_ID, Phase, StudyConfig
 def session(tmp_path_factory):
     study = tmp_path_factory.mktemp("study")
     engine = SessionEngine.create(study, "P01", StudyConfig(scenario=Scenario.PERTURBED, seed=3))
-    run_auto(engine, SimulatedParticipant(3), progress=False)
+    drive_until(engine, Step.DONE, SimulatedParticipant(3))
     yield engine
     engine.close()
 

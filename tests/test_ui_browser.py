@@ -26,6 +26,7 @@ from browser_helpers import (
     scale_value,
     serve,
     shot,
+    start_trial,
     tablet_screen,
     tap,
     touch_drag_to,
@@ -78,7 +79,7 @@ def test_participant_session_with_touch(tmp_path: Path) -> None:
         while True:
             screen = tablet_screen(tablet, not_="go")
             if screen == "wait":
-                click(dashboard, "Start trial")
+                start_trial(dashboard)
                 interaction += 1
                 assert tablet_screen(tablet, not_="wait") in ("go", "place", "rate", "Q1")
                 if "go" not in shown:
@@ -163,9 +164,9 @@ def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
         click(dashboard, "Abort trial")
         wait_text(dashboard, "aborted by the experimenter")
         assert tablet_screen(tablet, not_="go") == "wait"
-        # Stop during a run: the arm stops, the trial is aborted too.
-        click(dashboard, "Start trial")
-        wait_text(dashboard, "waiting for running")
+        # Stop during the reach: the arm stops, the trial is aborted too.
+        start_trial(dashboard)
+        wait_text(dashboard, "[reach]")
         click(dashboard, "STOP ARM")
         wait_text(dashboard, "Stop: the arm is stopped")
         wait_text(dashboard, "stopped by the experimenter (Stop)")

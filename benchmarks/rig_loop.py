@@ -1,0 +1,199 @@
+"""500 Hz deadline misses of the handover cycle in the rig process against the same cycle in a thread
+of the application's process (how the web app ran trials before the rig process), in one run.
+
+    python benchmarks/rig_loop.py [--trials 4]
+
+Rehearsal rig with an e-Series stand-in (500 Hz): ur_rtde against the stand-in controller, the
+simulated hand on LSL, the tool-output gripper and the force release. During every trial both screens
+are open in headless Chromium (the dashboard unlocked, its live view streaming) and a second learner
+process fits continuously. Four variants, each with the normal scheduling policy (the baseline) and
+with real-time priority (SCHED_FIFO): rig process, in-process thread. Prints per variant: deadline
+misses (share of cycles, goal < 0.1 % with priority), cycle lateness p50/p99, and the time from Go
+to the first servoL target the controller received — from the click on the dashboard's Go button
+for the rig process (the whole path: browser, websocket, runner, pipe, rig), from the cycle's Go
+stage for the thread. The machine is shared: read the figures against the load printed with them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
+sys.path.insert(0, str(Path(__file__).parent))
+
+from browser_helpers import (
+    TOKEN,
+    chromium,
+    click,
+    free_port,
+    open_page,
+    unlock_dashboard,
+)
+from ui_latency import busy_learner
+
+from app.session.config import LabConfig
+from app.session.rehearsal import Rehearsal
+from app.session.runner import SessionRunner
+from app.ui.server import HandoverServers, ServeOptions
+from robot_io.cycle import Gates, run_cycle
+from robot_io.rig.devices import RigDevices
+from robot_io.rig.messages import RigSpec
+from robot_io.simulated_hand import Scenario
+from robot_io.stages import Stage
+from robot_io.theta import Theta
+from robot_io.ur_standin.control_script import SERVOL
+
+PROTOCOL = {"initial_trials": 5, "batch_size": 5, "learning_batches": 1, "best_trials": 1,
+            "validation_batches": 1}
+
+
+def first_servo_after(rehearsal: Rehearsal, since: float) -> float | None:
+    """When the stand-in received its first servoL target after ``since`` (time.monotonic)."""
+    times = [t for t, command, _ in rehearsal.control("received")["received"]
+             if command == SERVOL and t > since]
+    return min(times) if times else None
+
+
+def wait(condition, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise TimeoutError("benchmark step timed out")
+        time.sleep(0.005)
+
+
+class Figures:
+    def __init__(self) -> None:
+        self.misses = self.cycles = 0
+        self.lateness: list[float] = []
+        self.go_to_servo: list[float] = []
+
+    def add(self, misses: int, samples: dict[str, np.ndarray], go_to_servo: float | None) -> None:
+        self.misses += misses
+        self.cycles += len(samples["t"])
+        self.lateness.extend(samples["lateness_s"][np.isfinite(samples["lateness_s"])].tolist())
+        if go_to_servo is not None:
+            self.go_to_servo.append(go_to_servo)
+
+    def line(self, label: str) -> str:
+        late = np.asarray(self.lateness) * 1e3
+        go = sorted(1e3 * x for x in self.go_to_servo)
+        return (f"{label:38s} misses {self.misses:4d} of {self.cycles:6d} = "
+                f"{100 * self.misses / max(self.cycles, 1):6.3f} %   lateness p50 "
+                f"{np.percentile(late, 50):.3f} ms, p99 {np.percentile(late, 99):.3f} ms   "
+                f"Go → first servoL median {statistics.median(go):.1f} ms (max {go[-1]:.1f})")
+
+
+def both_variants(study: Path, browser, priority: bool, trials: int) -> tuple[Figures, Figures]:
+    """Both screens open on a session runner; first its rig process runs trials driven from the
+    dashboard page, then, with the screens still open, the in-process thread runs as many."""
+    lab = LabConfig.model_validate({"protocol": PROTOCOL})
+    runner = SessionRunner(study, lab, rehearsal=Rehearsal(lab, series="e"),
+                           realtime_priority=priority)
+    servers = HandoverServers(runner, ServeOptions(tablet_port=free_port(),
+                                                   dashboard_port=free_port(), token=TOKEN))
+    try:
+        tablet_url, dashboard_url = servers.urls()
+        open_page(browser, tablet_url, touch=True)
+        dashboard = open_page(browser, dashboard_url, size=(1400, 900))
+        unlock_dashboard(dashboard)
+        runner.open(f"B{int(priority)}", Scenario.PERTURBED, seed=1)
+        return rig_process(runner, dashboard, trials), in_process_thread(priority, trials)
+    finally:
+        servers.close()
+
+
+def rig_process(runner: SessionRunner, dashboard, trials: int) -> Figures:
+    """Trials run by the session runner's rig process, Go clicked on the dashboard page."""
+    figures = Figures()
+    for n in range(1, trials + 1):
+        wait(lambda: runner.view.step is not None and runner.view.step.value == "ready")
+        runner.start_trial()
+        wait(lambda: runner.view.waiting_for == "loaded")
+        runner.object_loaded()
+        wait(lambda: runner.view.waiting_for == "go")
+        clicked = time.monotonic()
+        click(dashboard, "Go")
+        wait(lambda: runner.view.step.value == "place")
+        trial = runner.view.trials[-1]
+        servo = first_servo_after(runner.rehearsal, clicked)
+        figures.add(trial.deadline_misses, runner.rig.stream.columns(),
+                    None if servo is None else servo - clicked)
+        runner.place(trial.interaction, position=n / (trials + 1))
+    return figures
+
+
+def thread_trial(devices: RigDevices, rehearsal: Rehearsal, seed: int
+                 ) -> tuple[int, dict[str, np.ndarray], float | None]:
+    """One cycle in a thread of this process; the hand publisher plays from its Go."""
+    go: dict[str, float] = {}
+    result: dict = {}
+
+    def on_stage(stage: Stage, t: float) -> None:
+        if stage is Stage.GO:
+            go["at"] = time.monotonic()
+            rehearsal.play(Scenario.PERTURBED, seed, go["at"])
+
+    def cycle() -> None:
+        result["record"] = run_cycle(devices.config, Theta(a=5.0, delta=-0.2, k=5.0),
+                                     devices.for_trial(seed), Gates.automatic(), on_stage)
+
+    thread = threading.Thread(target=cycle, name="handover-loop")
+    thread.start()
+    thread.join()
+    rehearsal.rest()
+    record = result["record"]
+    servo = first_servo_after(rehearsal, go["at"])
+    return (record.summary.deadline_misses, record.samples,
+            None if servo is None else servo - go["at"])
+
+
+def in_process_thread(priority: bool, trials: int) -> Figures:
+    """The same cycle on the same devices in a thread of this process (beside the servers)."""
+    lab = LabConfig.model_validate({"protocol": PROTOCOL})
+    rehearsal = Rehearsal(lab, series="e")
+    spec = RigSpec(config=rehearsal.lab.controller, scenario=Scenario.PERTURBED, realtime=True,
+                   realtime_priority=priority)
+    devices = RigDevices(spec)
+    figures = Figures()
+    try:
+        for n in range(trials):
+            figures.add(*thread_trial(devices, rehearsal, seed=n))
+            time.sleep(0.5)
+    finally:
+        devices.close()
+        rehearsal.close()
+    return figures
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--trials", type=int, default=4, help="trials per variant")
+    args = parser.parse_args()
+    stop = threading.Event()
+    learner = threading.Thread(target=busy_learner, args=(stop,), daemon=True)
+    learner.start()
+    results: dict[str, Figures] = {}
+    with tempfile.TemporaryDirectory() as tmp, chromium() as browser:
+        for priority in (False, True):
+            policy = "SCHED_FIFO" if priority else "normal policy"
+            rig, thread = both_variants(Path(tmp) / f"s{priority}", browser, priority, args.trials)
+            results[f"rig process, {policy}"] = rig
+            results[f"in-process thread, {policy}"] = thread
+    stop.set()
+    print(f"load average before/after: {os.getloadavg()}")
+    for label, figures in results.items():
+        print(figures.line(label))
+
+
+if __name__ == "__main__":
+    main()

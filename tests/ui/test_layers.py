@@ -1,0 +1,36 @@
+"""app/ui renders and forwards only: no module of it constructs a device or touches the store."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import app.ui
+
+#: What a screen may not import: devices, the rig, the store and its database, the engine.
+FORBIDDEN = ("robot_io.mock_arm", "robot_io.ur_arm", "robot_io.rig", "robot_io.devices",
+             "robot_io.gripper", "robot_io.lsl_hand", "robot_io.udp_hand", "robot_io.trial",
+             "robot_io.loop", "robot_io.cycle", "robot_io.hand_publisher", "robot_io.ur_standin",
+             "session_store.store", "session_store.export", "sqlite3", "sqlite_utils",
+             "app.protocol.engine", "app.session.rehearsal")
+FORBIDDEN_NAMES = {"SimulatedHand", "MockArm", "URArm", "ParticipantStore", "SessionEngine",
+                   "RigClient", "Rehearsal"}
+
+
+def imports(path: Path) -> list[tuple[str, str]]:
+    """(module, name) of every import in a file."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found += [(alias.name, alias.name) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            found += [(node.module or "", alias.name) for alias in node.names]
+    return found
+
+
+def test_no_ui_module_imports_a_device_the_rig_or_the_store():
+    files = sorted(Path(app.ui.__file__).parent.glob("*.py"))
+    assert len(files) >= 6
+    offending = [(path.name, module, name) for path in files for module, name in imports(path)
+                 if module.startswith(FORBIDDEN) or name in FORBIDDEN_NAMES]
+    assert offending == []

@@ -1,0 +1,83 @@
+"""`handover serve --rehearse` in headless Chromium: the initial batch driven from the dashboard (Start
+trial, Object loaded, Go) and placed on the tablet with touch, through the stand-in UR controller and
+the simulated hand on LSL; the dashboard shows each trial's stage of the handover cycle."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+from browser_helpers import (
+    chromium,
+    click,
+    confirm_placement,
+    open_participant,
+    open_screens,
+    serve,
+    shot,
+    tablet_screen,
+    touch_drag_to,
+    wait_text,
+)
+
+from session_store.store import ParticipantStore
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+#: The cycle's stages as the dashboard shows the current one: "[stage]" in bold.
+SEEN_STAGES = ("[prepare]", "[ready]", "[reach]", "[hold]")
+
+
+def watch_stages(dashboard, until: str, seen: set[str], timeout_s: float = 60.0) -> None:
+    """Read the dashboard until ``until`` shows, noting every stage it showed on the way."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        text = dashboard.inner_text("body")
+        seen.update(stage for stage in SEEN_STAGES if stage in text)
+        if until in text:
+            return
+        time.sleep(0.02)
+    raise AssertionError(f"the dashboard never showed {until!r}")
+
+
+def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_path: Path) -> None:
+    screens = tmp_path / "screens"
+    seen: set[str] = set()
+    with serve(tmp_path, "--rehearse", "--realtime-priority") as served, chromium() as browser:
+        dashboard, tablet = open_screens(browser, served)
+        open_participant(dashboard, "P01")
+        wait_text(dashboard, "PolyScope 3.15")  # the stand-in's controller, through ur_rtde
+        wait_text(dashboard, "LSL stream")
+        for position in (0.3, 0.8, 0.55):
+            click(dashboard, "Start trial")
+            watch_stages(dashboard, "into the gripper, then press", seen)
+            assert tablet_screen(tablet) == "wait"  # no cue before Go
+            click(dashboard, "Object loaded")
+            watch_stages(dashboard, "rests at the start: press Go", seen)
+            click(dashboard, "Go")
+            assert tablet_screen(tablet, not_="wait") == "go"
+            watch_stages(dashboard, "[hold]", seen)
+            if position == 0.3:
+                shot(dashboard, screens, "dashboard-rehearsal-hold")
+            assert tablet_screen(tablet, not_="go") == "place"
+            touch_drag_to(tablet, position)
+            confirm_placement(tablet)
+            assert tablet_screen(tablet, not_="place") == "wait"
+        wait_text(dashboard, "3 of 9 handovers completed")
+        served.shutdown()
+    assert seen == set(SEEN_STAGES)
+    store = ParticipantStore.open(served.study, "P01")
+    try:
+        trials = store.rows("trials")
+        stages = [e.payload["stage"] for e in store.events() if e.kind == "trial_stage"]
+        devices = [e.payload["devices"] for e in store.events() if e.kind == "devices_recorded"]
+        placements = [p.position for p in store.rows("placements")]
+    finally:
+        store.close()
+    assert [t.outcome.value for t in trials] == ["completed"] * 3
+    assert all(t.release_s > t.hold_s and t.peak_pull_n >= 10.0 for t in trials)
+    assert stages == ["prepare", "loaded", "ready", "go", "reach", "hold", "release", "retract",
+                      "done"] * 3
+    assert devices[0]["arm"] == "ur" and devices[0]["hand_source"] == "lsl"
+    assert placements == pytest.approx([0.3, 0.8, 0.55], abs=0.01)
