@@ -17,6 +17,7 @@ import pytest
 from support.runner import SHORT_PROTOCOL, Probe
 
 from app.session.config import LabConfig
+from app.session.rehearsal import Rehearsal
 from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
@@ -172,3 +173,20 @@ def test_a_resume_on_a_different_arm_is_refused_until_the_experimenter_confirms(
                                         "ORDER BY seq DESC").fetchone()[0])["devices"]
     assert kinds[:3] == ["session_resumed", "rig_change_confirmed", "devices_recorded"]
     assert devices["arm"] == "ur" and devices["polyscope_version"].startswith("3.15")
+
+
+def test_the_rehearsal_plays_the_hand_over_udp_too(tmp_path):
+    lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
+    runner = SessionRunner(tmp_path / "study", lab, rehearsal=Rehearsal(lab, hand="udp"),
+                           realtime_priority=True)
+    runner.set_auto(True)
+    probe = Probe(runner)
+    try:
+        runner.open("U01", Scenario.PERTURBED, seed=6)
+        assert runner.view.hand.startswith("UDP on 127.0.0.1:")
+        runner.start_trial()
+        view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
+    finally:
+        runner.close()
+    trial = ended(view, 1)
+    assert trial.outcome.value == "completed" and trial.peak_pull_n >= 10.0
