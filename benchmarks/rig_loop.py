@@ -11,7 +11,9 @@ with real-time priority (SCHED_FIFO): rig process, in-process thread. Prints per
 misses (share of cycles, goal < 0.1 % with priority), cycle lateness p50/p99, and the time from Go
 to the first servoL target the controller received — from the click on the dashboard's Go button
 for the rig process (the whole path: browser, websocket, runner, pipe, rig), from the cycle's Go
-stage for the thread. The machine is shared: read the figures against the load printed with them.
+stage for the thread. The stand-in controller and the hand publisher run under SCHED_FIFO in every
+variant (they stand for hardware of their own). The machine is shared: read the figures against the
+load printed with them.
 """
 
 from __future__ import annotations
@@ -97,7 +99,7 @@ def both_variants(study: Path, browser, priority: bool, trials: int) -> tuple[Fi
     """Both screens open on a session runner; first its rig process runs trials driven from the
     dashboard page, then, with the screens still open, the in-process thread runs as many."""
     lab = LabConfig.model_validate({"protocol": PROTOCOL})
-    runner = SessionRunner(study, lab, rehearsal=Rehearsal(lab, series="e"),
+    runner = SessionRunner(study, lab, rehearsal=Rehearsal(lab, series="e", realtime_priority=True),
                            realtime_priority=priority)
     servers = HandoverServers(runner, ServeOptions(tablet_port=free_port(),
                                                    dashboard_port=free_port(), token=TOKEN))
@@ -160,7 +162,7 @@ def thread_trial(devices: RigDevices, rehearsal: Rehearsal, seed: int
 def in_process_thread(priority: bool, trials: int) -> Figures:
     """The same cycle on the same devices in a thread of this process (beside the servers)."""
     lab = LabConfig.model_validate({"protocol": PROTOCOL})
-    rehearsal = Rehearsal(lab, series="e")
+    rehearsal = Rehearsal(lab, series="e", realtime_priority=True)
     spec = RigSpec(config=rehearsal.lab.controller, scenario=Scenario.PERTURBED, realtime=True,
                    realtime_priority=priority)
     devices = RigDevices(spec)

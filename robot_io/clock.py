@@ -44,11 +44,13 @@ class Clock(Protocol):
 REALTIME_PRIORITY = 50
 
 
-def _raise_priority() -> tuple[int, int] | None:
+def raise_priority() -> tuple[int, int] | None:
     """Run the calling (control) thread under SCHED_FIFO where permitted, so a browser or the learner
     on the same cores cannot delay a cycle; return the policy and priority it had, or None if it
-    keeps the normal policy. The loop sleeps between cycles and Linux keeps 5 % of each second for
-    other tasks, so this cannot starve the machine."""
+    keeps the normal policy. Threads it starts afterwards inherit the policy (a rehearsal's stand-in
+    controller and hand publisher use that: they stand for hardware with cores of its own). The
+    loop sleeps between cycles and Linux keeps 5 % of each second for other tasks, so this cannot
+    starve the machine."""
     try:
         before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(REALTIME_PRIORITY))
@@ -124,7 +126,7 @@ class RealClock:
     def start(self) -> None:
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(min(self._switch_interval, self.period / 10.0))
-        self._policy_before = _raise_priority() if self.realtime_priority else None
+        self._policy_before = raise_priority() if self.realtime_priority else None
         self._origin = time.monotonic()
         self._next = 0.0
 

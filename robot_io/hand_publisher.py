@@ -20,6 +20,7 @@ from multiprocessing.connection import Connection
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from robot_io.clock import raise_priority
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
 from robot_io.simulated_hand import Scenario, SimulatedHand
@@ -34,6 +35,7 @@ class PublisherSpec(BaseModel):
     lsl_name: str | None = None  # publish an LSL stream of [hand_source] lsl_stream_type
     udp_target: tuple[str, int] | None = None  # send UDP datagrams there
     standin_host: str | None = None  # report the hand to this stand-in's control port
+    realtime_priority: bool = False  # SCHED_FIFO: a tracker has hardware of its own
 
 
 def _serve(conn: Connection, spec: PublisherSpec) -> None:
@@ -41,6 +43,8 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
 
     from robot_io.ur_standin.control import ControlClient
 
+    if spec.realtime_priority:
+        raise_priority()
     config = spec.config
     transform = tracker_transform(config)
     rate = config.hand.tracker_rate_hz

@@ -29,10 +29,11 @@ def open_runner(args: argparse.Namespace, lab: LabConfig, *, realtime: bool,
                 auto_experimenter: bool = False) -> Iterator[SessionRunner]:
     """The session runner on the lab's devices, or on a rehearsal rig; closed (arm stopped first)
     on the way out, also on Ctrl-C."""
-    rehearsal = Rehearsal(lab, hand=args.rehearse_hand) if args.rehearse else None
+    priority = args.realtime_priority or lab.loop.realtime_priority
+    rehearsal = (Rehearsal(lab, hand=args.rehearse_hand, realtime_priority=priority)
+                 if args.rehearse else None)
     runner = SessionRunner(args.study, lab, realtime=realtime, rehearsal=rehearsal,
-                           realtime_priority=args.realtime_priority or lab.loop.realtime_priority,
-                           auto_experimenter=auto_experimenter)
+                           realtime_priority=priority, auto_experimenter=auto_experimenter)
     try:
         yield runner
     finally:

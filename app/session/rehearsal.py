@@ -5,7 +5,9 @@ address and a hand publisher (:mod:`robot_io.hand_publisher`) that plays the sim
 hand on LSL (or UDP) and makes the stand-in pull on the object once the hand holds it at H. The lab
 configuration is pointed at them — ``[arm] kind = "ur"`` at that address, ``[hand_source]`` the
 publisher's stream, ``[gripper]`` the UR's tool output — so a session runs through ``ur_rtde``,
-``pylsl``, the gripper's tool output and the force release exactly as on the rig.
+``pylsl``, the gripper's tool output and the force release exactly as on the rig. With
+``realtime_priority`` the stand-in and the publisher run under SCHED_FIFO too, as the controller
+and the tracker, which have hardware of their own, are not slowed by this machine's load.
 """
 
 from __future__ import annotations
@@ -52,11 +54,13 @@ def free_udp_port(host: str) -> int:
 class Rehearsal:
     """The stand-in controller and the hand publisher; :meth:`close` ends both."""
 
-    def __init__(self, lab: LabConfig, hand: HandKind = "lsl", series: str = "cb3") -> None:
+    def __init__(self, lab: LabConfig, hand: HandKind = "lsl", series: str = "cb3",
+                 realtime_priority: bool = False) -> None:
         self.host = free_loopback_host()
         self.standin = subprocess.Popen(
             [sys.executable, "-m", "robot_io.ur_standin", "--host", self.host, "--series", series,
-             "--exit-with-stdin"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+             "--exit-with-stdin", *(["--realtime-priority"] if realtime_priority else [])],
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.publisher: HandPublisher | None = None
         try:
             line = self.standin.stdout.readline()
@@ -82,7 +86,8 @@ class Rehearsal:
             self.publisher = HandPublisher(PublisherSpec(
                 config=self.lab.controller, standin_host=self.host,
                 lsl_name=stream if hand == "lsl" else None,
-                udp_target=(source.udp_host, source.udp_port) if hand == "udp" else None))
+                udp_target=(source.udp_host, source.udp_port) if hand == "udp" else None,
+                realtime_priority=realtime_priority))
         except BaseException:
             self.close()
             raise

@@ -13,6 +13,7 @@ import signal
 import sys
 import threading
 
+from robot_io.clock import raise_priority
 from robot_io.ur_standin.control import DEFAULT_PORT
 from robot_io.ur_standin.model import Series
 from robot_io.ur_standin.standin import StandinController
@@ -26,10 +27,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--control-port", type=int, default=DEFAULT_PORT, help="JSON-lines control port")
     parser.add_argument("--exit-with-stdin", action="store_true",
                         help="exit when standard input closes (the parent process ended)")
+    parser.add_argument("--realtime-priority", action="store_true",
+                        help="run the controller cycle under SCHED_FIFO (root or CAP_SYS_NICE): "
+                             "a real controller has hardware of its own")
     parser.add_argument("-v", "--verbose", action="store_true", help="log at INFO level")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s stand-in %(levelname)s %(message)s")
+    if args.realtime_priority:
+        raise_priority()  # before the threads start: they inherit it
     series = Series.CB3 if args.series == "cb3" else Series.E_SERIES
     standin = StandinController(args.host, series, control_port=args.control_port)
     signal.signal(signal.SIGTERM, lambda *_: standin.close())
