@@ -1,7 +1,8 @@
 """The rig process's main function: open the devices, then run one handover cycle per
 :class:`~robot_io.rig.messages.RunTrial` until told to shut down or until the application is gone.
 
-Its main thread runs the control loop (under SCHED_FIFO where allowed, ``[loop] realtime_priority``);
+Its main thread runs the control loop; with ``realtime_priority`` (``[loop] realtime_priority``,
+``--realtime-priority``) the whole process runs under SCHED_FIFO where the OS allows it;
 an inbox thread receives commands, so a Stop reaches the running loop within one cycle. When the
 pipe to the application closes (the application exited or was killed), the arm is stopped and the
 process exits; when this process dies, the UR's control worker sees its pipe close and stops the arm
@@ -19,6 +20,7 @@ import threading
 import time
 from multiprocessing.connection import Connection
 
+from robot_io.clock import raise_priority
 from robot_io.cycle import Gates, run_cycle
 from robot_io.errors import RobotIOError, explain
 from robot_io.rig.devices import RigDevices
@@ -110,6 +112,8 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
     """Entry point of the rig process (``multiprocessing`` spawn); logs at the application's level."""
     logging.basicConfig(level=log_level, format=f"rig[{os.getpid()}] %(levelname)s %(name)s: %(message)s")
     outbox = Outbox(conn)
+    if spec.realtime_priority:
+        raise_priority()  # every thread of the rig inherits it: the hand receiver, ur_rtde's, inbox
     try:
         devices = RigDevices(spec)
     except (RobotIOError, OSError, ValueError) as exc:
