@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from enum import StrEnum
 from typing import Protocol
 
@@ -26,8 +27,9 @@ class Arm(Protocol):
     def fault(self) -> str | None:
         """Why the arm is in FAULT, in plain words; None otherwise."""
 
-    def move_to(self, pose: np.ndarray) -> None:
-        """Bounded move to a start pose before a trial (not streamed)."""
+    def move_to(self, pose: np.ndarray, stop: threading.Event | None = None) -> None:
+        """Bounded move to a start pose before or after a trial (not streamed); a ``stop`` set
+        meanwhile halts it and raises MoveStopped."""
 
     def begin_stream(self) -> None:
         """Prepare to take servo targets; raises ArmFault if the arm cannot."""

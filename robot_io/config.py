@@ -173,7 +173,9 @@ class ReleaseConfig(_Frozen):
     filter_cutoff_hz: Positive = Field(
         5.0, description="first-order low-pass on the force (a CB-series estimate is ±10 N noisy)")
     baseline_s: Positive = Field(0.2, description="averaging window of the baseline at grasp [s]")
-    timeout_s: Positive = Field(10.0, description="no release within this long: give up, keep holding")
+    timeout_s: Positive = Field(10.0, description="no release within this long of holding: the trial "
+                                                  "ends not_taken and the robot retracts with the "
+                                                  "object [s]")
 
 
 class ArmConfig(_Frozen):
@@ -197,8 +199,6 @@ class CycleConfig(_Frozen):
     release_linger_s: float = Field(
         0.2, ge=0, le=2.0, description="after the release the arm keeps holding still this long, so "
                                        "the participant takes the object clear [s]")
-    retract_speed: float = Field(
-        0.25, gt=0, le=0.5, description="retract to R (and prepare) at this TCP speed [m/s]")
 
 
 class ControllerConfig(_Frozen):

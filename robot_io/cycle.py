@@ -1,16 +1,18 @@
 """The whole handover cycle of one trial (DESIGN.md §2), on whatever arm, hand source and gripper the
 rig has opened:
 
-    prepare (bounded move to R, gripper closed on the object) → loaded (confirmed) → ready (tracker
+    prepare (bounded move to R; the object is put into the open gripper, which closes once the
+    experimenter confirms) → loaded → ready (tracker
     alive, hand inside the start zone around A) → go (t = 0) → reach (coupled DMP, eqs. 1–10) → hold
     at H (k_ext compliance, release armed, baseline fresh) → release on the pull, or not_taken after
     [release] timeout_s → retract to R at bounded speed → done.
 
 Each stage is reported as it begins. The two confirmations (object loaded, Go) come from the caller's
 :class:`Gates`: the experimenter on the dashboard, or at once with the simulated participant. A stop
-request ends any stage: the arm is stopped and nothing more moves. Only a trial that ended normally
-(released or not taken) retracts; after a fault, a lost tracker or a stop the arm stays where it
-stopped, and the next trial's prepare brings it back within [ur] max_move_distance.
+request ends any stage, a move to R included: the arm is stopped and nothing more moves. Only a
+trial that ended normally (released or not taken) retracts; after a fault, a lost tracker or a stop
+the arm stays where it stopped, and the next trial's prepare brings it back within
+[ur] max_move_distance.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ import numpy as np
 from robot_io.arm import Arm
 from robot_io.clock import Clock
 from robot_io.config import ControllerConfig
-from robot_io.errors import ArmFault, RobotIOError
+from robot_io.errors import ArmFault, MoveStopped, RobotIOError
 from robot_io.gripper import Gripper
 from robot_io.hand import HandSource
 from robot_io.loop import HoldPhase, Outcome, StageCallback, TrialRecord, TrialSummary
@@ -118,13 +120,15 @@ def run_cycle(config: ControllerConfig, theta: Theta | None, devices: CycleDevic
     try:
         loop = make_loop(config, theta, hand, arm, clock, hold=hold, on_stage=on_stage,
                          recorder=recorder, stop=gates.stop)
+        if not gates.wait(gates.loaded):  # the object goes into the open gripper, at R
+            return not_started(config, realtime, Outcome.STOPPED, "stop requested")
         gripper.close()
+    except MoveStopped:
+        return not_started(config, realtime, Outcome.STOPPED, "stop requested")
     except RobotIOError as exc:
         arm.stop()
         outcome = Outcome.ARM_FAULT if isinstance(exc, ArmFault) else Outcome.ERROR
         return not_started(config, realtime, outcome, f"prepare: {exc}")
-    if not gates.wait(gates.loaded):
-        return not_started(config, realtime, Outcome.STOPPED, "stop requested")
     on_stage(Stage.LOADED, float("nan"))
     waiting = _await_ready(hand, config, gates, on_waiting or (lambda why: None))
     if waiting is not None:
@@ -138,7 +142,9 @@ def run_cycle(config: ControllerConfig, theta: Theta | None, devices: CycleDevic
         return record
     on_stage(Stage.RETRACT, clock.now())
     try:
-        arm.move_to(start)
+        arm.move_to(start, gates.stop)
+    except MoveStopped:  # stopped on the way back: the next prepare brings it to R
+        return record
     except RobotIOError as exc:  # the handover itself happened: it stands; the fault is reported
         log.error("retract to R failed: %s", exc)
         return TrialRecord(record.summary.model_copy(update={"retract_fault": f"retract: {exc}"}),

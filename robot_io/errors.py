@@ -19,6 +19,10 @@ class ArmFault(RobotIOError):
     """The arm refused a command or is in a fault state (stopped, protective stop, limits)."""
 
 
+class MoveStopped(RobotIOError):
+    """A bounded move (to the start pose R) was stopped on request before it arrived."""
+
+
 def explain(exc: Exception) -> str:
     """One line for a user. A pydantic ValidationError becomes ``field = value: message`` per error
     (our own validators already say the field and value, and are kept as they are)."""

@@ -13,6 +13,7 @@ that the safety limiter let through is checked again here. ``stop()`` decelerate
 from __future__ import annotations
 
 import logging
+import threading
 from collections.abc import Callable
 
 import numpy as np
@@ -57,8 +58,9 @@ class MockArm:
         self._advance()
         return bool(np.any(self.velocity != 0.0))
 
-    def move_to(self, pose: np.ndarray) -> None:
-        """The mock places the TCP at ``pose`` at once (a real arm does a bounded moveL)."""
+    def move_to(self, pose: np.ndarray, stop: threading.Event | None = None) -> None:
+        """The mock places the TCP at ``pose`` at once (a real arm does a bounded moveL, which
+        ``stop`` can halt)."""
         if self._state in (ArmState.STREAMING, ArmState.STOPPING):
             raise ArmFault(f"move_to refused while the arm is {self._state}")
         self.position = np.asarray(pose, dtype=float).copy()

@@ -23,7 +23,7 @@ COLUMNS: tuple[tuple[str, int, str], ...] = (
     ("commanded", 3, "target sent to the arm after the safety limiter [m]"),
     ("measured", 3, "TCP position read from the arm [m]"),
     ("limited", 1, "safety limiter flags: 1 acceleration, 2 speed, 4 workspace"),
-    ("stage", 1, "stage of the handover cycle: 1 reach, 2 hold, 3 released (robot_io.cycle.Stage)"),
+    ("stage", 1, "stage of the handover cycle: 1 reach, 2 hold, 3 released (robot_io.stages)"),
     ("force", 3, "force at the TCP while holding [N] (empty during the reach)"),
     ("pull", 1, "baseline-subtracted, filtered pull ‖F̃ − F₀‖ while armed [N] (robot_io.release)"),
     ("compute_s", 1, "compute time of the cycle [s]"),

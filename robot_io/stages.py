@@ -7,8 +7,8 @@ from enum import StrEnum
 
 
 class Stage(StrEnum):
-    PREPARE = "prepare"  # bounded move to the start pose R; gripper closed on the object
-    LOADED = "loaded"  # the experimenter confirmed the object is loaded (automatic in simulation)
+    PREPARE = "prepare"  # bounded move to the start pose R; the object goes into the gripper
+    LOADED = "loaded"  # confirmed loaded (automatic in simulation): the gripper has closed on it
     READY = "ready"  # tracker alive and the hand inside the start zone around A
     GO = "go"  # the tablet's cue; the trial clock starts (t = 0)
     REACH = "reach"  # the first servo target of the coupled DMP is sent

@@ -44,7 +44,7 @@ def make_loop(config: ControllerConfig, theta: Theta | None, hand: HandSource, a
     With ``hold``, the robot then holds the object out at H with the k_ext compliance term of
     Table I while the participant grasps it (:class:`~robot_io.compliance.CompliantCoupling`)."""
     start, goal = config.scene.point("robot_start"), config.scene.point("handover_point")
-    arm.move_to(start)
+    arm.move_to(start, stop)
     coupling = make_coupling(config, theta, clock.period)
     if hold is not None:
         release = hold.release

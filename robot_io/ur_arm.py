@@ -19,13 +19,14 @@ that implies more than the speed or acceleration cap, is refused — never sent 
 from __future__ import annotations
 
 import logging
+import threading
 import time
 
 import numpy as np
 
 from robot_io.arm import ArmState
 from robot_io.config import SafetyLimits, URConfig
-from robot_io.errors import ArmFault
+from robot_io.errors import ArmFault, MoveStopped
 from robot_io.ur_worker import ControlWorker
 
 log = logging.getLogger(__name__)
@@ -38,6 +39,8 @@ EMERGENCY_STOPPED_BITS = (5, 6, 7)  # system, robot, any emergency stop
 PROGRAM_RUNNING_BIT = 1
 #: The controller refuses to unlock a protective stop within this many seconds of it.
 UNLOCK_DELAY_S = 5.0
+#: A move has arrived when the TCP is this close to its target [m] (and at rest).
+ARRIVED_M = 5e-4
 #: Speed [m/s] under which the TCP counts as at rest.
 REST_SPEED = 1e-3
 #: Relative slack on the speed and acceleration caps (floating point of the limiter upstream).
@@ -211,8 +214,10 @@ class URArm:
                                f"within {self.config.connect_timeout_s} s")
             time.sleep(0.01)
 
-    def move_to(self, pose: np.ndarray) -> None:
-        """Bounded moveL to a start pose: inside the box, at most ``max_move_distance`` away."""
+    def move_to(self, pose: np.ndarray, stop: threading.Event | None = None) -> None:
+        """Bounded moveL to a start pose: inside the box, at most ``max_move_distance`` away. The
+        move is asynchronous on the controller and watched every cycle, so that ``stop`` (set by a
+        Stop) halts it with stopL and a fault is seen while it moves."""
         target = np.asarray(pose, dtype=float)
         if self.state in (ArmState.FAULT, ArmState.STREAMING):
             raise ArmFault(f"move_to refused while the arm is {self._state}"
@@ -224,12 +229,20 @@ class URArm:
                            f"{self.config.max_move_distance} m); jog the arm closer first")
         self._ensure_program()
         cfg = self.config
-        timeout = distance / cfg.move_speed + cfg.move_speed / cfg.move_acceleration + 5.0
-        done = self._worker.call("moveL", [*target, *self.orientation], cfg.move_speed,
-                                 cfg.move_acceleration, False, timeout=timeout)
-        if not done:
-            self._check()
-            raise ArmFault(self._fault or "moveL to the start pose was not completed")
+        deadline = (time.monotonic() + distance / cfg.move_speed
+                    + cfg.move_speed / cfg.move_acceleration + 5.0)
+        if not self._worker.call("moveL", [*target, *self.orientation], cfg.move_speed,
+                                 cfg.move_acceleration, True):
+            raise ArmFault("the controller did not accept the moveL to the start pose")
+        while np.linalg.norm(target - self.read_pose()) > ARRIVED_M or self.is_moving:
+            if stop is not None and stop.is_set():
+                self._worker.call("stopL", cfg.stop_deceleration, False, timeout=2.0)
+                raise MoveStopped("the move to the start pose was stopped on request")
+            if self.state is ArmState.FAULT:
+                raise ArmFault(self._fault)
+            if time.monotonic() > deadline:
+                raise ArmFault("moveL to the start pose was not completed in time")
+            time.sleep(self.period)
         self._state = ArmState.IDLE
 
     def begin_stream(self) -> None:

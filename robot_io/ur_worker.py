@@ -21,7 +21,7 @@ from multiprocessing.connection import Connection
 from robot_io.errors import ArmFault
 
 #: Methods of RTDEControlInterface the arm backend may call through the worker.
-CALLS = frozenset({"moveL", "servoStop", "stopScript", "setWatchdog", "reuploadScript"})
+CALLS = frozenset({"moveL", "stopL", "servoStop", "stopScript", "setWatchdog", "reuploadScript"})
 
 
 def _serve(conn: Connection, host: str, flags: int) -> None:

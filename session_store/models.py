@@ -133,7 +133,7 @@ class Trial(_Row):
     outcome: TrialOutcome | None = Field(None, description="completed, not_taken or aborted (both "
                                                            "repeated, never rated); empty while "
                                                            "running")
-    reason: str | None = Field(None, description="why it was aborted")
+    reason: str | None = Field(None, description="why it was aborted or not taken")
     robot_arrival_s: float | None = Field(None, description="robot at the handover point, "
                                                             "seconds after Go")
     hand_arrival_s: float | None = Field(None, description="hand at the handover point, "
