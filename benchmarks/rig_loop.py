@@ -99,7 +99,7 @@ def both_variants(study: Path, browser, priority: bool, trials: int) -> tuple[Fi
     """Both screens open on a session runner; first its rig process runs trials driven from the
     dashboard page, then, with the screens still open, the in-process thread runs as many."""
     lab = LabConfig.model_validate({"protocol": PROTOCOL})
-    runner = SessionRunner(study, lab, rehearsal=Rehearsal(lab, series="e", realtime_priority=True),
+    runner = SessionRunner(study, lab, rehearsal=Rehearsal(lab, series="e"),
                            realtime_priority=priority)
     servers = HandoverServers(runner, ServeOptions(tablet_port=free_port(),
                                                    dashboard_port=free_port(), token=TOKEN))
@@ -162,7 +162,7 @@ def thread_trial(devices: RigDevices, rehearsal: Rehearsal, seed: int
 def in_process_thread(priority: bool, trials: int) -> Figures:
     """The same cycle on the same devices in a thread of this process (beside the servers)."""
     lab = LabConfig.model_validate({"protocol": PROTOCOL})
-    rehearsal = Rehearsal(lab, series="e", realtime_priority=True)
+    rehearsal = Rehearsal(lab, series="e")
     spec = RigSpec(config=rehearsal.lab.controller, scenario=Scenario.PERTURBED, realtime=True,
                    realtime_priority=priority)
     devices = RigDevices(spec)

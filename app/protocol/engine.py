@@ -202,12 +202,14 @@ class SessionEngine:
                                     "outcome": ended.outcome.value, "reason": reason}), write)
         return ended
 
-    def record_stage(self, trial_index: int, stage: Stage, t: float | None) -> None:
-        """A stage of the running trial's handover cycle began (``t``: seconds after Go)."""
+    def record_stage(self, trial_index: int, stage: Stage, t: float | None,
+                     at: str | None = None) -> None:
+        """A stage of the running trial's handover cycle began (``t``: seconds after Go; ``at``:
+        the UTC time the rig began it, which the event keeps — the Go time of the trial)."""
         if self.state.running_trial != trial_index:
             raise RefusedAction(f"stage {stage.value} of trial {trial_index} refused: the running "
                                 f"trial is {self.state.running_trial}")
-        self._commit(Event(actor=Actor.SYSTEM, kind="trial_stage",
+        self._commit(Event(actor=Actor.SYSTEM, kind="trial_stage", at=at or utc_now(),
                            payload={"trial_index": trial_index, "stage": stage.value, "t": t}))
 
     def record_devices(self, config: dict, devices: dict, changed_from: dict | None = None) -> None:

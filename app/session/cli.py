@@ -19,6 +19,8 @@ def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
                              "on LSL (see docs/hardware.md)")
     parser.add_argument("--rehearse-hand", choices=("lsl", "udp"), default="lsl",
                         help="with --rehearse: the tracker protocol of the simulated hand")
+    parser.add_argument("--rehearse-series", choices=("cb3", "e"), default="cb3",
+                        help="with --rehearse: a CB-series (125 Hz) or e-Series (500 Hz) stand-in")
     parser.add_argument("--realtime-priority", action="store_true",
                         help="run the rig's control loop under SCHED_FIFO (needs root or "
                              "CAP_SYS_NICE); also [loop] realtime_priority")
@@ -30,7 +32,7 @@ def open_runner(args: argparse.Namespace, lab: LabConfig, *, realtime: bool,
     """The session runner on the lab's devices, or on a rehearsal rig; closed (arm stopped first)
     on the way out, also on Ctrl-C."""
     priority = args.realtime_priority or lab.loop.realtime_priority
-    rehearsal = (Rehearsal(lab, hand=args.rehearse_hand, realtime_priority=priority)
+    rehearsal = (Rehearsal(lab, hand=args.rehearse_hand, series=args.rehearse_series)
                  if args.rehearse else None)
     runner = SessionRunner(args.study, lab, realtime=realtime, rehearsal=rehearsal,
                            realtime_priority=priority, auto_experimenter=auto_experimenter)

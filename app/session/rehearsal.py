@@ -5,9 +5,9 @@ address and a hand publisher (:mod:`robot_io.hand_publisher`) that plays the sim
 hand on LSL (or UDP) and makes the stand-in pull on the object once the hand holds it at H. The lab
 configuration is pointed at them — ``[arm] kind = "ur"`` at that address, ``[hand_source]`` the
 publisher's stream, ``[gripper]`` the UR's tool output — so a session runs through ``ur_rtde``,
-``pylsl``, the gripper's tool output and the force release exactly as on the rig. With
-``realtime_priority`` the stand-in and the publisher run under SCHED_FIFO too, as the controller
-and the tracker, which have hardware of their own, are not slowed by this machine's load.
+``pylsl``, the gripper's tool output and the force release exactly as on the rig. The stand-in and
+the publisher run under SCHED_FIFO where the OS allows it (``realtime_priority``): the controller
+and the tracker they stand for have hardware of their own, which this machine's load cannot slow.
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ class Rehearsal:
     """The stand-in controller and the hand publisher; :meth:`close` ends both."""
 
     def __init__(self, lab: LabConfig, hand: HandKind = "lsl", series: str = "cb3",
-                 realtime_priority: bool = False) -> None:
+                 realtime_priority: bool = True) -> None:
         self.host = free_loopback_host()
         self.standin = subprocess.Popen(
             [sys.executable, "-m", "robot_io.ur_standin", "--host", self.host, "--series", series,

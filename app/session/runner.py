@@ -22,6 +22,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Literal, TypeVar
 
@@ -313,8 +314,9 @@ class SessionRunner:
             if changed is not None and not confirm:
                 raise RefusedAction(
                     f"participant {code!r} was recorded on a different rig "
-                    f"({describe_change(recorded, rig_of(lab))}); confirm the rig change to "
-                    "continue on this one")
+                    f"({describe_change(recorded, rig_of(lab))}); to continue on this one, confirm "
+                    "the rig change (dashboard: 'Confirm a rig change'; run-session: "
+                    "--accept-rig-change)")
         else:
             config, changed = self.lab.study_config(scenario, seed), None
         self._open_rig(config)
@@ -322,7 +324,9 @@ class SessionRunner:
             engine = SessionEngine.resume(self.study, code)
         else:
             engine = SessionEngine.create(self.study, code, config)
-        engine.record_devices(lab, self._devices.model_dump(mode="json"), changed_from=changed)
+        used = {**self._trial_config(config).model_dump(mode="json"),
+                **{table: lab[table] for table in ("protocol", "learner")}}
+        engine.record_devices(used, self._devices.model_dump(mode="json"), changed_from=changed)
         self._engine = engine
         self._participant = SimulatedParticipant(engine.config.seed)
         self._theta_star_key = -1
@@ -465,8 +469,10 @@ class SessionRunner:
         if report.stage is Stage.READY:
             self._ready_wait = None
         try:
-            self._call(lambda: self._require_engine().record_stage(report.trial_index, report.stage,
-                                                                   report.t))
+            at = datetime.now(UTC) - timedelta(seconds=time.monotonic() - report.monotonic)
+            self._call(lambda: self._require_engine().record_stage(
+                report.trial_index, report.stage, report.t,
+                at=at.isoformat(timespec="microseconds")))
         except (RefusedAction, StoreError) as exc:
             log.warning("stage %s not recorded: %s", report.stage.value, exc)
         self._changed(None)

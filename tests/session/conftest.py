@@ -13,7 +13,7 @@ def rehearsed(tmp_path):
     """A runner on a rehearsal rig (stand-in UR, hand on LSL), the short protocol, the simulated
     participant rating (loaded and Go automatic); the test starts the trials. Yields (runner, probe)."""
     lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL, "release": {"timeout_s": 2.0}})
-    runner = SessionRunner(tmp_path / "study", lab, rehearsal=Rehearsal(lab, realtime_priority=True),
+    runner = SessionRunner(tmp_path / "study", lab, rehearsal=Rehearsal(lab),
                            realtime_priority=True)
     runner.set_auto(True)
     try:

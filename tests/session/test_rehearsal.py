@@ -177,7 +177,7 @@ def test_a_resume_on_a_different_arm_is_refused_until_the_experimenter_confirms(
 
 def test_the_rehearsal_plays_the_hand_over_udp_too(tmp_path):
     lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
-    rehearsal = Rehearsal(lab, hand="udp", realtime_priority=True)
+    rehearsal = Rehearsal(lab, hand="udp")
     runner = SessionRunner(tmp_path / "study", lab, rehearsal=rehearsal, realtime_priority=True)
     runner.set_auto(True)
     probe = Probe(runner)
