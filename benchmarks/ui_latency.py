@@ -22,7 +22,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 
-from browser_helpers import (
+from support.browser import (
     chromium,
     confirm_placement,
     open_participant,

@@ -2,13 +2,16 @@
 
 The server runs as a real subprocess (real viser, real SQLite, real learner process); pages are real
 browser pages. Touch drags are real touch events sent through the DevTools protocol
-(``Input.dispatchTouchEvent``), the same path a finger on a tablet takes.
+(``Input.dispatchTouchEvent``), the same path a finger on a tablet takes; taps are
+``page.touchscreen.tap``. The tablet ignores input for ``SETTLE_S`` after each screen change
+(app/ui/deliberate.py), so the participant's helpers let a screen settle before they touch it.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
 import socket
 import subprocess
@@ -21,6 +24,7 @@ from pathlib import Path
 
 from playwright.sync_api import Browser, Page, sync_playwright
 
+from app.ui.deliberate import SETTLE_S
 from session_store.models import QUESTIONS
 
 CHROMIUM = "/usr/bin/chromium"
@@ -34,18 +38,21 @@ SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_tr
 TIMEOUT_MS = 60_000
 
 
-SCREENS = {"place": "Handover", "wait": "Please wait", "rate": "Compared with",
-           "done": "Thank you", "go": "Go!",
+SCREENS = {"unused": "not in use", "pairs": "pairs of handovers", "place": "Handover",
+           "wait": "Please wait", "rate": "Compared with", "done": "Thank you", "go": "Go!",
            **{q.id: q.text[:30] for q in QUESTIONS}}
 
 
-def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0) -> str:
-    """Wait until the tablet shows a known screen other than ``not_``; return its name."""
+def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0,
+                  unused_ok: bool = False) -> str:
+    """Wait until the tablet shows a known screen other than ``not_``; return its name. "Not in
+    use" counts only with ``unused_ok`` (a reloaded page is briefly the second page, until the
+    server has seen the old one close)."""
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         text = page.inner_text("body")
         for name, marker in SCREENS.items():
-            if marker in text and name != not_:
+            if marker in text and name != not_ and (unused_ok or name != "unused"):
                 return name
         time.sleep(0.02)
     raise AssertionError(f"tablet shows no known screen: {page.inner_text('body')[:300]}")
@@ -56,6 +63,52 @@ def run_trial(dashboard: Page, tablet: Page) -> str:
     click(dashboard, "Start trial")
     assert tablet_screen(tablet, not_="wait") == "go"
     return tablet_screen(tablet, not_="go")
+
+
+def settle() -> None:
+    """Let the screen just shown settle, as a participant reading it would (input earlier than
+    SETTLE_S after a screen change is ignored by design)."""
+    time.sleep(SETTLE_S + 0.1)
+
+
+def double_tap(page: Page, name: str, gap_s: float = 0.15) -> None:
+    """Two finger taps ``gap_s`` apart on the spot where button ``name`` is now (the second lands
+    on whatever the first one brought up)."""
+    target = button(page, name)
+    target.wait_for(state="visible")
+    page.wait_for_function("b => !b.disabled", arg=target.element_handle())
+    box = target.bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.touchscreen.tap(x, y)
+    time.sleep(gap_s)
+    page.touchscreen.tap(x, y)
+
+
+def answer_questionnaire(tablet: Page, answers: dict[str, str]) -> float:
+    """Choose each question's answer (button text) and go on with Next, then Done; returns the
+    seconds from the tap on Done until the tablet shows the screen after the questionnaire."""
+    for i, q in enumerate(QUESTIONS):
+        assert tablet_screen(tablet) == q.id
+        settle()
+        tap(tablet, answers[q.id])
+        if i < len(QUESTIONS) - 1:
+            tap(tablet, "Next")
+            tablet_screen(tablet, not_=q.id)
+    began = time.perf_counter()
+    tap(tablet, "Done")
+    tablet_screen(tablet, not_=QUESTIONS[-1].id)
+    return time.perf_counter() - began
+
+
+def rate(tablet: Page, answer: str) -> float:
+    """Choose a validation rating and Confirm it; seconds from the tap on Confirm to the next
+    screen."""
+    settle()
+    tap(tablet, answer)
+    began = time.perf_counter()
+    tap(tablet, "Confirm")
+    tablet_screen(tablet, not_="rate")
+    return time.perf_counter() - began
 
 
 def confirm_placement(tablet: Page) -> float:
@@ -97,10 +150,11 @@ class Served:
 
 
 @contextmanager
-def serve(tmp: Path, *extra: str, rate: int = 125) -> Iterator[Served]:
+def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML
+          ) -> Iterator[Served]:
     """`handover serve` on two free loopback ports with the short protocol (125 Hz for speed)."""
     protocol = tmp / "short.toml"
-    protocol.write_text(SHORT_TOML)
+    protocol.write_text(protocol_toml)
     study, log = tmp / "study", tmp / "serve.log"
     tablet, dashboard = free_port(), free_port()
     command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study), "--rate", str(rate),
@@ -138,8 +192,9 @@ def open_page(browser: Browser, url: str, touch: bool = False,
               size: tuple[int, int] = (1024, 768)) -> Page:
     context = browser.new_context(viewport={"width": size[0], "height": size[1]},
                                   has_touch=touch, is_mobile=False)
-    # Hide viser's "Software WebGL rendering detected" notice of headless Chromium (screenshots).
-    context.add_init_script("document.addEventListener('DOMContentLoaded', () => {"
+    if not touch:  # the tablet hides viser's notices itself (app/ui/style.py, KIOSK_CSS)
+        # Hide viser's "Software WebGL rendering detected" notice of headless Chromium (screenshots).
+        context.add_init_script("document.addEventListener('DOMContentLoaded', () => {"
                             "const s = document.createElement('style');"
                             "s.textContent = '.mantine-Notification-root{display:none!important}';"
                             "document.head.appendChild(s); });")
@@ -178,10 +233,13 @@ def click(page: Page, name: str) -> None:
     button(page, name).click()  # waits until it is visible and enabled
 
 
-def tap(page: Page, name: str) -> None:
-    """A finger tap on a button (touch events, not mouse)."""
+def tap(page: Page, name: str, enabled: bool = True) -> None:
+    """A finger tap on a button (touch events, not mouse); waits until it is enabled unless
+    ``enabled`` is False (a tap on a disabled button)."""
     target = button(page, name)
     target.wait_for(state="visible")
+    if enabled:
+        page.wait_for_function("b => !b.disabled", arg=target.element_handle())
     box = target.bounding_box()
     page.touchscreen.tap(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
 
@@ -198,7 +256,9 @@ def unlock_dashboard(page: Page) -> None:
 
 
 def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:
-    """Drag the scale's handle (the slider thumb) with one finger to ``fraction`` of the track."""
+    """Drag the scale's handle (the slider thumb) with one finger to ``fraction`` of the track,
+    once the screen has settled."""
+    settle()
     track = page.locator(".mantine-Slider-track").first.bounding_box()
     thumb = page.locator(".mantine-Slider-thumb").first.bounding_box()
     y = thumb["y"] + thumb["height"] / 2
@@ -234,3 +294,14 @@ def shot(page: Page, folder: Path, name: str) -> Path:
     path = folder / f"{name}.png"
     page.screenshot(path=str(path))
     return path
+
+
+DOC_FIGURES = Path(__file__).parents[2] / "docs" / "figures"
+
+
+def publish(paths: list[Path]) -> None:
+    """With HANDOVER_DOC_FIGURES=1, copy screenshots to docs/figures/ as ui-<name>.png."""
+    if os.environ.get("HANDOVER_DOC_FIGURES") == "1":
+        DOC_FIGURES.mkdir(exist_ok=True)
+        for path in paths:
+            shutil.copy(path, DOC_FIGURES / f"ui-{path.name}")
