@@ -60,8 +60,9 @@ def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0,
 
 def run_trial(dashboard: Page, tablet: Page) -> str:
     """Start trial on the dashboard; the tablet shows "Go!", then the screen after the trial."""
+    before = tablet_screen(tablet)  # "Please wait" or the introduction to the pairs
     click(dashboard, "Start trial")
-    assert tablet_screen(tablet, not_="wait") == "go"
+    assert tablet_screen(tablet, not_=before) == "go"
     return tablet_screen(tablet, not_="go")
 
 
