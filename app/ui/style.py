@@ -54,7 +54,7 @@ body:has([style*="opacity: 0.5"][style*="pointer-events: none"] .hl-live)::after
 #: tablet in either orientation and smaller ones for a phone.
 TABLET_CSS = f"""
 :root {{ --hl-title: 52px; --hl-text: 26px; --hl-marker: 64px; --hl-stack: 70px;
-  --hl-lane: clamp(150px, 34vh, 380px); --hl-thumb: 80px; --hl-button: 76px;
+  --hl-lane: clamp(150px, 36vh, 380px); --hl-thumb: 80px; --hl-button: 76px;
   --hl-button-text: 30px; }}
 @media (max-height: 900px) and (orientation: landscape) {{
   :root {{ --hl-title: 44px; --hl-text: 24px; --hl-marker: 58px; --hl-thumb: 72px;
