@@ -75,14 +75,10 @@ def settle() -> None:
 def double_tap(page: Page, name: str, gap_s: float = 0.15) -> None:
     """Two finger taps ``gap_s`` apart on the spot where button ``name`` is now (the second lands
     on whatever the first one brought up)."""
-    target = button(page, name)
-    target.wait_for(state="visible")
-    page.wait_for_function("b => !b.disabled", arg=target.element_handle())
-    box = target.bounding_box()
-    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
-    page.touchscreen.tap(x, y)
+    point = tap_point(page, name)
+    page.touchscreen.tap(*point)
     time.sleep(gap_s)
-    page.touchscreen.tap(x, y)
+    page.touchscreen.tap(*point)
 
 
 def answer_questionnaire(tablet: Page, answers: dict[str, str]) -> float:
@@ -95,28 +91,27 @@ def answer_questionnaire(tablet: Page, answers: dict[str, str]) -> float:
         if i < len(QUESTIONS) - 1:
             tap(tablet, "Next")
             tablet_screen(tablet, not_=q.id)
-    began = time.perf_counter()
-    tap(tablet, "Done")
-    tablet_screen(tablet, not_=QUESTIONS[-1].id)
-    return time.perf_counter() - began
+    return timed_tap(tablet, "Done", QUESTIONS[-1].id)
 
 
-def rate(tablet: Page, answer: str) -> float:
-    """Choose a validation rating and Confirm it; seconds from the tap on Confirm to the next
-    screen."""
+def rate(tablet: Page, answer: str, folder: Path | None = None) -> float:
+    """Choose a validation rating (screenshot ``tablet-rate`` into ``folder`` then) and Confirm
+    it; seconds from the tap on Confirm to the next screen."""
     settle()
     tap(tablet, answer)
-    began = time.perf_counter()
-    tap(tablet, "Confirm")
-    tablet_screen(tablet, not_="rate")
-    return time.perf_counter() - began
+    if folder is not None:
+        tablet.wait_for_function("() => [...document.querySelectorAll('button')].some("
+                                 "b => !b.disabled && b.innerText.trim() === 'Confirm')")
+        shot(tablet, folder, "tablet-rate")
+    return timed_tap(tablet, "Confirm", "rate")
 
 
 def confirm_placement(tablet: Page) -> float:
     """Tap Confirm on the scale; seconds until the tablet shows the next screen (the engine has
     stored the placement before it publishes the next state)."""
+    point = tap_point(tablet, "Confirm")
     began = time.perf_counter()
-    tap(tablet, "Confirm")
+    tablet.touchscreen.tap(*point)
     tablet.wait_for_function("() => !document.querySelector('.hl-scale')", polling="raf")
     return time.perf_counter() - began
 
@@ -234,15 +229,30 @@ def click(page: Page, name: str) -> None:
     button(page, name).click()  # waits until it is visible and enabled
 
 
-def tap(page: Page, name: str, enabled: bool = True) -> None:
-    """A finger tap on a button (touch events, not mouse); waits until it is enabled unless
-    ``enabled`` is False (a tap on a disabled button)."""
+def tap_point(page: Page, name: str, enabled: bool = True) -> tuple[float, float]:
+    """The centre of button ``name`` once it is visible (and enabled, unless ``enabled`` is
+    False: to tap a disabled button)."""
     target = button(page, name)
     target.wait_for(state="visible")
     if enabled:
         page.wait_for_function("b => !b.disabled", arg=target.element_handle())
     box = target.bounding_box()
-    page.touchscreen.tap(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    return box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+
+
+def tap(page: Page, name: str, enabled: bool = True) -> None:
+    """A finger tap on a button (touch events, not mouse)."""
+    page.touchscreen.tap(*tap_point(page, name, enabled))
+
+
+def timed_tap(page: Page, name: str, screen: str) -> float:
+    """Tap ``name`` and return the seconds until the tablet shows a screen other than ``screen``
+    (the server has stored the answer before it publishes the next state)."""
+    point = tap_point(page, name)
+    began = time.perf_counter()
+    page.touchscreen.tap(*point)
+    tablet_screen(page, not_=screen)
+    return time.perf_counter() - began
 
 
 def fill(page: Page, label: str, value: str) -> None:

@@ -102,8 +102,7 @@ def test_participant_session_with_touch(tmp_path: Path) -> None:
                 shot(tablet, screens, "tablet-Q1")
                 latencies.append(answer_questionnaire(tablet, ANSWERS))
             elif screen == "rate":
-                shot(tablet, screens, "tablet-rate")
-                latencies.append(rate(tablet, "Better"))
+                latencies.append(rate(tablet, "Better", screens))
             elif screen == "done":
                 shot(tablet, screens, "tablet-done")
                 break
