@@ -43,6 +43,9 @@ from robot_io.theta import THETA_BOUNDS
 from session_store.store import ParticipantStore
 
 ANSWERS = {"Q1": "4", "Q2": "Maybe", "Q3": "3"}
+#: Where the placements go, in turn; never where the handle starts (a drag that does not move the
+#: handle leaves Confirm disabled, by design).
+DRAGS = (0.12, 0.88, 0.3, 0.7, 0.4)
 
 
 def busy_learner(stop: threading.Event) -> None:
@@ -75,7 +78,7 @@ def run(tmp: Path, *extra: str) -> tuple[list[float], list[float], int, int]:
                 screen = run_trial(dashboard, tablet)
                 continue
             if screen == "place":
-                touch_drag_to(tablet, 0.1 + 0.8 * (len(latencies) % 5) / 4)
+                touch_drag_to(tablet, DRAGS[len(latencies) % len(DRAGS)])
                 latencies.append(confirm_placement(tablet))
                 answers.append(latencies[-1])
             elif screen == "rate":

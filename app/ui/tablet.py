@@ -121,7 +121,8 @@ def answer_options(question: str) -> list[tuple[str, str]]:
 
 
 class Choice:
-    """Buttons of which the participant picks one (highlighted), then confirms with ``go``."""
+    """Buttons of which the participant picks one (highlighted orange, changeable); a separate
+    Confirm / Next button then acts on the choice."""
 
     def __init__(self, gui: viser.GuiApi, options: list[tuple[str, str]], chosen: str | None,
                  on_choose: Callable[[str], None]) -> None:
@@ -273,7 +274,10 @@ class TabletClient:
             self._turn(draft.next())
             return
         for question, value in draft.complete():
-            self.runner.answer(question, value)
+            try:
+                self.runner.answer(question, value)
+            except RefusedAction as exc:  # e.g. answered meanwhile by the simulated participant
+                log.warning("tablet answer refused: %s", exc)
 
     # -- input ------------------------------------------------------------------------------------
     def _input(self, action: Callable[[], None]) -> None:

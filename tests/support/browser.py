@@ -285,6 +285,12 @@ def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:
     for i in range(1, steps + 1):
         touch("touchMove", x0 + (x1 - x0) * i / steps)
         time.sleep(0.01)
+    # While the finger is down, no number is shown: no value label, no number box, no end marks.
+    shown = page.evaluate("() => { const f = document.querySelector('.mantine-Slider-root')"
+                          ".closest('.mantine-Flex-root'); const box = f.querySelector("
+                          "'.mantine-NumberInput-root'); return [f.innerText, box ? "
+                          "box.offsetParent !== null : false]; }")
+    assert not re.search(r"\d", shown[0]) and not shown[1], f"a number shows while dragging: {shown}"
     touch("touchEnd", x1)
     cdp.detach()
     # The server redraws the newest marker where it received the handle: wait until it has.
