@@ -32,7 +32,7 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
                  "--autoplay-policy=no-user-gesture-required"]
 TOKEN = "test-token"
-#: The short protocol of tests/session_helpers.SHORT, as `handover serve --protocol` reads it.
+#: The short protocol of tests/session_helpers.SHORT, as the [protocol] table of a lab config.
 SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
               "validation_batches = 1\n")
 TIMEOUT_MS = 60_000
@@ -59,9 +59,12 @@ def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0,
 
 
 def run_trial(dashboard: Page, tablet: Page) -> str:
-    """Start trial on the dashboard; the tablet shows "Go!", then the screen after the trial."""
+    """Start trial, Object loaded and Go on the dashboard; the tablet shows "Go!", then the
+    screen after the trial."""
     before = tablet_screen(tablet)  # "Please wait" or the introduction to the pairs
     click(dashboard, "Start trial")
+    click(dashboard, "Object loaded")
+    click(dashboard, "Go")
     assert tablet_screen(tablet, not_=before) == "go"
     return tablet_screen(tablet, not_="go")
 
@@ -148,14 +151,15 @@ class Served:
 @contextmanager
 def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML
           ) -> Iterator[Served]:
-    """`handover serve` on two free loopback ports with the short protocol (125 Hz for speed)."""
-    protocol = tmp / "short.toml"
-    protocol.write_text(protocol_toml)
+    """`handover serve` on two free loopback ports with a lab config of the short protocol
+    (``protocol_toml`` is its [protocol] table) at ``rate`` Hz (125 for speed)."""
+    config = tmp / "lab.toml"
+    config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}")
     study, log = tmp / "study", tmp / "serve.log"
     tablet, dashboard = free_port(), free_port()
-    command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study), "--rate", str(rate),
+    command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
-               "--protocol", str(protocol), "--token", TOKEN, *extra]
+               "--config", str(config), "--token", TOKEN, *extra]
     with log.open("w") as out:
         process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
                                    env={**os.environ, "PYTHONUNBUFFERED": "1"})

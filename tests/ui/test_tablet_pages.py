@@ -1,9 +1,9 @@
 """One tablet per session: the first page on the tablet port is the study's tablet; a second page
 is told it is not in use and is offered nothing to rate, until the first one closes.
 
-In process: a real :class:`SessionRunner` (real engine, store and learner process) behind a real
-viser server, pages in headless Chromium with touch, so :meth:`Tablet.connected_count` is read
-directly.
+In process: a real :class:`SessionRunner` (real engine, store, rig and learner processes, the
+experimenter's confirmations automatic) behind a real viser server, pages in headless Chromium with
+touch, so :meth:`Tablet.connected_count` is read directly.
 """
 
 from __future__ import annotations
@@ -16,14 +16,16 @@ import pytest
 import viser
 from support.browser import chromium, free_port, open_page, tablet_screen
 
-from app.ui.session_runner import SessionRunner
+from app.session.config import LabConfig
+from app.session.runner import SessionRunner
 from app.ui.tablet import Tablet
 from robot_io.simulated_hand import Scenario
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-SHORT = {"initial_trials": 2, "batch_size": 2, "learning_batches": 0, "best_trials": 0,
-         "validation_batches": 0}
+LAB = LabConfig.model_validate({"loop": {"rate_hz": 125}, "protocol": {
+    "initial_trials": 2, "batch_size": 2, "learning_batches": 0, "best_trials": 0,
+    "validation_batches": 0}})
 
 
 def until(condition: Callable[[], bool], timeout_s: float = 60.0) -> None:
@@ -34,7 +36,7 @@ def until(condition: Callable[[], bool], timeout_s: float = 60.0) -> None:
 
 
 def test_a_second_page_is_not_offered_the_scale(tmp_path: Path) -> None:
-    runner = SessionRunner(tmp_path / "study", rate_hz=125, protocol=SHORT)
+    runner = SessionRunner(tmp_path / "study", LAB, auto_experimenter=True)
     server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
     tablet = Tablet(server, runner)
     url = f"http://127.0.0.1:{server.get_port()}"
@@ -48,9 +50,7 @@ def test_a_second_page_is_not_offered_the_scale(tmp_path: Path) -> None:
             until(lambda: tablet.connected_count() == 2)
             assert tablet_screen(second, unused_ok=True) == "unused"
 
-            runner.open("P01", Scenario.STRAIGHTFORWARD)
-            until(lambda: runner.view.step is not None and runner.view.step.value == "ready")
-            runner.start_trial()
+            runner.open("P01", Scenario.STRAIGHTFORWARD)  # the first trial starts by itself
             assert tablet_screen(first, not_="wait") == "go"
             assert tablet_screen(second, unused_ok=True) == "unused"  # not even "Go!"
             assert tablet_screen(first, not_="go") == "place"
