@@ -33,7 +33,7 @@ from pydantic import BaseModel, ConfigDict
 from app.protocol.plan import Rating
 from app.protocol.state import Marker, Step
 from app.session.runner import RunnerView, SessionRunner
-from app.ui.deliberate import Settle
+from app.ui.deliberate import SETTLE_S, Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
@@ -52,8 +52,11 @@ PAGE_STYLE = style_block(KIOSK_CSS + OFFLINE_CSS + TABLET_CSS) + '<span class="h
 
 #: The stages of the handover cycle during which the tablet shows "Go!" (before it: please wait).
 GO_STAGES = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
+#: After the hold, until the trial ends and can be rated: the robot moves back.
+BACK_STAGES = frozenset({Stage.NOT_TAKEN, Stage.RETRACT, Stage.DONE})
 
-ScreenKind = Literal["wait", "pairs", "go", "place", "rate", "question", "done", "unused"]
+ScreenKind = Literal["wait", "pairs", "go", "back", "place", "rate", "question", "done",
+                     "unused"]
 
 
 class Screen(BaseModel):
@@ -97,6 +100,8 @@ def screen_for(view: RunnerView) -> Screen:
     step, slot = state.step, state.slot
     if step is Step.RUNNING and state.stage in GO_STAGES:  # the cue: the robot starts with it
         return Screen(kind="go", interaction=slot.interaction)
+    if step is Step.RUNNING and state.stage in BACK_STAGES:
+        return Screen(kind="back", interaction=slot.interaction)
     if step is Step.PLACE:
         return Screen(kind="place", interaction=slot.interaction, label=slot.position,
                       markers=tuple(state.markers))
@@ -141,10 +146,10 @@ class TabletClient:
     :meth:`_input` (settled, one at a time)."""
 
     def __init__(self, client: viser.ClientHandle, runner: SessionRunner,
-                 redraw: Callable[[], None]) -> None:
+                 redraw: Callable[[], None], settle_s: float = SETTLE_S) -> None:
         self.client, self.runner, self._redraw = client, runner, redraw
         self.screen: Screen | None = None
-        self.settle = Settle()
+        self.settle = Settle(settle_s)
         self._draft: Draft | None = None  # the questionnaire's choices before the last Next
         self._choice: Choice | None = None
         self._next: viser.GuiButtonHandle | None = None
@@ -164,7 +169,7 @@ class TabletClient:
         with self.client.atomic():
             gui.reset()
             gui.add_html(PAGE_STYLE)
-            build = {"wait": self._wait, "pairs": self._pairs, "go": self._go,
+            build = {"wait": self._wait, "pairs": self._pairs, "go": self._go, "back": self._back,
                      "place": self._place, "rate": self._rate, "question": self._question,
                      "done": self._done, "unused": self._unused}
             build[screen.kind](gui, screen)
@@ -184,6 +189,9 @@ class TabletClient:
 
     def _go(self, gui: viser.GuiApi, screen: Screen) -> None:
         gui.add_html(screen_text("Go!", "Take the object from the robot.", "hl-go") + audio_cue())
+
+    def _back(self, gui: viser.GuiApi, screen: Screen) -> None:
+        gui.add_html(screen_text("One moment", "The robot is moving back."))
 
     def _done(self, gui: viser.GuiApi, screen: Screen) -> None:
         gui.add_html(screen_text("Thank you!", "The session is complete."))
@@ -299,10 +307,12 @@ class TabletClient:
 
 class Tablet:
     """The tablet server: one :class:`TabletClient` per open page; the first is the study's
-    tablet, the others are told they are not in use."""
+    tablet, the others are told they are not in use. ``settle_s``: input is ignored for this
+    long after each screen change."""
 
-    def __init__(self, server: viser.ViserServer, runner: SessionRunner) -> None:
-        self.server, self.runner = server, runner
+    def __init__(self, server: viser.ViserServer, runner: SessionRunner,
+                 settle_s: float = SETTLE_S) -> None:
+        self.server, self.runner, self.settle_s = server, runner, settle_s
         self._pages: dict[int, TabletClient] = {}  # in the order they connected
         self._lock = threading.RLock()
         server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
@@ -320,7 +330,8 @@ class Tablet:
 
     def _connect(self, client: viser.ClientHandle) -> None:
         with self._lock:
-            self._pages[client.client_id] = TabletClient(client, self.runner, self.redraw)
+            self._pages[client.client_id] = TabletClient(client, self.runner, self.redraw,
+                                                         self.settle_s)
         log.info("tablet page %d connected (%d open)", client.client_id, self.connected_count())
         self.redraw()
 

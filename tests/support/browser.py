@@ -38,21 +38,25 @@ SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_tr
 TIMEOUT_MS = 60_000
 
 
-SCREENS = {"unused": "not in use", "pairs": "pairs of handovers", "place": "Handover",
+SCREENS = {"unused": "not in use", "pairs": "pairs of handovers", "back": "moving back",
+           "place": "Handover",
            "wait": "Please wait", "rate": "Compared with", "done": "Thank you", "go": "Go!",
            **{q.id: q.text[:30] for q in QUESTIONS}}
 
 
-def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0,
+def tablet_screen(page: Page, not_: str | tuple[str, ...] = (), timeout_s: float = 90.0,
                   unused_ok: bool = False) -> str:
-    """Wait until the tablet shows a known screen other than ``not_``; return its name. "Not in
-    use" counts only with ``unused_ok`` (a reloaded page is briefly the second page, until the
-    server has seen the old one close)."""
+    """Wait until the tablet shows a known screen other than ``not_`` (one name or several);
+    return its name. "Not in use" counts only with ``unused_ok`` (a reloaded page is briefly the
+    second page, until the server has seen the old one close)."""
+    skip = {not_} if isinstance(not_, str) else set(not_)
+    if not unused_ok:
+        skip.add("unused")
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         text = page.inner_text("body")
         for name, marker in SCREENS.items():
-            if marker in text and name != not_ and (unused_ok or name != "unused"):
+            if marker in text and name not in skip:
                 return name
         time.sleep(0.02)
     raise AssertionError(f"tablet shows no known screen: {page.inner_text('body')[:300]}")
@@ -66,7 +70,7 @@ def run_trial(dashboard: Page, tablet: Page) -> str:
     click(dashboard, "Object loaded")
     click(dashboard, "Go")
     assert tablet_screen(tablet, not_=before) == "go"
-    return tablet_screen(tablet, not_="go")
+    return tablet_screen(tablet, not_=("go", "back"))  # the robot moves back, then the rating
 
 
 def settle() -> None:

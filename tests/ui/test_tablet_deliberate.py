@@ -1,9 +1,10 @@
 """Deliberate answers on the tablet, with touch in Chromium (issue 13).
 
 A double tap stores one answer on every answer screen (scale, questionnaire, validation rating);
-Confirm does nothing before the handle has moved; a new handover never starts as "equal"; a tap
-within the settle window after a screen change is ignored; Back revisits a question with its choice.
-What counts is what the store holds afterwards.
+Confirm does nothing before the handle has moved; a new handover never starts as "equal"; Back
+revisits a question with its choice. What counts is what the store holds afterwards. (That input
+inside the settle window after a screen change is ignored is tested in test_tablet_pages.py, with a
+window long enough not to depend on the machine's load.)
 """
 
 from __future__ import annotations
@@ -72,9 +73,8 @@ def test_double_taps_store_one_answer_and_confirm_needs_a_move(tmp_path: Path) -
         double_tap(tablet, "Next")  # the second tap lands on Q2's Next: still disabled there
         assert tablet_screen(tablet, not_="Q1") == "Q2"
         assert "Question 2 of 3" in tablet.inner_text("body")
-        tap(tablet, "Yes")  # at once: inside the settle window after the screen change
+        assert button(tablet, "Next").is_disabled()  # nothing chosen on Q2 yet
         settle()
-        assert button(tablet, "Next").is_disabled()  # so "Yes" was not taken
         tap(tablet, "‹ Back")
         assert tablet_screen(tablet, not_="Q2") == "Q1"
         assert not button(tablet, "Next").is_disabled()  # Q1 keeps its "4"

@@ -70,11 +70,12 @@ def test_participant_session_with_touch(tmp_path: Path) -> None:
         latencies: list[float] = []
         interaction, shown = 0, set()
         while True:
-            screen = tablet_screen(tablet, not_="go")
+            screen = tablet_screen(tablet, not_=("go", "back"))
             if screen in ("wait", "pairs"):
                 if screen == "pairs":
                     shot(tablet, screens, "tablet-pairs")
-                click(dashboard, "Start trial")
+                for name in ("Start trial", "Object loaded", "Go"):
+                    click(dashboard, name)
                 interaction += 1
                 assert tablet_screen(tablet, not_=screen) in ("go", "place", "rate", "Q1")
                 if "go" not in shown:
