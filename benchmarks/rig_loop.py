@@ -32,7 +32,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 sys.path.insert(0, str(Path(__file__).parent))
 
-from browser_helpers import (
+from support.browser import (
     TOKEN,
     chromium,
     click,

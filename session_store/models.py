@@ -212,12 +212,15 @@ class Question(_Row):
 
 
 QUESTIONS: tuple[Question, ...] = (
-    Question(id="Q1", text="It was easy to remember the interactions within the batch.",
+    # Worded for the participant; the paper's wording (Sect. V-C) and why each was changed are in
+    # docs/running-a-study.md, "The questionnaire". Ids, answers and meaning are the paper's.
+    Question(id="Q1", text="When you placed a handover on the scale, it was easy to remember the "
+                           "earlier handovers on the same scale.",
              answers=("Not at all", "2", "3", "4", "Perfectly"), numeric=True),
-    Question(id="Q2", text="Did you feel that the robot was constantly improving?",
+    Question(id="Q2", text="Did you feel that the robot kept getting better?",
              answers=("Yes", "No", "Maybe"), numeric=False),
-    Question(id="Q3", text="Relative to the last set of parameters tried, how much did you perceive "
-                           "that the robot was coordinating with you?",
+    Question(id="Q3", text="Think only of the very last handover, just before these questions. "
+                           "How well did the robot coordinate its movement with yours?",
              answers=("Not at all", "2", "3", "4", "Perfectly"), numeric=True),
 )
 QUESTION_BY_ID: dict[str, Question] = {q.id: q for q in QUESTIONS}

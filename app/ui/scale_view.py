@@ -5,21 +5,24 @@ interactions stand on it as numbered markers where they were placed; markers pla
 stacked in one column. The newest marker (orange) follows the participant's finger: it is dragged
 with a full-width slider right under the arrow (viser's slider works with touch and mouse; its
 multi-slider does not), and dropping it within :data:`SNAP` of an earlier marker means "equal" and is
-drawn stacked on that marker. This module is pure: markers in, HTML out.
+drawn stacked on that marker. The handle starts at :func:`start_position`, never on an earlier
+marker, so an untouched handle can never mean "equal". The lane has a fixed height (CSS): a taller
+stack closes up instead of pushing the rest of the screen down. This module is pure: markers in,
+HTML out.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from html import escape
+from itertools import pairwise
 
 from app.protocol.state import Marker
 
 #: A drop closer than this (in scale units, 0…1) to an earlier marker counts as "equal" to it.
 SNAP = 0.025
-#: Height of one marker in the stack [px].
-MARKER_PX = 64
-STACK_PX = 70
+#: The handle starts this far (scale units) from every earlier marker.
+CLEARANCE = 3 * SNAP
 
 
 def snap(position: float, markers: Sequence[Marker]) -> Marker | None:
@@ -28,6 +31,17 @@ def snap(position: float, markers: Sequence[Marker]) -> Marker | None:
     near = [(abs(m.position - position), i, m) for i, m in enumerate(markers)
             if abs(m.position - position) <= SNAP]
     return min(near)[2] if near else None
+
+
+def start_position(markers: Sequence[Marker]) -> float:
+    """Where the handle starts: the centre if no earlier marker is within :data:`CLEARANCE` of it,
+    else the middle of the widest gap between the ends and the markers (never on a marker)."""
+    positions = sorted({m.position for m in markers})
+    if all(abs(p - 0.5) > CLEARANCE for p in positions):
+        return 0.5
+    edges = [0.0, *positions, 1.0]
+    low, high = max(pairwise(edges), key=lambda gap: gap[1] - gap[0])
+    return round((low + high) / 2, 3)
 
 
 def _columns(markers: Sequence[Marker]) -> dict[float, list[int]]:
@@ -40,7 +54,7 @@ def _columns(markers: Sequence[Marker]) -> dict[float, list[int]]:
 
 def _marker(label: int, left: float, level: int, newest: bool) -> str:
     kind = "hl-marker hl-new" if newest else "hl-marker"
-    return (f'<div class="{kind}" style="left:{100 * left:.2f}%;bottom:{level * STACK_PX}px">'
+    return (f'<div class="{kind}" style="left:{100 * left:.2f}%;--hl-level:{level}">'
             f"{label}</div>")
 
 
@@ -54,10 +68,11 @@ def render_scale(markers: Sequence[Marker], newest_label: int, position: float) 
     for left, labels in columns.items():
         parts += [_marker(label, left, level, False) for level, label in enumerate(labels)]
     parts.append(_marker(newest_label, newest_at, len(columns.get(newest_at, [])), True))
-    tallest = max([len(labels) for labels in columns.values()] + [0]) + 1
-    caption = (f"Same as {landed.label}" if landed is not None else "&nbsp;")
+    # The stack step depends only on the earlier markers, so nothing moves when the newest snaps.
+    gaps = max([len(labels) for labels in columns.values()] + [1])
+    caption = f"Same as {landed.label}" if landed is not None else "&nbsp;"
     return (f'<div class="hl-scale"><div class="hl-caption">{caption}</div>'
-            f'<div class="hl-lane" style="height:{tallest * STACK_PX}px">{"".join(parts)}</div>'
+            f'<div class="hl-lane" style="--hl-gaps:{gaps}">{"".join(parts)}</div>'
             f'<div class="hl-arrow"></div>'
             f'<div class="hl-ends"><span>Strongly Worse</span><span>Strongly Better</span></div>'
             f'</div>')

@@ -14,45 +14,102 @@ from functools import cache
 
 import numpy as np
 
-from app.ui.scale_view import MARKER_PX
+ORANGE, BLUE, GREY, RED = "#f08c00", "#1c7ed6", "#495057", "#c92a2a"
 
-ORANGE, BLUE, GREY = "#f08c00", "#1c7ed6", "#495057"
+#: The kiosk: none of viser's own chrome is visible or reachable on the tablet — no settings gear
+#: (with its editable server URL and dev settings), no « collapse arrow or panel handles, no
+#: connection badge, no notifications, no 3-D canvas — and the panel fills the screen whatever the
+#: window's size or orientation. viser 1.1.1 has no switch for these (upstream issue #392); the
+#: selectors are its client's stable ``data-dock-*`` attributes and the inline styles of its mobile
+#: bottom sheet (``ControlPanel/BottomPanel.tsx``, used below 576 px).
+KIOSK_CSS = """
+html, body { overscroll-behavior: none; -webkit-user-select: none; user-select: none;
+  -webkit-touch-callout: none; }
+canvas, .mantine-Notifications-root, [data-dock-region-handle], [data-dock-header],
+[data-dock-region-resize], [data-dock-region-collapse] { display: none !important; }
+[data-dock-root] > :not([data-dock-region]) { display: none !important; }
+[data-dock-region] { left: 0 !important; right: 0 !important; width: 100% !important; }
+[data-dock-region] [style*="flex-direction: row"] { width: 100% !important; }
+.mantine-Paper-root[style*="position: fixed"] { inset: 0 !important; width: 100% !important;
+  max-height: none !important; height: 100% !important; box-shadow: none !important; }
+.mantine-Paper-root[style*="position: fixed"] [style*="width: 20em"] { width: 100% !important; }
+.mantine-Paper-root[style*="position: fixed"] [style*="height: 3.5em"],
+.mantine-Paper-root[style*="position: fixed"] .mantine-Divider-root { display: none !important; }
+"""
 
-#: The tablet: no 3-D canvas, big text, big buttons, the slider as a big orange drag handle.
+#: When the connection drops, viser keeps the last screen but dims it and blocks its input (its
+#: ``DisconnectedGate``: inline ``opacity: 0.5; pointer-events: none``). Over that, the whole
+#: screen asks the participant to call the experimenter; it goes away when the page reconnects and
+#: the server draws the current screen again. ``.hl-live`` is an empty marker in every screen.
+OFFLINE_CSS = f"""
+body:has([style*="opacity: 0.5"][style*="pointer-events: none"] .hl-live)::after {{
+  content: "Please tell the experimenter.\\A\\A The tablet has lost its connection.";
+  white-space: pre-wrap; position: fixed; inset: 0; z-index: 2147483647; display: flex;
+  align-items: center; justify-content: center; text-align: center; padding: 24px;
+  background: white; color: {RED}; font: 700 var(--hl-title) / 1.25 sans-serif; }}
+"""
+
+#: The tablet's own look: big type, big buttons, the slider as a big orange drag handle, the scale
+#: at a fixed height (stacked "equal" markers close up rather than push Confirm down), sizes for a
+#: tablet in either orientation and smaller ones for a phone.
 TABLET_CSS = f"""
-canvas, .mantine-Notification-root {{ display: none !important; }}
-.hl-title {{ font-size: 52px; font-weight: 700; text-align: center; padding: 24px 8px 8px; }}
-.hl-title.hl-go {{ color: #2b8a3e; font-size: 140px; padding-top: 96px; }}
-.hl-title.hl-question {{ font-size: 34px; font-weight: 600; padding: 24px 8px 8px; }}
-.hl-detail {{ font-size: 26px; text-align: center; color: #495057; padding: 0 8px 12px; }}
-.hl-scale {{ margin: 8px 40px 0; }}
-.hl-lane {{ position: relative; }}
-.hl-marker {{ position: absolute; transform: translateX(-50%); width: {MARKER_PX}px;
-  height: {MARKER_PX}px; border-radius: 50%; background: {BLUE}; color: white;
-  font: 700 34px/{MARKER_PX}px sans-serif; text-align: center; }}
+:root {{ --hl-title: 52px; --hl-text: 26px; --hl-marker: 64px; --hl-stack: 70px;
+  --hl-lane: clamp(150px, 36vh, 380px); --hl-thumb: 80px; --hl-button: 76px;
+  --hl-button-text: 30px; }}
+@media (max-height: 900px) and (orientation: landscape) {{
+  :root {{ --hl-title: 44px; --hl-text: 24px; --hl-marker: 58px; --hl-thumb: 72px;
+    --hl-button: 66px; }} }}
+@media (max-width: 600px) {{
+  :root {{ --hl-title: 32px; --hl-text: 18px; --hl-marker: 42px; --hl-stack: 46px;
+    --hl-thumb: 56px; --hl-button: 58px; --hl-button-text: 22px; }} }}
+.hl-title {{ font-size: var(--hl-title); font-weight: 700; text-align: center;
+  padding: 16px 8px 4px; line-height: 1.2; }}
+.hl-title.hl-go {{ color: #2b8a3e; font-size: calc(2.6 * var(--hl-title)); padding-top: 12vh; }}
+.hl-title.hl-question {{ font-size: calc(0.68 * var(--hl-title)); font-weight: 600; }}
+.hl-title.hl-unused {{ color: {GREY}; padding-top: 12vh; }}
+.hl-detail {{ font-size: var(--hl-text); text-align: center; color: {GREY}; padding: 0 8px 8px;
+  line-height: 1.35; }}
+.hl-count {{ font-size: var(--hl-text); text-align: center; color: {GREY}; padding-top: 8px; }}
+.hl-scale {{ margin: 0 calc(var(--hl-marker) / 2 + 8px); }}
+.hl-lane {{ position: relative; height: var(--hl-lane); }}
+.hl-marker {{ position: absolute; transform: translateX(-50%); width: var(--hl-marker);
+  height: var(--hl-marker); border-radius: 50%; background: {BLUE}; color: white;
+  font: 700 calc(0.53 * var(--hl-marker)) / var(--hl-marker) sans-serif; text-align: center;
+  box-shadow: 0 0 0 2px white;
+  bottom: calc(var(--hl-level) * min(var(--hl-stack),
+    (var(--hl-lane) - var(--hl-marker)) / var(--hl-gaps))); }}
 .hl-marker.hl-new {{ background: {ORANGE}; box-shadow: 0 0 0 4px white, 0 0 0 7px {ORANGE}; }}
 .hl-arrow {{ position: relative; height: 14px; background: {GREY}; margin-top: 10px;
   border-radius: 7px 0 0 7px; }}
 .hl-arrow::after {{ content: ""; position: absolute; right: -26px; top: -15px;
   border-left: 30px solid {GREY}; border-top: 22px solid transparent;
   border-bottom: 22px solid transparent; }}
-.hl-ends {{ display: flex; justify-content: space-between; font-size: 26px; font-weight: 600;
-  padding-top: 8px; }}
-.hl-caption {{ text-align: center; font-size: 30px; font-weight: 700; color: {ORANGE};
-  min-height: 40px; }}
+.hl-ends {{ display: flex; justify-content: space-between; font-size: var(--hl-text);
+  font-weight: 600; padding-top: 8px; }}
+.hl-caption {{ text-align: center; font-size: calc(1.15 * var(--hl-text)); font-weight: 700;
+  color: {ORANGE}; height: calc(1.5 * var(--hl-text)); }}
 .mantine-Flex-root:has(> div > .mantine-Flex-root > .mantine-Slider-root) > :first-child {{
   display: none; }}
-.mantine-Slider-root {{ margin: 28px 31px 0; height: 88px; }}
+.mantine-Slider-root {{ margin: calc(var(--hl-thumb) / 3) calc(var(--hl-marker) / 2 + 8px) 0;
+  height: calc(var(--hl-thumb) + 8px); }}
 .mantine-Slider-track::before {{ background: #dee2e6 !important; }}
 .mantine-Slider-bar {{ background: transparent !important; }}
-.mantine-Slider-thumb {{ width: 80px !important; height: 80px !important; border-radius: 50% !important;
-  background: {ORANGE} !important; border: 5px solid white !important;
+.mantine-Slider-thumb {{ width: var(--hl-thumb) !important; height: var(--hl-thumb) !important;
+  border-radius: 50% !important; background: {ORANGE} !important; border: 5px solid white !important;
   box-shadow: 0 2px 8px rgba(0,0,0,.35); }}
-.mantine-Slider-thumb::after {{ content: "\\2194"; color: white; font: 700 40px/70px sans-serif;
-  position: absolute; inset: 0; text-align: center; }}
-.mantine-Slider-markWrapper {{ display: none; }}
+.mantine-Slider-thumb::after {{ content: "\\2194"; color: white; position: absolute; inset: 0;
+  font: 700 calc(0.5 * var(--hl-thumb)) / calc(var(--hl-thumb) - 10px) sans-serif;
+  text-align: center; }}
+.mantine-Slider-markWrapper, .mantine-Slider-label {{ display: none !important; }}
 .mantine-NumberInput-root, .mantine-Slider-root + div {{ display: none !important; }}
-.mantine-Button-root {{ height: 84px !important; font-size: 32px !important; margin: 8px 0; }}
+.mantine-Button-root {{ height: var(--hl-button) !important; font-size: var(--hl-button-text) !important;
+  margin: 4px 0; }}
+.mantine-Button-root[style*="--mantine-color-gray"] {{ background: white !important;
+  color: #212529 !important; border: 2px solid #adb5bd !important; }}
+.mantine-Button-root[style*="--mantine-color-dark"] {{ background: white !important;
+  color: {GREY} !important; border: none !important; width: auto !important;
+  height: calc(0.7 * var(--hl-button)) !important; font-size: var(--hl-text) !important; }}
+.mantine-Button-root:disabled {{ opacity: 0.45; }}
 """
 
 #: The dashboard: viser's default look, a more visible Stop.

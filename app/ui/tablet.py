@@ -1,39 +1,62 @@
 """The participant's tablet: one thing at a time, rendered from the session state alone.
 
-Screens: "Please wait" (nothing to do), "Go!" (a trial runs; with a beep), the relative scale (place
-the last handover), the validation rating (better / the same / worse than the previous one), one
-question at a time (Q1–Q3), "Thank you". The tablet never shows θ, phase names or anything else that
-tells conditions apart, and its only actions are placing, rating and answering. Each action names
-the interaction its screen showed, so a stale screen (a reload, a double tap) cannot rate twice.
+Screens: "Please wait" (nothing to do; it says what comes next), the introduction to the validation
+pairs, "Go!" (a trial runs; with a beep), the relative scale (place the last handover), the
+validation rating (better / the same / worse than the one before), the questionnaire one question
+per screen, "Thank you". The tablet never shows θ, phase names or anything else that tells
+conditions apart, and its only actions are placing, rating and answering. Each action names the
+interaction its screen showed, so a stale screen (a reload, a double tap) cannot rate twice.
+
+Answers are deliberate: input counts only once a screen has been seen for
+:data:`~app.ui.deliberate.SETTLE_S`; Confirm is disabled until the handle has moved, and the handle
+never starts on an earlier marker; a rating or an answer is a choice followed by Confirm or Next.
+
+One tablet per session: the first page connected to the tablet port is the study's tablet; any
+other page shows "This tablet is not in use" and is offered nothing to rate, until the first one
+closes. :meth:`Tablet.connected_count` tells the dashboard how many pages are open.
+
+The page is a kiosk: viser's own chrome is hidden by CSS delivered with every screen
+(:data:`~app.ui.style.KIOSK_CSS`), and a dropped connection covers the screen with "Please tell the
+experimenter" (:data:`~app.ui.style.OFFLINE_CSS`).
 """
 
 from __future__ import annotations
 
 import logging
 import threading
+from collections.abc import Callable
 from typing import Literal
 
 import viser
 from pydantic import BaseModel, ConfigDict
 
+from app.protocol.plan import Rating
 from app.protocol.state import Marker, Step
 from app.session.runner import RunnerView, SessionRunner
-from app.ui.scale_view import render_scale, screen_text, snap
-from app.ui.style import TABLET_CSS, audio_cue, style_block
+from app.ui.deliberate import SETTLE_S, Settle
+from app.ui.questionnaire import Draft
+from app.ui.scale_view import render_scale, screen_text, snap, start_position
+from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
 from robot_io.stages import Stage
 from session_store.errors import RefusedAction
-from session_store.models import QUESTION_BY_ID, QUESTIONS
+from session_store.models import QUESTION_BY_ID, QUESTIONS, Phase
 
 log = logging.getLogger(__name__)
 
 #: Validation ratings as the participant reads them → the engine's values.
 RATINGS: tuple[tuple[str, str], ...] = (("Better", "better"), ("The same", "equal"),
                                         ("Worse", "worse"))
+#: The first line of every screen's CSS block: the kiosk, the offline cover, the tablet's look,
+#: and the marker the offline cover looks for.
+PAGE_STYLE = style_block(KIOSK_CSS + OFFLINE_CSS + TABLET_CSS) + '<span class="hl-live"></span>'
 
 #: The stages of the handover cycle during which the tablet shows "Go!" (before it: please wait).
 GO_STAGES = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
+#: After the hold, until the trial ends and can be rated: the robot moves back.
+BACK_STAGES = frozenset({Stage.NOT_TAKEN, Stage.RETRACT, Stage.DONE})
 
-ScreenKind = Literal["wait", "go", "place", "rate", "question", "done"]
+ScreenKind = Literal["wait", "pairs", "go", "back", "place", "rate", "question", "done",
+                     "unused"]
 
 
 class Screen(BaseModel):
@@ -45,7 +68,28 @@ class Screen(BaseModel):
     interaction: int | None = None
     label: int | None = None  # the handover's number within the batch
     markers: tuple[Marker, ...] = ()
-    question: str | None = None
+    questions: tuple[str, ...] = ()  # the questions still unanswered
+    next_up: str = ""  # what "Please wait" announces, in the participant's words
+
+
+UNUSED = Screen(kind="unused")
+
+
+def _next_up(view: RunnerView) -> Screen:
+    """"Please wait", saying what comes next; before the first validation pair, the pairs' plain
+    introduction. Counts are 1-based and never tell the conditions apart."""
+    slot = view.state.slot
+    if slot is None:
+        return Screen(kind="wait")
+    if slot.phase is Phase.VALIDATION:
+        if slot.batch == 1 and slot.position == 1:
+            return Screen(kind="pairs")
+        which = "first" if slot.position == 1 else "second"
+        return Screen(kind="wait", next_up=f"Next: the {which} handover of a new pair."
+                      if slot.position == 1 else f"Next: the {which} handover of this pair.")
+    if slot.rating is Rating.SCALE and slot.batch_size > 1:
+        return Screen(kind="wait", next_up=f"Next: handover {slot.position} of {slot.batch_size}.")
+    return Screen(kind="wait", next_up="Next: one more handover.")
 
 
 def screen_for(view: RunnerView) -> Screen:
@@ -56,6 +100,8 @@ def screen_for(view: RunnerView) -> Screen:
     step, slot = state.step, state.slot
     if step is Step.RUNNING and state.stage in GO_STAGES:  # the cue: the robot starts with it
         return Screen(kind="go", interaction=slot.interaction)
+    if step is Step.RUNNING and state.stage in BACK_STAGES:
+        return Screen(kind="back", interaction=slot.interaction)
     if step is Step.PLACE:
         return Screen(kind="place", interaction=slot.interaction, label=slot.position,
                       markers=tuple(state.markers))
@@ -63,10 +109,10 @@ def screen_for(view: RunnerView) -> Screen:
         return Screen(kind="rate", interaction=slot.interaction)
     if step is Step.ANSWER:
         return Screen(kind="question",
-                      question=next(q.id for q in QUESTIONS if q.id not in state.answers))
+                      questions=tuple(q.id for q in QUESTIONS if q.id not in state.answers))
     if step is Step.DONE:
         return Screen(kind="done")
-    return Screen(kind="wait")
+    return _next_up(view)
 
 
 def answer_options(question: str) -> list[tuple[str, str]]:
@@ -79,36 +125,81 @@ def answer_options(question: str) -> list[tuple[str, str]]:
             for i, text in enumerate(q.answers, start=1)]
 
 
-class TabletClient:
-    """One connected tablet. :meth:`show` redraws only when the screen changed."""
+class Choice:
+    """Buttons of which the participant picks one (highlighted orange, changeable); a separate
+    Confirm / Next button then acts on the choice."""
 
-    def __init__(self, client: viser.ClientHandle, runner: SessionRunner) -> None:
-        self.client, self.runner = client, runner
+    def __init__(self, gui: viser.GuiApi, options: list[tuple[str, str]], chosen: str | None,
+                 on_choose: Callable[[str], None]) -> None:
+        self.buttons = {value: gui.add_button(text, color="orange" if value == chosen else "gray")
+                        for text, value in options}
+        for value, button in self.buttons.items():
+            button.on_click(lambda _, value=value: on_choose(value))
+
+    def show(self, chosen: str | None) -> None:
+        for value, button in self.buttons.items():
+            button.color = "orange" if value == chosen else "gray"
+
+
+class TabletClient:
+    """One connected page. :meth:`show` redraws only when the screen changed; every input passes
+    :meth:`_input` (settled, one at a time)."""
+
+    def __init__(self, client: viser.ClientHandle, runner: SessionRunner,
+                 redraw: Callable[[], None], settle_s: float = SETTLE_S) -> None:
+        self.client, self.runner, self._redraw = client, runner, redraw
         self.screen: Screen | None = None
-        self._lock = threading.Lock()
+        self.settle = Settle(settle_s)
+        self._draft: Draft | None = None  # the questionnaire's choices before the last Next
+        self._choice: Choice | None = None
+        self._next: viser.GuiButtonHandle | None = None
+        self._lock = threading.RLock()
+        self._acting = threading.Lock()
 
     def show(self, screen: Screen) -> None:
         with self._lock:
-            if screen == self.screen:
-                return
+            if screen == self.screen or self._acting.locked():
+                return  # an action in progress redraws when it is done
             self.screen = screen
-            gui = self.client.gui
-            with self.client.atomic():
-                gui.reset()
-                gui.add_html(style_block(TABLET_CSS))
-                build = {"wait": self._wait, "go": self._go, "place": self._place,
-                         "rate": self._rate, "question": self._question, "done": self._done}
-                build[screen.kind](gui, screen)
+            self._draft = Draft(questions=screen.questions) if screen.kind == "question" else None
+            self._draw()
+
+    def _draw(self) -> None:
+        screen, gui = self.screen, self.client.gui
+        with self.client.atomic():
+            gui.reset()
+            gui.add_html(PAGE_STYLE)
+            build = {"wait": self._wait, "pairs": self._pairs, "go": self._go, "back": self._back,
+                     "place": self._place, "rate": self._rate, "question": self._question,
+                     "done": self._done, "unused": self._unused}
+            build[screen.kind](gui, screen)
+        self.settle.restart()
 
     # -- the screens: each adds its handles and callbacks ----------------------------------------
     def _wait(self, gui: viser.GuiApi, screen: Screen) -> None:
-        gui.add_html(screen_text("Please wait", "The next handover is being prepared."))
+        gui.add_html(screen_text("Please wait", screen.next_up or "The next handover is being "
+                                                                  "prepared."))
+
+    def _pairs(self, gui: viser.GuiApi, screen: Screen) -> None:
+        gui.add_html(screen_text("Now: pairs of handovers",
+                                 "The robot will now hand you the object twice in a row. After "
+                                 "the second time, tell us whether it felt better, the same, or "
+                                 "worse than the first.", "hl-question")
+                     + '<div class="hl-count">Take the object when this screen tells you to.</div>')
 
     def _go(self, gui: viser.GuiApi, screen: Screen) -> None:
         gui.add_html(screen_text("Go!", "Take the object from the robot.", "hl-go") + audio_cue())
 
+    def _back(self, gui: viser.GuiApi, screen: Screen) -> None:
+        gui.add_html(screen_text("One moment", "The robot is moving back."))
+
     def _done(self, gui: viser.GuiApi, screen: Screen) -> None:
         gui.add_html(screen_text("Thank you!", "The session is complete."))
+
+    def _unused(self, gui: viser.GuiApi, screen: Screen) -> None:
+        gui.add_html(screen_text("This tablet is not in use",
+                                 "Another page is open as the study's tablet. "
+                                 "Please close this page.", "hl-unused"))
 
     def _place(self, gui: viser.GuiApi, screen: Screen) -> tuple[viser.GuiSliderHandle,
                                                                  viser.GuiButtonHandle]:
@@ -116,70 +207,145 @@ class TabletClient:
                                  "Drag the orange handle to where this handover belongs. "
                                  "Drop it on a number if it felt the same."))
         markers = list(screen.markers)
-        scale = gui.add_html(render_scale(markers, screen.label, 0.5))
-        slider = gui.add_slider("", min=0.0, max=1.0, step=0.001, initial_value=0.5)
-        confirm = gui.add_button("Confirm", color="green")
+        start = start_position(markers)
+        scale = gui.add_html(render_scale(markers, screen.label, start))
+        slider = gui.add_slider("", min=0.0, max=1.0, step=0.001, initial_value=start)
+        confirm = gui.add_button("Confirm", color="green", disabled=True)
 
         @slider.on_update
         def _(_: viser.GuiEvent) -> None:
             scale.content = render_scale(markers, screen.label, slider.value)
+            if self.settle.ready():  # a drag carried over from the screen before does not count
+                confirm.disabled = False
 
-        @confirm.on_click
-        def _(_: viser.GuiEvent) -> None:
+        def place() -> None:
+            if confirm.disabled:
+                return  # the handle has not moved: nothing to confirm
             landed = snap(slider.value, markers)
-            self._act(lambda: self.runner.place(
-                screen.interaction, position=None if landed else round(slider.value, 3),
-                equal_to=landed.interaction if landed else None))
+            self.runner.place(screen.interaction,
+                              position=None if landed else round(slider.value, 3),
+                              equal_to=landed.interaction if landed else None)
 
+        confirm.on_click(lambda _: self._input(place))
         return slider, confirm
 
-    def _rate(self, gui: viser.GuiApi, screen: Screen) -> list[viser.GuiButtonHandle]:
-        gui.add_html(screen_text("Compared with the previous handover, this one was …",
+    def _rate(self, gui: viser.GuiApi, screen: Screen) -> Choice:
+        gui.add_html(screen_text("Compared with the handover before it, this one felt …",
                                  kind="hl-question"))
-        return [self._choice(gui, text, lambda value=value: self.runner.rate(screen.interaction,
-                                                                             value))
-                for text, value in RATINGS]
+        chosen: list[str] = []
 
-    def _question(self, gui: viser.GuiApi, screen: Screen) -> list[viser.GuiButtonHandle]:
-        gui.add_html(screen_text(QUESTION_BY_ID[screen.question].text, kind="hl-question"))
-        return [self._choice(gui, text, lambda value=value: self.runner.answer(screen.question,
-                                                                               value))
-                for text, value in answer_options(screen.question)]
+        def choose(value: str) -> None:
+            chosen[:] = [value]
+            choice.show(value)
+            confirm.disabled = False
 
-    def _choice(self, gui: viser.GuiApi, text: str, action) -> viser.GuiButtonHandle:
-        button = gui.add_button(text)
-        button.on_click(lambda _: self._act(action))
-        return button
+        def rate() -> None:
+            if chosen:
+                self.runner.rate(screen.interaction, chosen[0])
 
-    def _act(self, action) -> None:
-        """A participant's action; a refusal (stale screen, double tap) is logged, not shown: the
-        screen is redrawn from the state anyway."""
+        choice = Choice(gui, list(RATINGS), None, lambda value: self._input(lambda: choose(value)))
+        confirm = gui.add_button("Confirm", color="green", disabled=True)
+        confirm.on_click(lambda _: self._input(rate))
+        return choice
+
+    def _question(self, gui: viser.GuiApi, screen: Screen) -> Choice:
+        draft = self._draft
+        if not draft.first:
+            gui.add_button("‹ Back", color="dark").on_click(
+                lambda _: self._input(lambda: self._turn(draft.back())))
+        gui.add_html(f'<div class="hl-count">Question {draft.number} of {len(QUESTIONS)}</div>'
+                     + screen_text(QUESTION_BY_ID[draft.question].text, kind="hl-question"))
+        choice = Choice(gui, answer_options(draft.question), draft.choice,
+                        lambda value: self._input(lambda: self._choose(value)))
+        self._next = gui.add_button("Done" if draft.last else "Next", color="green",
+                                    disabled=draft.choice is None)
+        self._next.on_click(lambda _: self._input(self._forward))
+        self._choice = choice
+        return choice
+
+    # -- the questionnaire's moves (on the page until the last Next) -----------------------------
+    def _choose(self, value: str) -> None:
+        self._draft = self._draft.choose(value)
+        self._choice.show(value)
+        self._next.disabled = False
+
+    def _turn(self, draft: Draft) -> None:
+        self._draft = draft
+        with self._lock:
+            self._draw()
+
+    def _forward(self) -> None:
+        draft = self._draft
+        if draft.choice is None:
+            return
+        if not draft.last:
+            self._turn(draft.next())
+            return
+        for question, value in draft.complete():
+            try:
+                self.runner.answer(question, value)
+            except RefusedAction as exc:  # e.g. answered meanwhile by the simulated participant
+                log.warning("tablet answer refused: %s", exc)
+
+    # -- input ------------------------------------------------------------------------------------
+    def _input(self, action: Callable[[], None]) -> None:
+        """A participant's input: ignored while the screen settles or while the page's previous
+        input is still being handled; a refusal (stale screen) is logged, not shown: the page is
+        redrawn from the state anyway."""
+        if not self.settle.ready() or not self._acting.acquire(blocking=False):
+            log.info("tablet input ignored (screen shown < %.1f s ago or busy)",
+                     self.settle.settle_s)
+            return
         try:
             action()
         except RefusedAction as exc:
             log.warning("tablet action refused: %s", exc)
-        self.show(screen_for(self.runner.view))
+        finally:
+            self._acting.release()
+        self._redraw()
 
 
 class Tablet:
-    """The tablet server: one :class:`TabletClient` per connection, redrawn on every change."""
+    """The tablet server: one :class:`TabletClient` per open page; the first is the study's
+    tablet, the others are told they are not in use. ``settle_s``: input is ignored for this
+    long after each screen change."""
 
-    def __init__(self, server: viser.ViserServer, runner: SessionRunner) -> None:
-        self.server, self.runner = server, runner
-        self.clients: dict[int, TabletClient] = {}
+    def __init__(self, server: viser.ViserServer, runner: SessionRunner,
+                 settle_s: float = SETTLE_S) -> None:
+        self.server, self.runner, self.settle_s = server, runner, settle_s
+        self._pages: dict[int, TabletClient] = {}  # in the order they connected
+        self._lock = threading.RLock()
         server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
         server.gui.main_panel.dock_left()
         server.gui.main_panel.set_width(4000)
         server.scene.configure_environment_map(hdri=None)
         server.on_client_connect(self._connect)
-        server.on_client_disconnect(lambda client: self.clients.pop(client.client_id, None))
+        server.on_client_disconnect(self._disconnect)
         runner.subscribe(self.refresh)
 
+    def connected_count(self) -> int:
+        """How many pages are open on the tablet port (exactly one during a session)."""
+        with self._lock:
+            return len(self._pages)
+
     def _connect(self, client: viser.ClientHandle) -> None:
-        tablet = self.clients[client.client_id] = TabletClient(client, self.runner)
-        tablet.show(screen_for(self.runner.view))
+        with self._lock:
+            self._pages[client.client_id] = TabletClient(client, self.runner, self.redraw,
+                                                         self.settle_s)
+        log.info("tablet page %d connected (%d open)", client.client_id, self.connected_count())
+        self.redraw()
+
+    def _disconnect(self, client: viser.ClientHandle) -> None:
+        with self._lock:
+            self._pages.pop(client.client_id, None)
+        log.info("tablet page %d closed (%d open)", client.client_id, self.connected_count())
+        self.redraw()
+
+    def redraw(self) -> None:
+        self.refresh(self.runner.view)
 
     def refresh(self, view: RunnerView) -> None:
         screen = screen_for(view)
-        for tablet in list(self.clients.values()):
-            tablet.show(screen)
+        with self._lock:
+            for i, page in enumerate(list(self._pages.values())):
+                page.show(screen if i == 0 else UNUSED)

@@ -1,1 +1,1 @@
-"""Helpers shared by the test folders."""
+"""Helpers shared by the test packages (browser driving, sessions)."""

@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 import pytest
-from browser_helpers import (
+from support.browser import (
     chromium,
     click,
     confirm_placement,
@@ -60,7 +60,7 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
             watch_stages(dashboard, "[hold]", seen)
             if position == 0.3:
                 shot(dashboard, screens, "dashboard-rehearsal-hold")
-            assert tablet_screen(tablet, not_="go") == "place"
+            assert tablet_screen(tablet, not_=("go", "back")) == "place"
             touch_drag_to(tablet, position)
             confirm_placement(tablet)
             assert tablet_screen(tablet, not_="place") == "wait"

@@ -2,13 +2,16 @@
 
 The server runs as a real subprocess (real viser, real SQLite, real learner process); pages are real
 browser pages. Touch drags are real touch events sent through the DevTools protocol
-(``Input.dispatchTouchEvent``), the same path a finger on a tablet takes.
+(``Input.dispatchTouchEvent``), the same path a finger on a tablet takes; taps are
+``page.touchscreen.tap``. The tablet ignores input for ``SETTLE_S`` after each screen change
+(app/ui/deliberate.py), so the participant's helpers let a screen settle before they touch it.
 """
 
 from __future__ import annotations
 
 import os
 import re
+import shutil
 import signal
 import socket
 import subprocess
@@ -21,6 +24,7 @@ from pathlib import Path
 
 from playwright.sync_api import Browser, Page, sync_playwright
 
+from app.ui.deliberate import SETTLE_S
 from session_store.models import QUESTIONS
 
 CHROMIUM = "/usr/bin/chromium"
@@ -28,24 +32,31 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
                  "--autoplay-policy=no-user-gesture-required"]
 TOKEN = "test-token"
-#: The short protocol of tests/session_helpers.SHORT in a lab configuration file (`--config`).
-SHORT_TOML = ("[protocol]\ninitial_trials = 3\nbatch_size = 3\nlearning_batches = 1\n"
-              "best_trials = 1\nvalidation_batches = 1\n")
+#: The short protocol of tests/session_helpers.SHORT, as the [protocol] table of a lab config.
+SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
+              "validation_batches = 1\n")
 TIMEOUT_MS = 60_000
 
 
-SCREENS = {"place": "Handover", "wait": "Please wait", "rate": "Compared with",
-           "done": "Thank you", "go": "Go!",
+SCREENS = {"unused": "not in use", "pairs": "pairs of handovers", "back": "moving back",
+           "place": "Handover",
+           "wait": "Please wait", "rate": "Compared with", "done": "Thank you", "go": "Go!",
            **{q.id: q.text[:30] for q in QUESTIONS}}
 
 
-def tablet_screen(page: Page, not_: str | None = None, timeout_s: float = 90.0) -> str:
-    """Wait until the tablet shows a known screen other than ``not_``; return its name."""
+def tablet_screen(page: Page, not_: str | tuple[str, ...] = (), timeout_s: float = 90.0,
+                  unused_ok: bool = False) -> str:
+    """Wait until the tablet shows a known screen other than ``not_`` (one name or several);
+    return its name. "Not in use" counts only with ``unused_ok`` (a reloaded page is briefly the
+    second page, until the server has seen the old one close)."""
+    skip = {not_} if isinstance(not_, str) else set(not_)
+    if not unused_ok:
+        skip.add("unused")
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         text = page.inner_text("body")
         for name, marker in SCREENS.items():
-            if marker in text and name != not_:
+            if marker in text and name not in skip:
                 return name
         time.sleep(0.02)
     raise AssertionError(f"tablet shows no known screen: {page.inner_text('body')[:300]}")
@@ -60,17 +71,60 @@ def start_trial(dashboard: Page) -> None:
 
 
 def run_trial(dashboard: Page, tablet: Page) -> str:
-    """A trial driven from the dashboard; the tablet shows "Go!", then the screen after the trial."""
+    """Start trial, Object loaded and Go on the dashboard; the tablet shows "Go!", then the
+    screen after the trial."""
+    before = tablet_screen(tablet)  # "Please wait" or the introduction to the pairs
     start_trial(dashboard)
-    assert tablet_screen(tablet, not_="wait") == "go"
-    return tablet_screen(tablet, not_="go")
+    assert tablet_screen(tablet, not_=before) == "go"
+    return tablet_screen(tablet, not_=("go", "back"))  # the robot moves back, then the rating
+
+
+def settle() -> None:
+    """Let the screen just shown settle, as a participant reading it would (input earlier than
+    SETTLE_S after a screen change is ignored by design)."""
+    time.sleep(SETTLE_S + 0.1)
+
+
+def double_tap(page: Page, name: str, gap_s: float = 0.15) -> None:
+    """Two finger taps ``gap_s`` apart on the spot where button ``name`` is now (the second lands
+    on whatever the first one brought up)."""
+    point = tap_point(page, name)
+    page.touchscreen.tap(*point)
+    time.sleep(gap_s)
+    page.touchscreen.tap(*point)
+
+
+def answer_questionnaire(tablet: Page, answers: dict[str, str]) -> float:
+    """Choose each question's answer (button text) and go on with Next, then Done; returns the
+    seconds from the tap on Done until the tablet shows the screen after the questionnaire."""
+    for i, q in enumerate(QUESTIONS):
+        assert tablet_screen(tablet) == q.id
+        settle()
+        tap(tablet, answers[q.id])
+        if i < len(QUESTIONS) - 1:
+            tap(tablet, "Next")
+            tablet_screen(tablet, not_=q.id)
+    return timed_tap(tablet, "Done", QUESTIONS[-1].id)
+
+
+def rate(tablet: Page, answer: str, folder: Path | None = None) -> float:
+    """Choose a validation rating (screenshot ``tablet-rate`` into ``folder`` then) and Confirm
+    it; seconds from the tap on Confirm to the next screen."""
+    settle()
+    tap(tablet, answer)
+    if folder is not None:
+        tablet.wait_for_function("() => [...document.querySelectorAll('button')].some("
+                                 "b => !b.disabled && b.innerText.trim() === 'Confirm')")
+        shot(tablet, folder, "tablet-rate")
+    return timed_tap(tablet, "Confirm", "rate")
 
 
 def confirm_placement(tablet: Page) -> float:
     """Tap Confirm on the scale; seconds until the tablet shows the next screen (the engine has
     stored the placement before it publishes the next state)."""
+    point = tap_point(tablet, "Confirm")
     began = time.perf_counter()
-    tap(tablet, "Confirm")
+    tablet.touchscreen.tap(*point)
     tablet.wait_for_function("() => !document.querySelector('.hl-scale')", polling="raf")
     return time.perf_counter() - began
 
@@ -105,22 +159,24 @@ class Served:
 
 
 @contextmanager
-def serve(tmp: Path, *extra: str, rate: int = 125) -> Iterator[Served]:
-    """`handover serve` on two free loopback ports with the short protocol (125 Hz for speed)."""
-    lab = tmp / "lab.toml"
-    lab.write_text(SHORT_TOML + f"[loop]\nrate_hz = {rate}\n")
+def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML
+          ) -> Iterator[Served]:
+    """`handover serve` on two free loopback ports with a lab config of the short protocol
+    (``protocol_toml`` is its [protocol] table) at ``rate`` Hz (125 for speed)."""
+    config = tmp / "lab.toml"
+    config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}")
     study, log = tmp / "study", tmp / "serve.log"
     tablet, dashboard = free_port(), free_port()
     command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
-               "--config", str(lab), "--token", TOKEN, *extra]
+               "--config", str(config), "--token", TOKEN, *extra]
     with log.open("w") as out:
         process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
                                    env={**os.environ, "PYTHONUNBUFFERED": "1"})
     served = Served(process, f"http://127.0.0.1:{tablet}", f"http://127.0.0.1:{dashboard}",
                     study, log)
     try:
-        deadline = time.monotonic() + 90
+        deadline = time.monotonic() + 60
         while "dashboard token" not in log.read_text():
             assert process.poll() is None, log.read_text()
             assert time.monotonic() < deadline, "server did not start"
@@ -146,8 +202,9 @@ def open_page(browser: Browser, url: str, touch: bool = False,
               size: tuple[int, int] = (1024, 768)) -> Page:
     context = browser.new_context(viewport={"width": size[0], "height": size[1]},
                                   has_touch=touch, is_mobile=False)
-    # Hide viser's "Software WebGL rendering detected" notice of headless Chromium (screenshots).
-    context.add_init_script("document.addEventListener('DOMContentLoaded', () => {"
+    if not touch:  # the tablet hides viser's notices itself (app/ui/style.py, KIOSK_CSS)
+        # Hide viser's "Software WebGL rendering detected" notice of headless Chromium (screenshots).
+        context.add_init_script("document.addEventListener('DOMContentLoaded', () => {"
                             "const s = document.createElement('style');"
                             "s.textContent = '.mantine-Notification-root{display:none!important}';"
                             "document.head.appendChild(s); });")
@@ -186,12 +243,30 @@ def click(page: Page, name: str) -> None:
     button(page, name).click()  # waits until it is visible and enabled
 
 
-def tap(page: Page, name: str) -> None:
-    """A finger tap on a button (touch events, not mouse)."""
+def tap_point(page: Page, name: str, enabled: bool = True) -> tuple[float, float]:
+    """The centre of button ``name`` once it is visible (and enabled, unless ``enabled`` is
+    False: to tap a disabled button)."""
     target = button(page, name)
     target.wait_for(state="visible")
+    if enabled:
+        page.wait_for_function("b => !b.disabled", arg=target.element_handle())
     box = target.bounding_box()
-    page.touchscreen.tap(box["x"] + box["width"] / 2, box["y"] + box["height"] / 2)
+    return box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+
+
+def tap(page: Page, name: str, enabled: bool = True) -> None:
+    """A finger tap on a button (touch events, not mouse)."""
+    page.touchscreen.tap(*tap_point(page, name, enabled))
+
+
+def timed_tap(page: Page, name: str, screen: str) -> float:
+    """Tap ``name`` and return the seconds until the tablet shows a screen other than ``screen``
+    (the server has stored the answer before it publishes the next state)."""
+    point = tap_point(page, name)
+    began = time.perf_counter()
+    page.touchscreen.tap(*point)
+    tablet_screen(page, not_=screen)
+    return time.perf_counter() - began
 
 
 def fill(page: Page, label: str, value: str) -> None:
@@ -206,7 +281,9 @@ def unlock_dashboard(page: Page) -> None:
 
 
 def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:
-    """Drag the scale's handle (the slider thumb) with one finger to ``fraction`` of the track."""
+    """Drag the scale's handle (the slider thumb) with one finger to ``fraction`` of the track,
+    once the screen has settled."""
+    settle()
     track = page.locator(".mantine-Slider-track").first.bounding_box()
     thumb = page.locator(".mantine-Slider-thumb").first.bounding_box()
     y = thumb["y"] + thumb["height"] / 2
@@ -222,6 +299,12 @@ def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:
     for i in range(1, steps + 1):
         touch("touchMove", x0 + (x1 - x0) * i / steps)
         time.sleep(0.01)
+    # While the finger is down, no number is shown: no value label, no number box, no end marks.
+    shown = page.evaluate("() => { const f = document.querySelector('.mantine-Slider-root')"
+                          ".closest('.mantine-Flex-root'); const box = f.querySelector("
+                          "'.mantine-NumberInput-root'); return [f.innerText, box ? "
+                          "box.offsetParent !== null : false]; }")
+    assert not re.search(r"\d", shown[0]) and not shown[1], f"a number shows while dragging: {shown}"
     touch("touchEnd", x1)
     cdp.detach()
     # The server redraws the newest marker where it received the handle: wait until it has.
@@ -242,3 +325,14 @@ def shot(page: Page, folder: Path, name: str) -> Path:
     path = folder / f"{name}.png"
     page.screenshot(path=str(path))
     return path
+
+
+DOC_FIGURES = Path(__file__).parents[2] / "docs" / "figures"
+
+
+def publish(paths: list[Path]) -> None:
+    """With HANDOVER_DOC_FIGURES=1, copy screenshots to docs/figures/ as ui-<name>.png."""
+    if os.environ.get("HANDOVER_DOC_FIGURES") == "1":
+        DOC_FIGURES.mkdir(exist_ok=True)
+        for path in paths:
+            shutil.copy(path, DOC_FIGURES / f"ui-{path.name}")

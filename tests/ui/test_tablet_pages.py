@@ -1,0 +1,81 @@
+"""One tablet per session: the first page on the tablet port is the study's tablet; a second page
+is told it is not in use and is offered nothing to rate, until the first one closes. And input
+inside the settle window after a screen change does not count.
+
+In process: a real :class:`SessionRunner` (real engine, store, rig and learner processes, the
+experimenter's confirmations automatic) behind a real viser server, pages in headless Chromium with
+touch, so :meth:`Tablet.connected_count` is read directly.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+import viser
+from support.browser import button, chromium, free_port, open_page, tablet_screen, touch_drag_to
+
+from app.session.config import LabConfig
+from app.session.runner import SessionRunner
+from app.ui.tablet import Tablet
+from robot_io.simulated_hand import Scenario
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+#: A settle window long enough that a drag right after a screen appears falls inside it even on a
+#: loaded machine (the study's is 0.4 s).
+SETTLE_S = 3.0
+
+LAB = LabConfig.model_validate({"loop": {"rate_hz": 125}, "protocol": {
+    "initial_trials": 2, "batch_size": 2, "learning_batches": 0, "best_trials": 0,
+    "validation_batches": 0}})
+
+
+def until(condition: Callable[[], bool], timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, "condition not reached"
+        time.sleep(0.05)
+
+
+def test_a_second_page_is_not_offered_the_scale(tmp_path: Path) -> None:
+    runner = SessionRunner(tmp_path / "study", LAB, auto_experimenter=True)
+    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
+    tablet = Tablet(server, runner, settle_s=SETTLE_S)
+    url = f"http://127.0.0.1:{server.get_port()}"
+    try:
+        with chromium() as browser:
+            assert tablet.connected_count() == 0
+            first = open_page(browser, url, touch=True, size=(1180, 820))
+            until(lambda: tablet.connected_count() == 1)
+            assert tablet_screen(first) == "wait"
+            second = open_page(browser, url, touch=True, size=(820, 1180))
+            until(lambda: tablet.connected_count() == 2)
+            assert tablet_screen(second, unused_ok=True) == "unused"
+
+            runner.open("P01", Scenario.STRAIGHTFORWARD)  # the first trial starts by itself
+            assert tablet_screen(first, not_="wait") == "go"
+            assert tablet_screen(second, unused_ok=True) == "unused"  # not even "Go!"
+            assert tablet_screen(first, not_=("go", "back")) == "place"
+            assert tablet_screen(second, unused_ok=True) == "unused"
+            assert second.locator(".mantine-Slider-root, .hl-scale").count() == 0
+            assert second.get_by_role("button").count() == 0  # nothing to tap at all
+
+            first.close()  # the study's tablet closes: the other page takes over
+            until(lambda: tablet.connected_count() == 1)
+            assert tablet_screen(second) == "place"
+            assert second.locator(".hl-scale").count() == 1
+            shown = time.monotonic()
+            touch_drag_to(second, 0.8)  # a drag right after the screen appeared: not counted
+            assert time.monotonic() - shown < SETTLE_S
+            time.sleep(0.5)
+            assert button(second, "Confirm").is_disabled()
+            time.sleep(SETTLE_S)
+            touch_drag_to(second, 0.3)  # once settled: the handle has moved, Confirm is enabled
+            second.wait_for_function("() => [...document.querySelectorAll('button')].some("
+                                     "b => !b.disabled && b.innerText.trim() === 'Confirm')")
+    finally:
+        runner.close()
+        server.stop()

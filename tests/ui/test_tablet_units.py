@@ -1,0 +1,66 @@
+"""The tablet's pure parts: where the handle starts, the settle window, the questionnaire draft."""
+
+from __future__ import annotations
+
+import pytest
+from pydantic import ValidationError
+
+from app.protocol.state import Marker
+from app.ui.deliberate import Settle
+from app.ui.questionnaire import Draft
+from app.ui.scale_view import CLEARANCE, SNAP, snap, start_position
+
+
+def markers(*positions: float) -> list[Marker]:
+    return [Marker(interaction=i, label=i, position=p) for i, p in enumerate(positions, start=1)]
+
+
+@pytest.mark.parametrize("positions", [(), (0.2,), (0.5,), (0.5, 0.5), (0.45, 0.55, 0.9),
+                                       (0.0, 0.25, 0.5, 0.75, 1.0), (0.48, 0.49, 0.5, 0.51)])
+def test_the_handle_never_starts_on_a_marker(positions: tuple[float, ...]) -> None:
+    start = start_position(markers(*positions))
+    assert 0.0 <= start <= 1.0
+    assert snap(start, markers(*positions)) is None  # an untouched handle is never "equal"
+    assert all(abs(start - p) >= CLEARANCE - 1e-9 for p in positions)
+
+
+def test_the_handle_starts_in_the_widest_gap_when_the_centre_is_taken() -> None:
+    assert start_position(markers(0.2)) == 0.5  # centre free
+    assert start_position(markers(0.5, 0.9)) == 0.25  # [0, 0.5] is the widest gap
+    assert start_position(markers(0.1, 0.52)) == 0.76  # [0.52, 1]
+    assert SNAP < CLEARANCE
+
+
+def test_settle_ignores_input_for_the_window_after_each_screen() -> None:
+    now = [10.0]
+    settle = Settle(0.4, clock=lambda: now[0])
+    assert not settle.ready()
+    now[0] = 10.399
+    assert not settle.ready()
+    now[0] = 10.4
+    assert settle.ready()
+    settle.restart()
+    now[0] = 10.7
+    assert not settle.ready()
+    with pytest.raises(ValueError, match="settle_s = 9"):
+        Settle(9)
+
+
+def test_the_questionnaire_draft_moves_back_and_next_and_completes_once_all_are_chosen() -> None:
+    draft = Draft(questions=("Q1", "Q2", "Q3"))
+    assert (draft.question, draft.number, draft.first) == ("Q1", 1, True)
+    assert draft.next() == draft  # no choice yet: Next does not move
+    draft = draft.choose("4").next()
+    assert (draft.question, draft.number, draft.choice) == ("Q2", 2, None)
+    assert draft.back().choice == "4"  # Back shows the earlier choice, still changeable
+    draft = draft.back().choose("2").next().choose("Maybe").next().choose("5")
+    assert draft.last and draft.next() == draft
+    assert draft.complete() == [("Q1", "2"), ("Q2", "Maybe"), ("Q3", "5")]
+    assert Draft(questions=("Q1", "Q2")).choose("1").complete() == []
+
+
+def test_a_partly_stored_questionnaire_continues_with_the_rest() -> None:
+    draft = Draft(questions=("Q3",))
+    assert (draft.number, draft.first, draft.last) == (3, True, True)
+    with pytest.raises(ValidationError, match="Q9"):
+        Draft(questions=("Q9",))
