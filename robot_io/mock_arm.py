@@ -28,7 +28,7 @@ log = logging.getLogger(__name__)
 class MockArm:
     def __init__(self, clock: Clock, start: np.ndarray, max_speed: float = 1.5,
                  max_acceleration: float = 10.0, stop_deceleration: float = 10.0,
-                 force: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
+                 force: Callable[[np.ndarray, float], np.ndarray] | None = None) -> None:
         self.clock = clock
         self._force = force
         self.max_speed = max_speed
@@ -90,10 +90,12 @@ class MockArm:
         return self.position.copy()
 
     def read_force(self) -> np.ndarray:
-        """The force on the TCP [N]: what ``force(position)`` says (the simulated participant's
-        pull), zero without it."""
+        """The force on the TCP [N]: what ``force(position, speed)`` says (the simulated
+        participant's pull), zero without it."""
         position = self.read_pose()
-        return np.zeros(3) if self._force is None else np.asarray(self._force(position), dtype=float)
+        if self._force is None:
+            return np.zeros(3)
+        return np.asarray(self._force(position, float(np.linalg.norm(self.velocity))), dtype=float)
 
     def stop(self) -> None:
         self._advance()

@@ -103,11 +103,11 @@ class RigDevices:
                                  config.hand.pull_n, config.hand.grasp_delay_s)
             gripper = self.gripper
 
-            def force(tcp: np.ndarray) -> np.ndarray:
+            def force(tcp: np.ndarray, speed: float) -> np.ndarray:
                 now = clock.now()
                 sample = hand.latest(now)
                 return pull.force(now, None if sample is None else sample.position, tcp,
-                                  gripper.holding)
+                                  gripper.holding, speed)
 
             arm = self._mock = MockArm(clock, self._mock_position, force=force)
         return CycleDevices(arm=arm, hand=hand, gripper=self.gripper, clock=clock)

@@ -257,7 +257,8 @@ class Controller:
     def tick(self) -> None:
         self.time += self.period
         if self.pull is not None:
-            self.force[:3] = self.pull.force(self.time, self.hand, self.arm.pose[:3], self.holding)
+            self.force[:3] = self.pull.force(self.time, self.hand, self.arm.pose[:3], self.holding,
+                                             float(np.linalg.norm(self.arm.velocity)))
         if self.program is not None:
             if not self.program.step(self, self.period):
                 self.end_program("finished")

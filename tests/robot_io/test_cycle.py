@@ -35,9 +35,9 @@ def devices(config: ControllerConfig, bias: np.ndarray | None = None, seed: int 
                          config.hand.pull_n, config.hand.grasp_delay_s)
     offset = np.zeros(3) if bias is None else bias
 
-    def force(tcp: np.ndarray) -> np.ndarray:
+    def force(tcp: np.ndarray, speed: float) -> np.ndarray:
         now = clock.now()
-        return pull.force(now, hand.latest(now).position, tcp, gripper.holding) + offset
+        return pull.force(now, hand.latest(now).position, tcp, gripper.holding, speed) + offset
 
     arm = MockArm(clock, scene.point("robot_start") + 0.05, force=force)
     return CycleDevices(arm=arm, hand=hand, gripper=gripper, clock=clock)

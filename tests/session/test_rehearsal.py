@@ -184,6 +184,7 @@ def test_the_rehearsal_plays_the_hand_over_udp_too(tmp_path):
     try:
         runner.open("U01", Scenario.PERTURBED, seed=6)
         assert runner.view.hand.startswith("UDP on 127.0.0.1:")
+        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready")
         runner.start_trial()
         view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
     finally:
