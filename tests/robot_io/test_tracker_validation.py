@@ -18,6 +18,7 @@ from ur_helpers import standin
 from app.cli import main
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
+from robot_io.hand import HandSample
 from robot_io.udp_hand import UDPHand
 
 HOST = "127.0.0.155"
@@ -66,35 +67,30 @@ def _wait(condition: Callable[[], bool], timeout: float = 5.0) -> None:
         time.sleep(0.005)
 
 
-def test_a_nan_stamped_first_datagram_is_one_dropout_not_a_freeze():
+def _newest_after(datagrams: list[bytes]) -> tuple[UDPHand, HandSample | None]:
+    """A UDPHand sent ``datagrams`` in order; returns it (closed) and its newest sample."""
     hand = _udp_hand()
     try:
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        sock.sendto(b'{"x": 950.0, "y": 100.0, "z": 50.0, "t": NaN}', hand.address)
-        _wait(lambda: hand.received == 1)
-        for n in range(5):
-            sock.sendto(json.dumps({"x": 950.0 + n, "y": 100.0, "z": 50.0}).encode(), hand.address)
-        _wait(lambda: hand.received == 6)
-        sock.close()
-        sample = hand.latest(0.0)
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            for datagram in datagrams:
+                sock.sendto(datagram, hand.address)
+            _wait(lambda: hand.received == len(datagrams))
+        return hand, hand.latest(0.0)
     finally:
         hand.close()
+
+
+def test_a_nan_stamped_first_datagram_is_one_dropout_not_a_freeze():
+    datagrams = [b'{"x": 950.0, "y": 100.0, "z": 50.0, "t": NaN}'] + [
+        json.dumps({"x": 950.0 + n, "y": 100.0, "z": 50.0}).encode() for n in range(5)]
+    hand, sample = _newest_after(datagrams)
     assert hand.dropouts == 1 and hand.invalid == 1
     assert sample.is_valid() and sample.position[0] == pytest.approx(0.954)
 
 
 def test_an_implausible_coordinate_is_a_dropout_never_a_hand_position():
-    hand = _udp_hand()
-    try:
-        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        sock.sendto(json.dumps({"x": 950.0, "y": 100.0, "z": 50.0}).encode(), hand.address)
-        _wait(lambda: hand.received == 1)
-        sock.sendto(json.dumps({"x": 1e308, "y": 100.0, "z": 50.0}).encode(), hand.address)
-        _wait(lambda: hand.received == 2)
-        sock.close()
-        sample = hand.latest(0.0)
-    finally:
-        hand.close()
+    hand, sample = _newest_after([json.dumps({"x": x, "y": 100.0, "z": 50.0}).encode()
+                                  for x in (950.0, 1e308)])
     assert hand.dropouts == 1 and hand.invalid == 1
     assert not sample.is_valid()  # the newest sample is a dropout; the loop keeps the last valid
     assert np.all(np.isnan(sample.position))
