@@ -8,7 +8,7 @@ from enum import StrEnum
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.learning.models import Comparison, Interaction, ParameterBox
+from app.learning.models import Comparison, FitReport, Interaction, ParameterBox
 from app.learning.planner import BatchSchedule
 
 #: Serialisable kernel hyperparameters: raw parameter name → values (the warm start, the snapshot).
@@ -74,7 +74,8 @@ class LearnerConfig(BaseModel):
 
 
 class LearnerSnapshot(BaseModel):
-    """A learner's complete state as plain data: config, observations, fitted hyperparameters."""
+    """A learner's complete state as plain data: config, observations (in the order they arrived),
+    fitted hyperparameters, and the report of its last fit (what its next suggestion carries)."""
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
@@ -83,3 +84,5 @@ class LearnerSnapshot(BaseModel):
     comparisons: list[Comparison]
     hyperparameters: Hyperparameters | None = None
     fitted_comparisons: int = Field(0, ge=0, description="comparisons at the last hyperparameter fit")
+    last_fit: FitReport | None = Field(
+        None, description="report of the last fit (None in snapshots stored before it was kept)")

@@ -157,15 +157,19 @@ class PreferenceLearner:
         return LearnerSnapshot(config=self.config, interactions=list(self._interactions),
                                comparisons=list(self._comparisons),
                                hyperparameters=self.model.hyperparameters,
-                               fitted_comparisons=self.model.fitted_comparisons)
+                               fitted_comparisons=self.model.fitted_comparisons,
+                               last_fit=self.last_fit)
 
     @classmethod
     def restore(cls, snapshot: LearnerSnapshot) -> PreferenceLearner:
         """The learner that was stored: its observations, and its hyperparameters adopted without a
-        fit, so its next suggestions are exactly those the stored learner would have made."""
+        fit, so its next suggestions are exactly those the stored learner would have made, with the
+        same fit report (an older snapshot without one: the counts of the restored data)."""
         learner = cls(snapshot.config, snapshot.hyperparameters)
         learner._record(snapshot.interactions, snapshot.comparisons)
         learner.model.restore(learner.data, snapshot.fitted_comparisons)
+        learner.last_fit = snapshot.last_fit or FitReport(
+            n_points=len(learner.data.points), n_comparisons=len(learner.data.comparisons))
         return learner
 
     def _sobol(self, slot: Slot) -> torch.Tensor:
