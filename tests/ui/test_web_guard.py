@@ -12,7 +12,7 @@ import time
 import msgspec
 import pytest
 import viser
-from browser_helpers import TOKEN, chromium, click, fill, open_page, serve, wait_text
+from support.browser import TOKEN, chromium, click, fill, open_page, serve, wait_text
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
