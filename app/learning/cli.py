@@ -8,7 +8,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from app.learning.config import AcquisitionName
+from app.learning.config import DEFAULT_RECOMMENDATION, AcquisitionName
+from app.learning.models import RecommendationName
 
 #: The six conditions of Sect. IV (qNEI q = 2, qNEI q = 5, EUBO; σ = 0 and 0.05) plus the Sobol
 #: baseline. EUBO compares one new point with θ*, i.e. batches of q = 2.
@@ -38,6 +39,16 @@ def _bounded(kind: type[int] | type[float], low: float, high: float) -> Callable
     return parse
 
 
+def add_cluster_options(parser: argparse.ArgumentParser) -> None:
+    """``--workers`` / ``--scheduler``: where the trials run (Dask, :mod:`app.learning.cluster`)."""
+    parser.add_argument("--workers", "--jobs", type=_bounded(int, 1, 64), default=1,
+                        help="worker processes of the local Dask cluster, one torch thread each "
+                        "(default 1)")
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="a running Dask scheduler, e.g. tcp://lab-server:8786, instead of a "
+                        "local cluster (--workers is then ignored)")
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``benchmark-pl`` to the ``handover`` command."""
     parser = subparsers.add_parser(
@@ -56,8 +67,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--initial", type=_bounded(int, 1, 50), default=5,
                         help="initial Sobol points (default 5)")
     parser.add_argument("--seed", type=_bounded(int, 0, 2**62), default=0, help="study seed")
-    parser.add_argument("--jobs", type=_bounded(int, 1, 64), default=1,
-                        help="trials run in parallel processes, each single-threaded (default 1)")
+    parser.add_argument("--recommendation", choices=[r.value for r in RecommendationName],
+                        default=DEFAULT_RECOMMENDATION.value,
+                        help="strategy of the distance column and Fig. 3 (every strategy is "
+                        f"recorded; default {DEFAULT_RECOMMENDATION.value})")
+    add_cluster_options(parser)
     parser.add_argument("--out", type=Path, default=Path("out/benchmark-pl"),
                         help="output folder, one sub-folder per condition "
                         "(default out/benchmark-pl)")
@@ -72,21 +86,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the study as the arguments say; print a table (or JSON) of the final figures."""
-    import torch
-
+    from app.learning.cluster import dask_client
     from app.learning.simulation import StudyCondition
     from app.learning.study import run_condition
 
-    torch.set_num_threads(1)  # trials are single-threaded; --jobs adds processes
     if args.initial > args.queries:
         raise ValueError(f"--initial = {args.initial} must not exceed --queries = {args.queries}")
     specs = PAPER_CONDITIONS if args.paper else ((AcquisitionName(args.acq), args.q, args.noise),)
     results = []
-    for acq, q, noise in specs:
-        condition = StudyCondition(acquisition=acq, q=q, noise=noise, n_unique=args.queries,
-                                   n_initial=args.initial)
-        results.append(run_condition(condition, trials=args.trials, seed=args.seed,
-                                     jobs=args.jobs, out=args.out, progress=not args.no_progress))
+    with dask_client(args.scheduler, args.workers) as client:
+        for acq, q, noise in specs:
+            condition = StudyCondition(acquisition=acq, q=q, noise=noise, n_unique=args.queries,
+                                       n_initial=args.initial,
+                                       recommendation=RecommendationName(args.recommendation))
+            results.append(run_condition(condition, trials=args.trials, seed=args.seed,
+                                         client=client, out=args.out,
+                                         progress=not args.no_progress))
     figure = None
     if args.paper:
         from app.learning.figures import draw_figure3
