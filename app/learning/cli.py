@@ -1,4 +1,5 @@
-"""``handover benchmark-pl``: the simulated preference-learning study of Sect. IV (and Fig. 3)."""
+"""``handover benchmark-pl``: the simulated preference-learning study of Sect. IV (and Fig. 3);
+``handover pilot``: whole simulated studies and the power of the paper's sign test."""
 
 from __future__ import annotations
 
@@ -82,6 +83,72 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     parser.set_defaults(func=run)
+    register_pilot(subparsers)
+
+
+def register_pilot(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``pilot`` to the ``handover`` command."""
+    parser = subparsers.add_parser(
+        "pilot", help="simulate whole studies: validation scores and sign-test power",
+        description="Simulate M studies of the paper's protocol (5 initial + 4 batches of 5 + 1 "
+        "best + 4 validation pairs) with simulated participants and report the validation "
+        "scores and the power of the sign test at α = 0.05 and 0.001, with 95 %% CIs.")
+    parser.add_argument("--participants", type=_bounded(int, 1, 1000), default=8,
+                        help="participants per scenario (default 8, the paper's)")
+    parser.add_argument("--scenarios", type=_bounded(int, 1, 20), default=2,
+                        help="scenarios (default 2, the paper's)")
+    parser.add_argument("--studies", type=_bounded(int, 1, 100_000), default=50,
+                        help="M, simulated studies (default 50)")
+    parser.add_argument("--noise", type=_bounded(float, 0.0, 1.0), default=0.05,
+                        help="σ of eq. (16) (default 0.05)")
+    parser.add_argument("--spread", type=_bounded(float, 0.0, 1.0), default=None,
+                        help="spread of the participants' optima around a scenario's shared one "
+                        "(unit-cube sd); default: uniform optima, no shared structure")
+    parser.add_argument("--acq", choices=[a.value for a in AcquisitionName], default="qnei",
+                        help="acquisition function (default qnei)")
+    parser.add_argument("--recommendation", choices=[r.value for r in RecommendationName],
+                        default=DEFAULT_RECOMMENDATION.value,
+                        help=f"θ* strategy (default {DEFAULT_RECOMMENDATION.value})")
+    parser.add_argument("--seed", type=_bounded(int, 0, 2**62), default=0, help="pilot seed")
+    add_cluster_options(parser)
+    parser.add_argument("--out", type=Path, default=Path("out/pilot"),
+                        help="output folder (default out/pilot); resumes from it")
+    parser.add_argument("--figure", type=Path, default=None,
+                        help="PNG of scores and power (default OUT/pilot.png)")
+    parser.add_argument("--json", action="store_true", help="print a JSON report on stdout")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    parser.set_defaults(func=run_pilot_command)
+
+
+def run_pilot_command(args: argparse.Namespace) -> int:
+    """Run the pilot; print the power table (or JSON) and draw the figure."""
+    from app.learning.cluster import dask_client
+    from app.learning.figures import draw_pilot
+    from app.learning.pilot import PilotConfig, run_pilot
+
+    config = PilotConfig(studies=args.studies, participants=args.participants,
+                         scenarios=args.scenarios, noise=args.noise, spread=args.spread,
+                         acquisition=AcquisitionName(args.acq),
+                         recommendation=RecommendationName(args.recommendation), seed=args.seed)
+    with dask_client(args.scheduler, args.workers) as client:
+        report = run_pilot(config, client=client, out=args.out, progress=not args.no_progress)
+    figure = draw_pilot(report, args.figure or args.out / "pilot.png")
+    report = report.model_copy(update={"figure": str(figure)})
+    if args.json:
+        print(json.dumps(report.model_dump(mode="json"), indent=2))
+    else:
+        n = config.scenarios * config.participants
+        print(f"{config.studies} simulated studies, {n} participants each "
+              f"({config.participants} per scenario), σ = {config.noise:g}")
+        print("validation scores: " + ", ".join(f"{k} {v:.2f}"
+                                                for k, v in report.score_distribution.items())
+              + f" (mean {report.mean_score:.2f})")
+        for p in report.power:
+            print(f"sign test power at α = {p.alpha:g}: {p.power:.2f} [{p.ci_low:.2f}, "
+                  f"{p.ci_high:.2f}] ({p.significant} of {p.studies} studies)")
+        print(f"figure written to {figure}")
+    sys.stdout.flush()
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:

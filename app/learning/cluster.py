@@ -32,7 +32,7 @@ def dask_client(scheduler: str | None = None, workers: int = 1) -> Iterator[Clie
             yield client
         return
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                      dashboard_address=None, silence_logs=logging.ERROR,
+                      dashboard_address=":0", silence_logs=logging.ERROR,
                       env=_SINGLE_THREADED) as cluster, Client(cluster) as client:
         yield client
 

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -36,7 +37,13 @@ from app.learning.config import (
     OptimizerConfig,
 )
 from app.learning.learner import PreferenceLearner
-from app.learning.models import Interaction, ParameterBox, Placement, RecommendationName
+from app.learning.models import (
+    Interaction,
+    ParameterBox,
+    Placement,
+    RecommendationName,
+    SlotKind,
+)
 from app.learning.planner import BatchSchedule
 from app.learning.prior import PopulationPrior
 from app.learning.rng import derive_seed
@@ -91,7 +98,8 @@ class TrialResult(BaseModel):
     distances: list[float] = Field(description="inference curve of the condition's strategy")
     shown_distances: list[float]
     strategy_distances: dict[RecommendationName, list[float]] = Field(
-        default_factory=dict, description="inference curve of every recommendation strategy")
+        default_factory=dict, description="inference curve of every recommendation strategy; "
+        "NaN where it was not computed (only the final value of untracked strategies is)")
     fit_failures: int
     seconds: float
 
@@ -129,11 +137,16 @@ def run_trial(condition: StudyCondition, seed: int, trial: int) -> TrialResult:
 
 def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: int,
                      learner_seed: int, *, trial: int = 0,
-                     prior: PopulationPrior | None = None
+                     prior: PopulationPrior | None = None,
+                     strategies: Sequence[RecommendationName] = ()
                      ) -> tuple[TrialResult, PreferenceLearner]:
     """One simulated participant with optimum ``target`` through the schedule of ``condition``,
     with ``prior`` as the GP's prior mean; returns the trial and the final learner (whose
-    snapshot feeds the priors of later participants)."""
+    snapshot feeds the priors of later participants).
+
+    The inference curve of the condition's strategy is recorded at every interaction, those of
+    ``strategies`` too (each costs a recommendation per interaction, a box search for
+    ``posterior_mean``); every other strategy only at the final interaction (NaN before)."""
     start = time.monotonic()
     noise_rng = np.random.default_rng(noise_seed)
     box = ParameterBox.unit_cube(condition.dim)
@@ -147,6 +160,7 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
 
     placements: list[Placement] = []
     shown, failures = [], 0
+    tracked = {s for s in strategies} | {condition.recommendation}
     curves: dict[RecommendationName, list[float]] = {s: [] for s in RecommendationName}
     while (suggestion := learner.suggest()).theta is not None:
         slot = suggestion.slot
@@ -159,8 +173,10 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         fit = learner.observe(Interaction(interaction_id=iid, theta=suggestion.theta),
                               comparisons_for_newest(placements))
         failures += fit.fit_failed
+        final = learner.next_slot().kind is SlotKind.DONE
         for strategy, curve in curves.items():
-            curve.append(distance(learner.best(strategy).theta))  # type: ignore[union-attr]
+            curve.append(distance(learner.best(strategy).theta)  # type: ignore[union-attr]
+                         if final or strategy in tracked else math.nan)
         shown.append(u)
     result = TrialResult(trial=trial, distances=curves[condition.recommendation],
                          shown_distances=shown, strategy_distances=curves,

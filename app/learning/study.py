@@ -158,8 +158,8 @@ class TrialStore:
 
     def append(self, result: TrialResult) -> None:
         """Append one trial's rows with a single ``write`` and flush them to disk."""
-        _append(self.path, _rows_text(result, header=_empty(self.path)))
-        _append(self.timings, _timing_text(result, header=_empty(self.timings)))
+        append_durably(self.path, _rows_text(result, header=_empty(self.path)))
+        append_durably(self.timings, _timing_text(result, header=_empty(self.timings)))
 
     def rewrite(self, results: dict[int, TrialResult]) -> None:
         """Replace the file by ``results`` in trial order (atomically)."""
@@ -180,7 +180,9 @@ def _empty(path: Path) -> bool:
     return not path.exists() or path.stat().st_size == 0
 
 
-def _append(path: Path, text: str) -> None:
+def append_durably(path: Path, text: str) -> None:
+    """Append ``text`` with a single ``write`` and flush it to disk (a kill leaves whole lines or
+    one torn last line)."""
     fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
     try:
         os.write(fd, text.encode())
