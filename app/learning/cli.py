@@ -101,6 +101,12 @@ def register_pilot(subparsers: argparse._SubParsersAction) -> None:
                         help="M, simulated studies (default 50)")
     parser.add_argument("--noise", type=_bounded(float, 0.0, 1.0), default=0.05,
                         help="σ of eq. (16) (default 0.05)")
+    parser.add_argument("--initial", type=_bounded(int, 1, 50), default=5,
+                        help="initial Sobol interactions (default 5, the paper's)")
+    parser.add_argument("--batches", type=_bounded(int, 1, 50), default=4,
+                        help="learning batches (default 4, the paper's)")
+    parser.add_argument("--batch-size", type=_bounded(int, 2, 25), default=5,
+                        help="interactions per learning batch, θ* included (default 5)")
     parser.add_argument("--spread", type=_bounded(float, 0.0, 1.0), default=None,
                         help="spread of the participants' optima around a scenario's shared one "
                         "(unit-cube sd); default: uniform optima, no shared structure")
@@ -125,9 +131,13 @@ def run_pilot_command(args: argparse.Namespace) -> int:
     from app.learning.cluster import dask_client
     from app.learning.figures import draw_pilot
     from app.learning.pilot import PilotConfig, run_pilot
+    from app.learning.planner import BatchSchedule
 
+    schedule = BatchSchedule(n_initial=args.initial, q=args.batch_size,
+                             n_unique=args.initial + args.batches * (args.batch_size - 1))
     config = PilotConfig(studies=args.studies, participants=args.participants,
                          scenarios=args.scenarios, noise=args.noise, spread=args.spread,
+                         schedule=schedule,
                          acquisition=AcquisitionName(args.acq),
                          recommendation=RecommendationName(args.recommendation), seed=args.seed)
     with dask_client(args.scheduler, args.workers) as client:
