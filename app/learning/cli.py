@@ -50,38 +50,43 @@ def add_cluster_options(parser: argparse.ArgumentParser) -> None:
                         "local cluster (--workers is then ignored)")
 
 
+def add_shared_options(parser: argparse.ArgumentParser, *, noise: float, out: str,
+                       figure: str) -> None:
+    """The options ``benchmark-pl`` and ``pilot`` share: method, noise, seed, where to run,
+    where to write, how to report."""
+    parser.add_argument("--acq", choices=[a.value for a in AcquisitionName], default="qnei",
+                        help="acquisition function (default: qnei, the paper's)")
+    parser.add_argument("--noise", type=_bounded(float, 0.0, 1.0), default=noise,
+                        help=f"σ of y = u + j·N(0, σ²), eq. (16) (default {noise:g})")
+    parser.add_argument("--seed", type=_bounded(int, 0, 2**62), default=0, help="seed")
+    parser.add_argument("--recommendation", choices=[r.value for r in RecommendationName],
+                        default=DEFAULT_RECOMMENDATION.value,
+                        help=f"θ* strategy (default {DEFAULT_RECOMMENDATION.value})")
+    add_cluster_options(parser)
+    parser.add_argument("--out", type=Path, default=Path(out),
+                        help=f"output folder, resumed from (default {out})")
+    parser.add_argument("--figure", type=Path, default=None, help=figure)
+    parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``benchmark-pl`` to the ``handover`` command."""
     parser = subparsers.add_parser(
         "benchmark-pl", help="simulated preference-learning study (paper Sect. IV, Fig. 3)",
         description=__doc__)
-    parser.add_argument("--acq", choices=[a.value for a in AcquisitionName], default="qnei",
-                        help="acquisition function (default: qnei, the paper's)")
     parser.add_argument("--q", type=_bounded(int, 2, 25), default=5,
                         help="interactions per batch, θ* included (default 5; EUBO: 2 is pairwise)")
-    parser.add_argument("--noise", type=_bounded(float, 0.0, 1.0), default=0.0,
-                        help="σ of y = u + j·N(0, σ²), eq. (16) (default 0)")
     parser.add_argument("--trials", type=_bounded(int, 1, 100_000), default=500,
                         help="trials per condition (default 500, the paper's)")
     parser.add_argument("--queries", type=_bounded(int, 2, 200), default=25,
                         help="unique points shown per trial, initial ones included (default 25)")
     parser.add_argument("--initial", type=_bounded(int, 1, 50), default=5,
                         help="initial Sobol points (default 5)")
-    parser.add_argument("--seed", type=_bounded(int, 0, 2**62), default=0, help="study seed")
-    parser.add_argument("--recommendation", choices=[r.value for r in RecommendationName],
-                        default=DEFAULT_RECOMMENDATION.value,
-                        help="strategy of the distance column and Fig. 3 (every strategy is "
-                        f"recorded; default {DEFAULT_RECOMMENDATION.value})")
-    add_cluster_options(parser)
-    parser.add_argument("--out", type=Path, default=Path("out/benchmark-pl"),
-                        help="output folder, one sub-folder per condition "
-                        "(default out/benchmark-pl)")
     parser.add_argument("--paper", action="store_true",
                         help="run the six paper conditions plus sobol and draw Fig. 3")
-    parser.add_argument("--figure", type=Path, default=None,
-                        help="PNG path for Fig. 3 with --paper (default OUT/figure3.png)")
-    parser.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_shared_options(parser, noise=0.0, out="out/benchmark-pl",
+                       figure="PNG path for Fig. 3 with --paper (default OUT/figure3.png)")
     parser.set_defaults(func=run)
     register_pilot(subparsers)
 
@@ -99,8 +104,6 @@ def register_pilot(subparsers: argparse._SubParsersAction) -> None:
                         help="scenarios (default 2, the paper's)")
     parser.add_argument("--studies", type=_bounded(int, 1, 100_000), default=50,
                         help="M, simulated studies (default 50)")
-    parser.add_argument("--noise", type=_bounded(float, 0.0, 1.0), default=0.05,
-                        help="σ of eq. (16) (default 0.05)")
     parser.add_argument("--initial", type=_bounded(int, 1, 50), default=5,
                         help="initial Sobol interactions (default 5, the paper's)")
     parser.add_argument("--batches", type=_bounded(int, 1, 50), default=4,
@@ -110,19 +113,8 @@ def register_pilot(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--spread", type=_bounded(float, 0.0, 1.0), default=None,
                         help="spread of the participants' optima around a scenario's shared one "
                         "(unit-cube sd); default: uniform optima, no shared structure")
-    parser.add_argument("--acq", choices=[a.value for a in AcquisitionName], default="qnei",
-                        help="acquisition function (default qnei)")
-    parser.add_argument("--recommendation", choices=[r.value for r in RecommendationName],
-                        default=DEFAULT_RECOMMENDATION.value,
-                        help=f"θ* strategy (default {DEFAULT_RECOMMENDATION.value})")
-    parser.add_argument("--seed", type=_bounded(int, 0, 2**62), default=0, help="pilot seed")
-    add_cluster_options(parser)
-    parser.add_argument("--out", type=Path, default=Path("out/pilot"),
-                        help="output folder (default out/pilot); resumes from it")
-    parser.add_argument("--figure", type=Path, default=None,
-                        help="PNG of scores and power (default OUT/pilot.png)")
-    parser.add_argument("--json", action="store_true", help="print a JSON report on stdout")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    add_shared_options(parser, noise=0.05, out="out/pilot",
+                       figure="PNG of scores and power (default OUT/pilot.png)")
     parser.set_defaults(func=run_pilot_command)
 
 

@@ -43,11 +43,7 @@ def draw_figure3(results: Sequence[tuple[ConditionSummary, list[InteractionSumma
     bottom.set_xlabel("interaction")
     bottom.set_ylim(0.0, 1.0)
     bottom.grid(alpha=0.3)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path
+    return _save(fig, path, dpi=90)
 
 
 def draw_pilot(report: PilotReport, path: Path) -> Path:
@@ -72,8 +68,12 @@ def draw_pilot(report: PilotReport, path: Path) -> Path:
     right.set_ylim(0.0, 1.02)
     right.legend(fontsize=8)
     right.grid(alpha=0.3)
+    return _save(fig, path, dpi=80)
+
+
+def _save(fig: plt.Figure, path: Path, dpi: int) -> Path:
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=80)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
