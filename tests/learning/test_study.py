@@ -6,14 +6,16 @@ import json
 import math
 import warnings
 
+import numpy as np
 import pytest
+from scipy import stats
 
 from app.cli import main
 from app.learning.config import AcquisitionName
 from app.learning.errors import StudyError
 from app.learning.models import RecommendationName
 from app.learning.simulation import SUCCESS_DISTANCE, StudyCondition, TrialResult, run_trial
-from app.learning.study import TRIAL_COLUMNS, run_condition, summarise
+from app.learning.study import TRIAL_COLUMNS, TrialStore, run_condition, summarise
 
 SMALL = StudyCondition(acquisition=AcquisitionName.QNEI, q=2, noise=0.05, n_unique=7,
                        n_initial=3, recommendation=RecommendationName.IN_SAMPLE_MEAN)
@@ -118,29 +120,51 @@ def test_cli_rejects_more_initial_points_than_queries(capsys):
     assert "--initial = 9 must not exceed --queries = 5" in capsys.readouterr().err
 
 
-NOISE_LIMIT = pytest.mark.xfail(strict=True, reason=(
-    "acceptance criterion of issue 3 not met at σ = 0.05: with y = u + j·N(0, σ²) read literally "
-    "(noise sd j·σ, up to 0.25 at j = 5), qNEI q=5 finds good points but cannot identify θ* among "
-    "them; N=100, seed 2024: 0.221 [0.193, 0.249] vs Sobol 0.237 [0.213, 0.260] (ratio 0.93). "
-    "It holds up to σ = 0.03. See docs/learning.md. strict: an XPASS fails the suite."))
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("noise", [0.03, pytest.param(0.05, marks=NOISE_LIMIT)])
-def test_qnei_q5_beats_the_sobol_baseline_on_the_same_seeds(tmp_path, noise, client):
-    """Acceptance: qNEI (q = 5, σ = 0.05, 25 queries) ends at ≤ 0.7× Sobol's mean distance,
-    with non-overlapping 95 % CIs, on the same targets and noise. σ = 0.03 is the largest noise of
-    the sweep in docs/learning.md at which the rule holds; it shows that the learner learns."""
+def test_qnei_q5_beats_the_sobol_baseline_on_the_same_seeds(tmp_path, client):
+    """Positive control: qNEI (q = 5, σ = 0.03, 25 queries) ends at ≤ 0.7× Sobol's mean
+    distance, with non-overlapping 95 % CIs, on the same targets and noise (the largest noise of
+    the sweep in docs/learning.md at which this holds): the learner learns."""
     trials = 16  # keeps the suite short; the N = 100 figures are in docs/learning.md
     finals = {}
     for acq in (AcquisitionName.QNEI, AcquisitionName.SOBOL):
-        condition = StudyCondition(acquisition=acq, q=5, noise=noise)
+        condition = StudyCondition(acquisition=acq, q=5, noise=0.03)
         summary, _ = run_condition(condition, trials=trials, seed=7, client=client, out=tmp_path,
                                    progress=False)
         finals[acq] = summary
     qnei, sobol = finals[AcquisitionName.QNEI], finals[AcquisitionName.SOBOL]
     assert qnei.final_mean_distance <= 0.7 * sobol.final_mean_distance
     assert qnei.final_ci[1] < sobol.final_ci[0]
+
+
+QNEI_Q5_NOISE_LIMIT = pytest.mark.xfail(strict=True, reason=(
+    "issue 14's goal is not met by qNEI q=5 at σ = 0.05 with any recommendation strategy: the "
+    "search finds good points (oracle ≈ 0.16) but θ* cannot be told apart under a noise sd of up to "
+    "5σ; see the recommendation study in docs/learning.md. strict: an XPASS fails the suite."))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("acquisition", "q"), [
+    (AcquisitionName.EUBO, 2),
+    pytest.param(AcquisitionName.QNEI, 5, marks=QNEI_Q5_NOISE_LIMIT),
+])
+def test_the_default_recommendation_beats_sobol_at_the_papers_noise(tmp_path, client,
+                                                                      acquisition, q):
+    """Issue 14's goal: with the default θ* strategy, the final distance at σ = 0.05 is at most
+    0.85× Sobol's, and the paired 95 % CI of the per-trial difference excludes 0."""
+    trials = 16
+    finals = {}
+    for acq, batch in ((acquisition, q), (AcquisitionName.SOBOL, 5)):
+        condition = StudyCondition(acquisition=acq, q=batch, noise=0.05)
+        run_condition(condition, trials=trials, seed=7, client=client, out=tmp_path,
+                      progress=False)
+        stored = TrialStore(tmp_path / condition.name, condition, 7).load()
+        finals[acq] = np.array([stored[t].distances[-1] for t in range(trials)])
+    learned, sobol = finals[acquisition], finals[AcquisitionName.SOBOL]
+    diff = learned - sobol
+    half = stats.t.ppf(0.975, trials - 1) * diff.std(ddof=1) / math.sqrt(trials)
+    assert learned.mean() <= 0.85 * sobol.mean()
+    assert diff.mean() + half < 0.0
 
 
 def test_two_dask_workers_write_the_same_csv_as_one(tmp_path):
