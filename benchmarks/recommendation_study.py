@@ -22,6 +22,7 @@ from scipy import stats
 
 from app.learning.cluster import dask_client
 from app.learning.config import AcquisitionName
+from app.learning.figures import draw_figure3
 from app.learning.models import RecommendationName
 from app.learning.simulation import StudyCondition
 from app.learning.study import TrialStore, run_condition
@@ -66,14 +67,18 @@ def main() -> None:
     parser.add_argument("--scheduler", default=None)
     parser.add_argument("--out", type=Path, default=Path("out/recommendation"))
     parser.add_argument("--no-progress", action="store_true")
+    parser.add_argument("--figure", type=Path, default=None,
+                        help="PNG: Fig. 3 (inference and oracle curves) of every condition")
     args = parser.parse_args()
 
     conditions = [StudyCondition(acquisition=acq, q=q, noise=noise, recommendation=TODAY)
                   for noise in NOISES for acq, q in METHODS]
     with dask_client(args.scheduler, args.workers) as client:
-        for condition in conditions:
-            run_condition(condition, trials=args.trials, seed=args.seed, client=client,
-                          out=args.out, progress=not args.no_progress)
+        results = [run_condition(condition, trials=args.trials, seed=args.seed, client=client,
+                                 out=args.out, progress=not args.no_progress)
+                   for condition in conditions]
+    if args.figure is not None:
+        draw_figure3([r for r in results if r[0].noise == max(NOISES)], args.figure)
     data = {c.name: finals(args.out / c.name, c, args.seed, args.trials) for c in conditions}
     print(f"N = {args.trials} paired seeds (study seed {args.seed}); final interaction; "
           "distances to the target, 95 % CIs")
