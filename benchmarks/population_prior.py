@@ -52,7 +52,7 @@ def load(path: Path) -> dict[tuple[int, int, bool], dict]:
 
 
 def cluster_bootstrap(num: np.ndarray, den: np.ndarray, seed: int) -> tuple[float, float]:
-    """95 % CI of mean(num)/mean(den), resampling whole populations (rows)."""
+    """95 % CI of mean(num)/mean(den), resampling the rows (populations) with replacement."""
     rng = np.random.default_rng(seed)
     ratios = []
     for _ in range(4000):
@@ -117,7 +117,9 @@ def main() -> None:
     print(f"mean u(θ*): no prior at {args.early}: {none_early.mean():.3f}, at {n_final}: "
           f"{none_final.mean():.3f}; with prior at {args.early}: {early.mean():.3f}, at "
           f"{n_final}: {with_final.mean():.3f}")
-    per_population = (early.mean(1), none_final.mean(1), with_final.mean(1))
+    # resample whole populations; with one population, its participants
+    per_population = ((early.mean(1), none_final.mean(1), with_final.mean(1))
+                      if args.populations > 1 else (early[0], none_final[0], with_final[0]))
     low, high = cluster_bootstrap(per_population[0], per_population[1], args.seed)
     print(f"ratio prior@{args.early} / none@{n_final}: "
           f"{early.mean() / none_final.mean():.2f} [{low:.2f}, {high:.2f}]")

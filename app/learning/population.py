@@ -25,26 +25,27 @@ from app.learning.prior import PopulationPrior, PriorComponent
 
 
 class PopulationMean(Mean):
-    """w · m̄(x): the pooled posterior mean of earlier participants, a fixed (not fitted) mean."""
+    """w · m̄(x): the pooled posterior mean of earlier participants, a fixed (not fitted) mean.
+
+    All components are stacked into one set of points with per-point lengthscales and weights
+    (s_p·α_p·w/P), so an evaluation is one kernel matrix, whatever the number of participants.
+    """
 
     def __init__(self, prior: PopulationPrior) -> None:
         super().__init__()
-        self.weight = prior.weight / len(prior.components)
-        for i, c in enumerate(prior.components):
-            self.register_buffer(f"points_{i}", torch.tensor(c.points, dtype=torch.float64))
-            self.register_buffer(f"alpha_{i}", torch.tensor(c.coefficients, dtype=torch.float64))
-            self.register_buffer(f"lengthscale_{i}",
-                                 torch.tensor(c.lengthscale, dtype=torch.float64))
-        self.outputscales = [c.outputscale for c in prior.components]
+        share = prior.weight / len(prior.components)
+        points, lengthscales, coefficients = [], [], []
+        for c in prior.components:
+            points.extend(c.points)
+            lengthscales.extend([c.lengthscale] * len(c.points))
+            coefficients.extend(share * c.outputscale * a for a in c.coefficients)
+        self.register_buffer("points", torch.tensor(points, dtype=torch.float64))
+        self.register_buffer("lengthscales", torch.tensor(lengthscales, dtype=torch.float64))
+        self.register_buffer("coefficients", torch.tensor(coefficients, dtype=torch.float64))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        total = torch.zeros(x.shape[:-1], dtype=x.dtype)
-        for i, scale in enumerate(self.outputscales):
-            points, alpha = getattr(self, f"points_{i}"), getattr(self, f"alpha_{i}")
-            lengthscale = getattr(self, f"lengthscale_{i}")
-            diff = (x.unsqueeze(-2) - points) / lengthscale  # ... × n × n_p × d
-            total = total + scale * torch.exp(-0.5 * diff.pow(2).sum(-1)) @ alpha
-        return self.weight * total
+        diff = (x.unsqueeze(-2) - self.points) / self.lengthscales  # ... × n × N × d
+        return torch.exp(-0.5 * diff.pow(2).sum(-1)) @ self.coefficients
 
 
 class PopulationPairwiseGP(PairwiseGP):
