@@ -143,12 +143,18 @@ QNEI_Q5_NOISE_LIMIT = pytest.mark.xfail(strict=True, reason=(
     "5σ; see the recommendation study in docs/learning.md. strict: an XPASS fails the suite."))
 
 
+@pytest.fixture(scope="module")
+def sobol_shared(tmp_path_factory):
+    """One output folder for both cases below: Sobol's 16 trials run once, then resume."""
+    return tmp_path_factory.mktemp("paper-noise")
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(("acquisition", "q"), [
     (AcquisitionName.EUBO, 2),
     pytest.param(AcquisitionName.QNEI, 5, marks=QNEI_Q5_NOISE_LIMIT),
 ])
-def test_the_default_recommendation_beats_sobol_at_the_papers_noise(tmp_path, client,
+def test_the_default_recommendation_beats_sobol_at_the_papers_noise(sobol_shared, client,
                                                                       acquisition, q):
     """Issue 14's goal: with the default θ* strategy, the final distance at σ = 0.05 is at most
     0.85× Sobol's, and the paired 95 % CI of the per-trial difference excludes 0."""
@@ -156,9 +162,9 @@ def test_the_default_recommendation_beats_sobol_at_the_papers_noise(tmp_path, cl
     finals = {}
     for acq, batch in ((acquisition, q), (AcquisitionName.SOBOL, 5)):
         condition = StudyCondition(acquisition=acq, q=batch, noise=0.05)
-        run_condition(condition, trials=trials, seed=7, client=client, out=tmp_path,
+        run_condition(condition, trials=trials, seed=7, client=client, out=sobol_shared,
                       progress=False)
-        stored = TrialStore(tmp_path / condition.name, condition, 7).load()
+        stored = TrialStore(sobol_shared / condition.name, condition, 7).load()
         finals[acq] = np.array([stored[t].distances[-1] for t in range(trials)])
     learned, sobol = finals[acquisition], finals[AcquisitionName.SOBOL]
     diff = learned - sobol
