@@ -3,23 +3,71 @@
 Every default that comes from the paper says so (Table I); the others are this project's choices for a
 table-top UR5 handover and are documented in ``docs/controller.md``. Positions are in metres in the
 robot base frame.
+
+No value is infinite or NaN, and every limit that guards a person has a hard upper bound
+(``docs/hardware.md``, "Hard bounds of the configuration"): the box lies within a UR5's reach, the
+speed and acceleration caps stay at or below what the arm and the mock are strict about, and every
+time-out is finite. A value outside its bound is refused with its field, its value and the range.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+import math
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
 
 from robot_io.errors import ConfigError
 
 Vec3 = tuple[float, float, float]
 Positive = Annotated[float, Field(gt=0)]
 
+#: A UR5's reach from the base axis [m] (Universal Robots' data sheet: 850 mm) ...
+UR5_REACH_M = 0.85
+#: ... plus a gripper and the object it holds: no workspace coordinate is farther from the base.
+WORKSPACE_BOUND_M = 1.0
+#: TCP speed cap bound [m/s]: what the mock arm and the stand-in controller are strict about, above
+#: any handover reach (the DMP peaks well under 1 m/s) and far below the arm's own capability; near a
+#: person, ISO/TS 15066 asks for the lowest speed that does the task, not the most the arm can do.
+MAX_SPEED_BOUND = 1.5
+#: TCP acceleration cap bound [m/s²]: the mock's strict limit and the largest stop deceleration.
+MAX_ACCELERATION_BOUND = 10.0
+
+
+def in_range(low: float, high: float, unit: str = "", *, low_open: bool = True) -> Any:
+    """A finite float in (low, high] (``low_open``) or [low, high]. A value outside, ``inf`` or NaN
+    is refused with the range in the message (pydantic adds the field and the value)."""
+    bracket = "(" if low_open else "["
+    allowed = f"must be a finite number in {bracket}{low:g}, {high:g}]" + (f" {unit}" if unit else "")
+
+    def check(value: Any) -> Any:
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            return value  # not a number at all: pydantic's own message says so
+        if not (math.isfinite(number) and (number > low if low_open else number >= low)
+                and number <= high):
+            raise ValueError(allowed)
+        return number
+
+    bound = Field(gt=low, le=high) if low_open else Field(ge=low, le=high)
+    return Annotated[float, BeforeValidator(check), bound]
+
+
+Coordinate = in_range(-WORKSPACE_BOUND_M, WORKSPACE_BOUND_M, "m", low_open=False)
+WorkspaceCorner = tuple[Coordinate, Coordinate, Coordinate]
+#: A point of the table-top scene (the participant's side reaches beyond the robot's) [m].
+SceneCoordinate = in_range(-3.0, 3.0, "m", low_open=False)
+ScenePoint = tuple[SceneCoordinate, SceneCoordinate, SceneCoordinate]
+#: One row of the tracker → robot rotation matrix (each entry of a rotation is within ±1).
+RotationEntry = in_range(-1.0, 1.0, low_open=False)
+RotationRow = tuple[RotationEntry, RotationEntry, RotationEntry]
+
 
 class _Frozen(BaseModel):
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    # allow_inf_nan=False: no configuration value is infinite or NaN, bounded or not.
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
 class DMPConstants(_Frozen):
@@ -47,11 +95,11 @@ class DMPConstants(_Frozen):
 class SceneConfig(_Frozen):
     """Table-top geometry of Fig. 1: robot start R, handover point H, hand start A, box B, place C."""
 
-    robot_start: Vec3 = Field((0.35, -0.35, 0.35), description="R: robot TCP start [m]")
-    handover_point: Vec3 = Field((0.55, 0.05, 0.30), description="H: handover point = DMP goal g [m]")
-    hand_start: Vec3 = Field((0.95, 0.10, 0.05), description="A: hand start on the desk [m]")
-    box: Vec3 = Field((0.65, 0.25, 0.15), description="B: box, about 25 cm from H [m]")
-    place: Vec3 = Field((1.00, 0.40, 0.05), description="C: where the box is put down [m]")
+    robot_start: ScenePoint = Field((0.35, -0.35, 0.35), description="R: robot TCP start [m]")
+    handover_point: ScenePoint = Field((0.55, 0.05, 0.30), description="H: handover point = DMP goal g [m]")
+    hand_start: ScenePoint = Field((0.95, 0.10, 0.05), description="A: hand start on the desk [m]")
+    box: ScenePoint = Field((0.65, 0.25, 0.15), description="B: box, about 25 cm from H [m]")
+    place: ScenePoint = Field((1.00, 0.40, 0.05), description="C: where the box is put down [m]")
 
     def point(self, name: str) -> np.ndarray:
         return np.asarray(getattr(self, name), dtype=float)
@@ -60,10 +108,13 @@ class SceneConfig(_Frozen):
 class SafetyLimits(_Frozen):
     """Limits applied to every target before it reaches the arm (see ``robot_io.safety``)."""
 
-    workspace_min: Vec3 = Field((0.10, -0.60, 0.05), description="workspace box, lower corner [m]")
-    workspace_max: Vec3 = Field((0.90, 0.60, 0.80), description="workspace box, upper corner [m]")
-    max_speed: Positive = Field(1.0, description="TCP speed cap [m/s]")
-    max_acceleration: Positive = Field(5.0, description="TCP acceleration cap [m/s²]")
+    workspace_min: WorkspaceCorner = Field(
+        (0.10, -0.60, 0.05), description="workspace box, lower corner [m], each within ±1 m")
+    workspace_max: WorkspaceCorner = Field(
+        (0.90, 0.60, 0.80), description="workspace box, upper corner [m], each within ±1 m")
+    max_speed: in_range(0, MAX_SPEED_BOUND, "m/s") = Field(1.0, description="TCP speed cap [m/s]")
+    max_acceleration: in_range(0, MAX_ACCELERATION_BOUND, "m/s²") = Field(
+        5.0, description="TCP acceleration cap [m/s²]")
 
     @model_validator(mode="after")
     def _box_not_empty(self) -> SafetyLimits:
@@ -77,16 +128,22 @@ class SafetyLimits(_Frozen):
         return bool(np.all(point >= self.workspace_min) and np.all(point <= self.workspace_max))
 
 
+#: Upper bounds of the simulated participant's ranges: a reaction, a hand speed, a pause.
+HAND_RANGE_BOUNDS = {"reaction_delay_s": 5.0, "mean_speed_mps": 3.0, "pause_s": 10.0}
+
+
 class HandProfile(_Frozen):
     """How the simulated participant moves; each range is drawn from uniformly per trial."""
 
-    tracker_rate_hz: Positive = Field(100.0, description="tracker sample rate (Vicon in the paper)")
+    tracker_rate_hz: in_range(0, 2000, "Hz") = Field(
+        100.0, description="tracker sample rate (Vicon in the paper; mocap runs at most ~2 kHz)")
     reaction_delay_s: tuple[float, float] = Field((0.15, 0.35), description="delay after Go [s]")
     mean_speed_mps: tuple[float, float] = Field(
         (0.45, 0.65), description="mean hand speed of each reach [m/s] (duration = length/speed)")
     pause_s: tuple[float, float] = Field(
         (0.25, 0.50), description="pause to grasp the box at B and to put it down at C [s]")
-    noise_std_m: float = Field(0.0, ge=0, description="tracker noise, std per axis [m]")
+    noise_std_m: in_range(0, 0.1, "m", low_open=False) = Field(
+        0.0, description="tracker noise, std per axis [m]")
     dropout_rate: float = Field(0.0, ge=0, lt=1, description="share of tracker samples lost")
     pull_n: float = Field(15.0, ge=0, le=100, description="pull on the object once grasped [N]; 0: "
                                                          "never takes it (see robot_io.simulated_pull)")
@@ -97,8 +154,9 @@ class HandProfile(_Frozen):
     def _ranges_ordered(self) -> HandProfile:
         for name in ("reaction_delay_s", "mean_speed_mps", "pause_s"):
             low, high = getattr(self, name)
-            if not 0 <= low <= high:
-                raise ConfigError(f"hand.{name} = ({low}, {high}) must satisfy 0 ≤ low ≤ high")
+            if not 0 <= low <= high <= HAND_RANGE_BOUNDS[name]:
+                raise ConfigError(f"hand.{name} = ({low}, {high}) must satisfy 0 ≤ low ≤ high ≤ "
+                                  f"{HAND_RANGE_BOUNDS[name]:g}")
         if self.mean_speed_mps[0] <= 0:
             raise ConfigError(f"hand.mean_speed_mps = {self.mean_speed_mps} must be > 0")
         return self
@@ -108,11 +166,15 @@ class LoopConfig(_Frozen):
     """The control loop: rate, end conditions, and when the tracker counts as lost."""
 
     rate_hz: Literal[125, 500] = Field(500, description="control rate: 125 (CB-series) or 500 Hz")
-    robot_arrival_tolerance_m: Positive = Field(0.01, description="robot 'at H' radius [m]")
-    hand_arrival_tolerance_m: Positive = Field(0.03, description="hand 'at H' radius [m]")
-    staleness_limit_s: Positive = Field(
-        0.1, description="a hand sample older than this means the tracker is lost: stop [s]")
-    timeout_s: Positive = Field(20.0, description="a trial longer than this ends as 'timeout' [s]")
+    robot_arrival_tolerance_m: in_range(0, 0.1, "m") = Field(
+        0.01, description="robot 'at H' radius [m]")
+    hand_arrival_tolerance_m: in_range(0, 0.2, "m") = Field(
+        0.03, description="hand 'at H' radius [m]")
+    staleness_limit_s: in_range(0, 0.5, "s") = Field(
+        0.1, description="a hand sample older than this means the tracker is lost: stop [s]; at "
+                         "most 0.5 s, so the arm never moves long towards a person it cannot see")
+    timeout_s: in_range(0, 120, "s") = Field(
+        20.0, description="a trial longer than this ends as 'timeout' [s]")
     realtime_priority: bool = Field(
         False, description="run the control thread under SCHED_FIFO on the wall clock (needs root "
                            "or CAP_SYS_NICE; see docs/controller.md)")
@@ -136,7 +198,8 @@ class URConfig(_Frozen):
         0.6, gt=0, le=1.0, description="move_to refuses a start pose farther than this from the TCP [m]")
     stop_deceleration: float = Field(5.0, gt=0, le=10,
                                      description="servoStop deceleration at the end of a trial [m/s²]")
-    connect_timeout_s: float = Field(10.0, gt=0, description="give up connecting after this [s]")
+    connect_timeout_s: in_range(0, 120, "s") = Field(
+        10.0, description="give up connecting after this [s]")
     upper_range_registers: bool = Field(
         False, description="use RTDE registers 24–47 (when a fieldbus owns 0–23)")
 
@@ -150,12 +213,15 @@ class HandSourceConfig(_Frozen):
     lsl_channels: tuple[int, int, int] = Field((0, 1, 2), description="LSL: channels of x, y, z")
     udp_host: str = Field("0.0.0.0", description="UDP: address to listen on")
     udp_port: int = Field(9870, ge=1, le=65535, description="UDP: port to listen on")
-    units_to_m: Positive = Field(0.001, description="tracker units → metres (Vicon, OptiTrack: mm)")
-    rotation: tuple[Vec3, Vec3, Vec3] = Field(
+    units_to_m: in_range(0, 1, "m per unit") = Field(
+        0.001, description="tracker units → metres (Vicon, OptiTrack: mm)")
+    rotation: tuple[RotationRow, RotationRow, RotationRow] = Field(
         ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
         description="tracker → robot base rotation (rows), from `handover calibrate-tracker`")
-    translation: Vec3 = Field((0.0, 0.0, 0.0), description="tracker → robot base translation [m]")
-    resolve_timeout_s: Positive = Field(5.0, description="LSL: give up resolving the stream after [s]")
+    translation: ScenePoint = Field(
+        (0.0, 0.0, 0.0), description="tracker → robot base translation [m]")
+    resolve_timeout_s: in_range(0, 60, "s") = Field(
+        5.0, description="LSL: give up resolving the stream after [s]")
 
 
 class GripperConfig(_Frozen):
@@ -169,13 +235,16 @@ class GripperConfig(_Frozen):
 class ReleaseConfig(_Frozen):
     """Force-threshold release (DESIGN.md §2): baseline at grasp, filtered norm, threshold."""
 
-    threshold_n: Positive = Field(10.0, description="pull above the baseline that releases [N]")
-    filter_cutoff_hz: Positive = Field(
-        5.0, description="first-order low-pass on the force (a CB-series estimate is ±10 N noisy)")
-    baseline_s: Positive = Field(0.2, description="averaging window of the baseline at grasp [s]")
-    timeout_s: Positive = Field(10.0, description="no release within this long of holding: the trial "
-                                                  "ends not_taken and the robot retracts with the "
-                                                  "object [s]")
+    threshold_n: in_range(0, 50, "N") = Field(
+        10.0, description="pull above the baseline that releases [N]")
+    filter_cutoff_hz: in_range(0, 50, "Hz") = Field(
+        5.0, description="first-order low-pass on the force (a CB-series estimate is ±10 N noisy); "
+                         "below the Nyquist frequency of the 125 Hz CB-series rate")
+    baseline_s: in_range(0, 2, "s") = Field(
+        0.2, description="averaging window of the baseline at grasp [s]")
+    timeout_s: in_range(0, 60, "s") = Field(
+        10.0, description="no release within this long of holding: the trial ends "
+                          "not_taken and the robot retracts with the object [s]")
 
 
 class ArmConfig(_Frozen):

@@ -14,6 +14,7 @@ from robot_io.hand import HandSource
 from robot_io.loop import TrialRecord
 from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
+from robot_io.tracked_hand import PLAUSIBLE_RANGE_M, TrackedHand
 from robot_io.trial import make_clock, make_loop
 from robot_io.ur_arm import URArm
 
@@ -97,11 +98,29 @@ def _check_hand(config: ControllerConfig, listen_s: float) -> list[str]:
         return [f"hand: NOT OK — {exc}"]
     try:
         time.sleep(listen_s)
-        rate = hand.received / listen_s
-        age = hand.age()
-        if hand.received == 0:
-            return [f"hand: NOT OK — {kind} source open but no sample in {listen_s:g} s"]
-        return [f"hand: {kind}, {rate:.0f} samples/s, newest {1e3 * age:.0f} ms old, "
-                f"{hand.dropouts} occluded"]
+        return [_judge_hand(kind, hand, listen_s, config.loop.staleness_limit_s)]
     finally:
         hand.close()
+
+
+def _judge_hand(kind: str, hand: TrackedHand, listen_s: float, staleness_limit_s: float) -> str:
+    """One line on what the tracker sent while we listened: NOT OK unless it sent positions, fresh
+    enough for the control loop (``staleness_limit_s``), with valid time stamps."""
+    received, dropouts, invalid = hand.received, hand.dropouts, hand.invalid
+    heard = f"{received} samples in {listen_s:g} s ({dropouts} occluded or invalid)"
+    if received == 0:
+        return f"hand: NOT OK — {kind} source open but no sample in {listen_s:g} s"
+    if invalid:
+        return (f"hand: NOT OK — {invalid} of {received} samples had a non-finite time stamp or an "
+                f"implausible position (more than {PLAUSIBLE_RANGE_M:g} m from the robot base): check "
+                "the units and the sender's clock")
+    valid_age = hand.valid_age()
+    if valid_age is None:
+        return (f"hand: NOT OK — all {received} samples occluded (no marker position): is the "
+                "hand marker visible to the tracker?")
+    if valid_age > staleness_limit_s:
+        return (f"hand: NOT OK — the newest position is {valid_age:.3f} s old (staleness_limit_s "
+                f"= {staleness_limit_s} s): the tracker's time stamps are not on this machine's "
+                f"clock, or it stopped; {heard}")
+    return (f"hand: {kind}, {received / listen_s:.0f} samples/s, newest {1e3 * valid_age:.0f} ms "
+            f"old, {dropouts} occluded")

@@ -32,8 +32,10 @@ def explain(exc: Exception) -> str:
     parts = []
     for error in errors():
         message = str(error.get("msg", "")).removeprefix("Value error, ")
-        field = ".".join(str(part) for part in error.get("loc", ()))
-        if field and field.split(".")[-1] not in message:
+        loc = error.get("loc", ())
+        field = ".".join(str(part) for part in loc)
+        name = next((str(part) for part in reversed(loc) if not isinstance(part, int)), "")
+        if field and name not in message:
             message = f"{field} = {error.get('input')!r}: {message}"
         parts.append(message)
     return "; ".join(parts)

@@ -6,7 +6,8 @@ late or early the next cycle comes: timing jitter of the loop does not turn into
 
 The mock is strict: a target that would need more than its speed or acceleration limit is not smoothed
 over but trips a fault, as a following error trips a real controller's protective stop; so a stream
-that the safety limiter let through is checked again here. ``stop()`` decelerates at
+that the safety limiter let through is checked again here, and a non-finite target or start pose
+faults it as it faults the UR backend. ``stop()`` decelerates at
 ``stop_deceleration`` on the loop's clock until at rest, the same on simulated and real time.
 """
 
@@ -63,7 +64,10 @@ class MockArm:
         ``stop`` can halt)."""
         if self._state in (ArmState.STREAMING, ArmState.STOPPING):
             raise ArmFault(f"move_to refused while the arm is {self._state}")
-        self.position = np.asarray(pose, dtype=float).copy()
+        pose = np.asarray(pose, dtype=float)
+        if not np.all(np.isfinite(pose)):
+            raise ArmFault(f"move_to refused: non-finite start pose {pose.tolist()}")
+        self.position = pose.copy()
         self.velocity = np.zeros(3)
 
     def begin_stream(self) -> None:
@@ -81,7 +85,11 @@ class MockArm:
         if self._state is not ArmState.STREAMING:
             raise ArmFault(f"servo target refused: arm is {self._state}"
                            + (f" ({self._fault})" if self._fault else ""))
-        self._target = np.asarray(target, dtype=float).copy()
+        target = np.asarray(target, dtype=float)
+        if not np.all(np.isfinite(target)):
+            self._trip(f"non-finite servo target {target.tolist()}; not taken")
+            raise ArmFault(self._fault)
+        self._target = target.copy()
         self._target_time = self._time
         self.commands_received += 1
 

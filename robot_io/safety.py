@@ -1,5 +1,6 @@
-"""The safety limiter: the last stage before the arm. Nothing it returns leaves the workspace box, and
-successive targets never imply more than the speed or acceleration cap."""
+"""The safety limiter: the last stage before the arm. Nothing it returns leaves the workspace box,
+successive targets never imply more than the speed or acceleration cap, and a non-finite target or
+start position is refused (an ArmFault: the loop stops the arm), never passed on."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 
 from robot_io.config import SafetyLimits
+from robot_io.errors import ArmFault
 
 
 class LimitFlags(NamedTuple):
@@ -37,12 +39,12 @@ class SafetyLimiter:
 
     def reset(self, position: np.ndarray) -> None:
         """Start from the arm's measured position, at rest."""
-        self.position = np.asarray(position, dtype=float).copy()
+        self.position = _finite(position, "start position").copy()
         self.velocity = np.zeros(3)
 
     def limit(self, target: np.ndarray) -> tuple[np.ndarray, LimitFlags]:
         dt = self.dt
-        wanted = (np.asarray(target, dtype=float) - self.position) / dt
+        wanted = (_finite(target, "target") - self.position) / dt
         change = wanted - self.velocity
         max_change = self.limits.max_acceleration * dt
         change_norm = float(np.linalg.norm(change))
@@ -58,3 +60,11 @@ class SafetyLimiter:
         self.velocity = (position - self.position) / dt
         self.position = position
         return position.copy(), LimitFlags(accel_limited, speed_limited, box_limited)
+
+
+def _finite(values: np.ndarray, what: str) -> np.ndarray:
+    """``values`` as floats; a NaN or infinite one would pass every ``>`` check, so it is refused."""
+    array = np.asarray(values, dtype=float)
+    if not np.all(np.isfinite(array)):
+        raise ArmFault(f"safety limiter: non-finite {what} {array.tolist()}; not sent")
+    return array

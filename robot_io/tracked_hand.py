@@ -9,11 +9,17 @@ machine's monotonic clock). ``latest(now)`` turns it into trial time, assuming t
 
 Dropouts: an occluded marker (NaN, or exactly zero as Vicon sends it) becomes a NaN sample, which the
 loop counts and ignores; no sample at all for ``staleness_limit_s`` makes the loop stop the arm.
+
+Invalid samples are validated before they are kept, and each is one dropout, never the newest sample:
+a non-finite time stamp (it would compare false with every later one and freeze the source), and a
+position farther than ``PLAUSIBLE_RANGE_M`` from the robot base (a tracker glitch or a wrong unit,
+e.g. 1e308 mm). They are counted in ``invalid`` (and in ``dropouts``) and logged once.
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 
@@ -25,6 +31,9 @@ from robot_io.hand import HandSample
 
 log = logging.getLogger(__name__)
 
+#: A hand position farther than this from the robot base in any axis is not a hand in the lab [m].
+PLAUSIBLE_RANGE_M = 5.0
+
 
 class TrackedHand:
     """Thread-safe newest sample of a tracked hand, in the robot base frame."""
@@ -35,18 +44,38 @@ class TrackedHand:
         self._newest: tuple[float, np.ndarray] | None = None
         self.received = 0
         self.dropouts = 0
+        #: samples refused: a non-finite time stamp or an implausible position (also dropouts)
+        self.invalid = 0
+        self._newest_valid_at: float | None = None
         self._thread: threading.Thread | None = None
         self._running = False
 
     def put(self, measured_at: float, tracker_xyz) -> None:
-        """One sample: ``measured_at`` on ``time.monotonic``, position in tracker units."""
+        """One sample: ``measured_at`` on ``time.monotonic``, position in tracker units. An occluded
+        or invalid sample is a dropout: a NaN position (the loop counts and ignores it); one whose
+        own time stamp is not finite is stamped with its arrival."""
         raw = np.asarray(tracker_xyz, dtype=float)
-        if raw.shape != (3,) or not np.all(np.isfinite(raw)) or not np.any(raw):
-            self.dropouts += 1
+        measured_at = float(measured_at)
+        problem = None
+        if not math.isfinite(measured_at):
+            problem, measured_at = f"non-finite time stamp {measured_at}", time.monotonic()
+        if problem or raw.shape != (3,) or not np.all(np.isfinite(raw)) or not np.any(raw):
             position = np.full(3, np.nan)
         else:
             position = self.transform.apply(raw)
+            if not np.all(np.abs(position) <= PLAUSIBLE_RANGE_M):
+                problem = problem or (f"implausible position {raw.tolist()} (tracker units), more "
+                                      f"than {PLAUSIBLE_RANGE_M} m from the robot base")
+                position = np.full(3, np.nan)
         with self._lock:
+            if problem is not None:
+                self.invalid += 1
+                if self.invalid == 1:
+                    log.warning("%s: sample refused as a dropout: %s", type(self).__name__, problem)
+            if np.isnan(position[0]):
+                self.dropouts += 1
+            elif self._newest_valid_at is None or measured_at > self._newest_valid_at:
+                self._newest_valid_at = measured_at
             if self._newest is None or measured_at >= self._newest[0]:
                 self._newest = (measured_at, position)
             self.received += 1
@@ -70,6 +99,12 @@ class TrackedHand:
         """Seconds since the newest sample was measured; None before the first."""
         with self._lock:
             return None if self._newest is None else time.monotonic() - self._newest[0]
+
+    def valid_age(self) -> float | None:
+        """Seconds since the newest sample with a position was measured; None before the first."""
+        with self._lock:
+            newest = self._newest_valid_at
+        return None if newest is None else time.monotonic() - newest
 
     # -- receiver thread -----------------------------------------------------------------------
     def start(self) -> None:

@@ -11,6 +11,9 @@ that implies more than the speed or acceleration cap, is refused — never sent 
 * Faults read every cycle: protective stop, emergency stop, lost RTDE connection, the control script
   no longer running (watchdog), the worker gone, no new controller state for 0.1 s (a stall). Each
   becomes ``ArmState.FAULT`` with a plain-words ``fault``; the loop then aborts the trial.
+* Every value read from the controller is checked finite before it is used: a NaN or infinite
+  pose, speed, force or time stamp is an arm fault (nothing more is sent), never a number to compute
+  a motion from.
 * :meth:`recover` is the documented way back: reconnect what dropped, unlock a protective stop once
   the controller's 5 s have passed, re-upload the control script. The experimenter calls it (a
   protective stop is to be inspected before unlocking); it moves nothing.
@@ -86,7 +89,11 @@ class URArm:
         except ArmFault:
             self.close()  # leave no receive or dashboard connection behind
             raise
-        self.orientation = list(self._receive.getActualTCPPose()[3:])
+        try:
+            self.orientation = self._finite(self._receive.getActualTCPPose()[3:], "TCP orientation")
+        except ArmFault:
+            self.close()
+            raise
         log.info("connected to UR controller %s (PolyScope %s, %d Hz)", cfg.host,
                  self.polyscope_version, self.rate_hz)
 
@@ -127,15 +134,33 @@ class URArm:
 
     @property
     def is_moving(self) -> bool:
-        speed = float(np.linalg.norm(self._receive.getActualTCPSpeed()[:3]))
+        """True while the TCP moves; an unreadable (non-finite) speed counts as moving, and faults."""
+        try:
+            speed = float(np.linalg.norm(self._finite(self._receive.getActualTCPSpeed()[:3],
+                                                      "TCP speed")))
+        except ArmFault:
+            return True
         return speed > REST_SPEED and self._receive.isConnected()
 
     def read_pose(self) -> np.ndarray:
-        return np.asarray(self._receive.getActualTCPPose()[:3], dtype=float)
+        """TCP position [m], base frame; a non-finite reading faults the arm (ArmFault)."""
+        return self._finite(self._receive.getActualTCPPose()[:3], "TCP position")
 
     def read_force(self) -> np.ndarray:
-        """Force at the TCP [N], base frame (CB-series: estimated from joint currents, ±10 N)."""
-        return np.asarray(self._receive.getActualTCPForce()[:3], dtype=float)
+        """Force at the TCP [N], base frame (CB-series: estimated from joint currents, ±10 N); a
+        non-finite reading faults the arm (ArmFault)."""
+        return self._finite(self._receive.getActualTCPForce()[:3], "TCP force")
+
+    def _finite(self, values, what: str) -> np.ndarray:
+        """``values`` as an array, or an arm fault if any is NaN or infinite: a motion computed from
+        it would be meaningless (``nan > limit`` is false, so every check would pass)."""
+        array = np.asarray(values, dtype=float)
+        if not np.all(np.isfinite(array)):
+            if self._state is not ArmState.FAULT:
+                self._trip(f"the controller reported a non-finite {what} {array.tolist()}; nothing "
+                           "is sent: check the controller and the RTDE link, then call recover()")
+            raise ArmFault(self._fault or f"non-finite {what} {array.tolist()}")
+        return array
 
     def _bits(self, name: str) -> int:
         return int(getattr(self._receive, name)())
@@ -169,8 +194,13 @@ class URArm:
                            "(controller stalled or network congested); call recover()")
 
     def _state_silent(self) -> bool:
-        """True when the controller's time stamp has not advanced for STATE_SILENCE_S."""
-        now, stamp = time.monotonic(), self._receive.getTimestamp()
+        """True when the controller's time stamp has not advanced for STATE_SILENCE_S (a
+        non-finite time stamp faults the arm here)."""
+        now = time.monotonic()
+        try:
+            stamp = float(self._finite(self._receive.getTimestamp(), "state time stamp"))
+        except ArmFault:
+            return False
         if stamp != self._stamp:
             self._stamp, self._stamp_seen = stamp, now
         return now - self._stamp_seen > STATE_SILENCE_S

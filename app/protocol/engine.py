@@ -334,7 +334,9 @@ class SessionEngine:
         later = [p for p in self.store.rows("placements", order_by="interaction")
                  if str(p.interaction) not in known
                  and self.slots[p.interaction - 1].learner_index is not None]
-        comparisons = self.store.rows("comparisons")
+        # In the order they were made (rowid), as the live learner received them: the key order
+        # (source, winner, loser) feeds PairwiseGP another comparison order, hence other θ.
+        comparisons = self.store.rows("comparisons", order_by="rowid")
         for placement in later:
             theta = self.state.planned[placement.interaction].theta
             self._learner.submit(

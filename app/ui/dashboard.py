@@ -9,7 +9,6 @@ disabled: it stops the arm whatever else is going on.
 from __future__ import annotations
 
 import logging
-import secrets
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,6 +20,7 @@ import viser.uplot
 from app.learning.models import PosteriorSlice
 from app.protocol.state import Step
 from app.session.runner import RunnerView, SessionRunner
+from app.ui.guard import TokenGate
 from app.ui.live_view import STRIDE, LiveView
 from app.ui.style import DASHBOARD_CSS, style_block
 from robot_io.errors import RobotIOError
@@ -161,8 +161,8 @@ class Controls:
 class DashboardClient:
     """One experimenter's browser."""
 
-    def __init__(self, client: viser.ClientHandle, runner: SessionRunner, token: str) -> None:
-        self.client, self.runner, self.token = client, runner, token
+    def __init__(self, client: viser.ClientHandle, runner: SessionRunner, gate: TokenGate) -> None:
+        self.client, self.runner, self.gate = client, runner, gate
         self.live: LiveView | None = None
         self._code: str | None = "-"
         self._lock = threading.Lock()
@@ -179,10 +179,11 @@ class DashboardClient:
 
         @unlock.on_click
         def _(_: viser.GuiEvent) -> None:
-            if secrets.compare_digest(field.value.strip(), self.token):
+            refusal = self.gate.attempt(self.client.client_id, field.value.strip())
+            if refusal is None:
                 self.refresh(self.runner.view, rebuild=True)
             else:
-                error.content = "⚠ Wrong token."
+                error.content = f"⚠ {refusal}"
 
     # -- panels -----------------------------------------------------------------------------------
     def refresh(self, view: RunnerView, rebuild: bool = False) -> None:
@@ -278,8 +279,8 @@ class Dashboard:
     """The dashboard server: token-gated clients, refreshed on every change and ticked for the
     live view."""
 
-    def __init__(self, server: viser.ViserServer, runner: SessionRunner, token: str) -> None:
-        self.server, self.runner, self.token = server, runner, token
+    def __init__(self, server: viser.ViserServer, runner: SessionRunner, gate: TokenGate) -> None:
+        self.server, self.runner, self.gate = server, runner, gate
         self.clients: dict[int, DashboardClient] = {}
         server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
         server.gui.main_panel.dock_right()
@@ -290,7 +291,7 @@ class Dashboard:
 
     def _connect(self, client: viser.ClientHandle) -> None:
         client.scene.configure_environment_map(hdri=None)
-        self.clients[client.client_id] = DashboardClient(client, self.runner, self.token)
+        self.clients[client.client_id] = DashboardClient(client, self.runner, self.gate)
 
     def refresh(self, view: RunnerView) -> None:
         for client in list(self.clients.values()):

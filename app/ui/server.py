@@ -1,7 +1,9 @@
 """``handover serve``'s servers: the tablet and the dashboard, two viser servers in one process.
 
 Roles are told apart by port, since viser passes no URL query to the server. The dashboard is
-token-gated; the tablet offers nothing but rating and answering. A ticker thread redraws the
+token-gated (attempts rate-limited per address); the tablet offers nothing but rating and answering.
+Both are closed to the outside (:mod:`app.ui.guard`): exactly the ports asked for, no share links,
+same-origin websockets only. A ticker thread redraws the
 dashboard's live view ten times a second while the control loop runs in its own thread.
 """
 
@@ -12,10 +14,9 @@ import secrets
 import threading
 from dataclasses import dataclass
 
-import viser
-
 from app.session.runner import SessionRunner
 from app.ui.dashboard import Dashboard
+from app.ui.guard import TokenGate, open_server
 from app.ui.tablet import Tablet
 
 log = logging.getLogger(__name__)
@@ -38,12 +39,17 @@ class HandoverServers:
     def __init__(self, runner: SessionRunner, options: ServeOptions) -> None:
         self.runner, self.options = runner, options
         self.token = options.token or secrets.token_urlsafe(9)
-        self.tablet_server = viser.ViserServer(host=options.host, port=options.tablet_port,
-                                               verbose=False)
-        self.dashboard_server = viser.ViserServer(host=options.host, port=options.dashboard_port,
-                                                  label="handover-lab dashboard", verbose=False)
+        self.tablet_server, self.tablet_guard = open_server(options.host, options.tablet_port,
+                                                            "tablet")
+        try:
+            self.dashboard_server, self.dashboard_guard = open_server(
+                options.host, options.dashboard_port, "dashboard", label="handover-lab dashboard")
+        except Exception:
+            self.tablet_server.stop()
+            raise
         self.tablet = Tablet(self.tablet_server, runner)
-        self.dashboard = Dashboard(self.dashboard_server, runner, self.token)
+        self.gate = TokenGate(self.token, self.dashboard_guard.source_of)
+        self.dashboard = Dashboard(self.dashboard_server, runner, self.gate)
         self._closed = threading.Event()
         self._ticker = threading.Thread(target=self._tick, name="live-view", daemon=True)
         self._ticker.start()

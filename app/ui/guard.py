@@ -1,0 +1,166 @@
+"""The web app closed to the outside: what ``handover serve`` puts around each viser server.
+
+* **No share links.** viser lets any connected page ask the server to open a public tunnel
+  (``ShareUrlRequest`` → ``share.viser.studio``). Its handlers are removed and a refusal is logged.
+* **Same-origin websockets only.** A browser page on another site can open a websocket to a server on
+  this machine or LAN; the browser then sends that site's ``Origin``. A connection is kept only if its
+  ``Origin`` names the host and port the page was served from (its ``Host`` header), and that host is
+  an IP address, ``localhost`` or this machine's name (so a DNS-rebinding name is refused too); any
+  other connection is closed (1008, policy violation) before the server sends or reads a message.
+* **A busy port is an error naming it.** viser moves on to the next free port without a word, so the
+  tablet could end up on the dashboard's port; here the port actually bound must be the one asked for.
+* **Token attempts rate-limited and logged** (:class:`TokenGate`), per remote address.
+
+viser 1.1.1 offers no switch for the first three, so this module reaches into its infra server
+(``ViserServer._websock_server``): ``unregister_handler``/``register_handler`` and ``on_client_connect``
+are that server's own hooks; the websocket of a client is read from its ``_live_connections``. Nothing
+of viser is patched. Re-check these names when viser is upgraded.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import logging
+import secrets
+import socket
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from urllib.parse import urlsplit
+
+import viser
+from viser import _messages
+from viser.infra import WebsockClientConnection
+
+log = logging.getLogger(__name__)
+
+#: The viser version whose internals this module was written against.
+VISER_VERSION = "1.1.1"
+#: Close code of a refused websocket (RFC 6455: policy violation).
+POLICY_VIOLATION = 1008
+
+
+class PortInUse(ValueError):
+    """The port asked for a screen is taken; viser would have moved to another one."""
+
+
+def open_server(host: str, port: int, role: str, **kwargs) -> tuple[viser.ViserServer, Guard]:
+    """A viser server for ``role`` ("tablet", "dashboard") on exactly ``host:port``, guarded."""
+    server = viser.ViserServer(host=host, port=port, verbose=False, **kwargs)
+    bound = server.get_port()
+    if port != 0 and bound != port:
+        server.stop()
+        raise PortInUse(f"{role} port {port} on {host} is in use (by another program, or the other "
+                        f"screen); free it or choose another {role} port")
+    return server, Guard(server, role)
+
+
+class Guard:
+    """Refuses share links and foreign origins on one viser server; remembers client addresses."""
+
+    def __init__(self, server: viser.ViserServer, role: str) -> None:
+        if viser.__version__ != VISER_VERSION:
+            log.warning("app.ui.guard was written for viser %s, this is %s: re-check it",
+                        VISER_VERSION, viser.__version__)
+        self.role = role
+        self.port = server.get_port()
+        self.refused: list[str] = []  # what was refused, in order (for the log and for tests)
+        self._infra = server._websock_server
+        self._addresses: dict[int, str] = {}
+        for message in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
+            self._infra.unregister_handler(message)  # viser's own: it would open a public tunnel
+            self._infra.register_handler(message, self._refuse_share_link)
+        self._infra.on_client_connect(self._check_origin)
+        self._infra.on_client_disconnect(
+            lambda conn: self._addresses.pop(conn.client_id, None))
+
+    def source_of(self, client_id: int) -> str:
+        """The remote address of a connected client ("unknown" once it has gone)."""
+        return self._addresses.get(client_id, "unknown")
+
+    def _refuse(self, what: str) -> None:
+        self.refused.append(what)
+        log.warning("%s: refused %s", self.role, what)
+
+    def _refuse_share_link(self, client_id: int, message: object) -> None:
+        self._refuse(f"share-link request ({type(message).__name__}) from client {client_id} at "
+                     f"{self.source_of(client_id)}: public tunnels are disabled")
+
+    async def _check_origin(self, conn: WebsockClientConnection) -> None:
+        connection = self._infra._live_connections.get(conn.client_id)
+        if connection is None:
+            return
+        address = connection.remote_address[0] if connection.remote_address else "unknown"
+        self._addresses[conn.client_id] = address
+        headers = connection.request.headers
+        origin, host = headers.get("Origin"), headers.get("Host")
+        if not same_origin(origin, host, self.port):
+            self._refuse(f"websocket from {address} with Origin {origin!r} (served as {host!r})")
+            await connection.close(POLICY_VIOLATION, "origin not allowed")
+
+
+def same_origin(origin: str | None, host: str | None, port: int) -> bool:
+    """True if ``origin`` is the page this server served: same host and ``port`` as the ``Host``
+    header, and a host that cannot be a rebound DNS name (an IP address, localhost, this machine)."""
+    if not origin or not host:
+        return False
+    try:
+        parts, served = urlsplit(origin), urlsplit(f"//{host}")
+        origin_port = parts.port or {"http": 80, "https": 443}.get(parts.scheme)
+        served_port = served.port or 80
+    except ValueError:
+        return False
+    if parts.scheme not in ("http", "https") or not parts.hostname or not served.hostname:
+        return False
+    if (parts.hostname.lower(), origin_port) != (served.hostname.lower(), served_port):
+        return False
+    return served_port == port and _trusted_name(served.hostname)
+
+
+def _trusted_name(name: str) -> bool:
+    try:
+        ipaddress.ip_address(name)
+        return True
+    except ValueError:
+        pass
+    own = {"localhost", socket.gethostname().lower(), socket.getfqdn().lower()}
+    return name.lower() in own or name.lower().removesuffix(".local") in own
+
+
+class TokenGate:
+    """The dashboard token, checked at most ``max_failures`` times per ``window_s`` from one remote
+    address; every wrong attempt is logged with its address, further attempts are refused unchecked
+    until the window has slid past the oldest failure."""
+
+    def __init__(self, token: str, source_of: Callable[[int], str], max_failures: int = 5,
+                 window_s: float = 60.0, clock: Callable[[], float] = time.monotonic) -> None:
+        self._token, self._source_of = token, source_of
+        self.max_failures, self.window_s, self._clock = max_failures, window_s, clock
+        self._failures: dict[str, deque[float]] = {}
+        self._lock = threading.Lock()
+        self.refused_unchecked = 0
+
+    def attempt(self, client_id: int, given: str) -> str | None:
+        """None if ``given`` is the token; otherwise why not, for the screen."""
+        source, now = self._source_of(client_id), self._clock()
+        with self._lock:
+            failures = self._failures.setdefault(source, deque())
+            while failures and now - failures[0] >= self.window_s:
+                failures.popleft()
+            if len(failures) >= self.max_failures:
+                self.refused_unchecked += 1
+                wait = self.window_s - (now - failures[0])
+                if self.refused_unchecked == 1 or self.refused_unchecked % 100 == 0:
+                    log.warning("dashboard: token attempts from %s refused unchecked (%d wrong in "
+                                "%g s; %d refused so far)", source, len(failures), self.window_s,
+                                self.refused_unchecked)
+                return f"Too many wrong tokens from this address: try again in {wait:.0f} s."
+            if secrets.compare_digest(given.encode(), self._token.encode()):
+                failures.clear()
+                log.info("dashboard: unlocked by %s", source)
+                return None
+            failures.append(now)
+            log.warning("dashboard: wrong token from %s (%d of %d allowed in %g s)", source,
+                        len(failures), self.max_failures, self.window_s)
+            return "Wrong token."

@@ -1,0 +1,128 @@
+"""Tracker samples are validated before they are kept, and ``handover check-devices`` judges the
+stream: UDP/JSON datagrams on loopback, a real UDPHand, the stand-in controller for the arm."""
+
+from __future__ import annotations
+
+import json
+import math
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+
+import numpy as np
+import pytest
+from ur_helpers import standin
+
+from app.cli import main
+from robot_io.config import ControllerConfig
+from robot_io.devices import tracker_transform
+from robot_io.hand import HandSample
+from robot_io.udp_hand import UDPHand
+
+HOST = "127.0.0.155"
+HAND_MM = [950.0, 100.0, 50.0]  # A, the hand start, in millimetres
+
+
+def _free_udp_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind((HOST, 0))
+        return sock.getsockname()[1]
+
+
+@contextmanager
+def sending(port: int, message: Callable[[int], dict], period: float = 0.01) -> Iterator[None]:
+    """Send ``message(n)`` as JSON to ``HOST:port`` every ``period`` until the block ends."""
+    stop = threading.Event()
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+    def run() -> None:
+        n = 0
+        while not stop.is_set():
+            sock.sendto(json.dumps(message(n)).encode(), (HOST, port))
+            n += 1
+            stop.wait(period)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(1.0)
+        sock.close()
+
+
+def _udp_hand() -> UDPHand:
+    config = ControllerConfig()
+    source = config.hand_source.model_copy(update={"kind": "udp", "udp_host": HOST, "udp_port": 0})
+    return UDPHand(source, tracker_transform(config))
+
+
+def _wait(condition: Callable[[], bool], timeout: float = 5.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "condition not met in time"
+        time.sleep(0.005)
+
+
+def _newest_after(datagrams: list[bytes]) -> tuple[UDPHand, HandSample | None]:
+    """A UDPHand sent ``datagrams`` in order; returns it (closed) and its newest sample."""
+    hand = _udp_hand()
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            for datagram in datagrams:
+                sock.sendto(datagram, hand.address)
+            _wait(lambda: hand.received == len(datagrams))
+        return hand, hand.latest(0.0)
+    finally:
+        hand.close()
+
+
+def test_a_nan_stamped_first_datagram_is_one_dropout_not_a_freeze():
+    datagrams = [b'{"x": 950.0, "y": 100.0, "z": 50.0, "t": NaN}'] + [
+        json.dumps({"x": 950.0 + n, "y": 100.0, "z": 50.0}).encode() for n in range(5)]
+    hand, sample = _newest_after(datagrams)
+    assert hand.dropouts == 1 and hand.invalid == 1
+    assert sample.is_valid() and sample.position[0] == pytest.approx(0.954)
+
+
+def test_an_implausible_coordinate_is_a_dropout_never_a_hand_position():
+    hand, sample = _newest_after([json.dumps({"x": x, "y": 100.0, "z": 50.0}).encode()
+                                  for x in (950.0, 1e308)])
+    assert hand.dropouts == 1 and hand.invalid == 1
+    assert not sample.is_valid()  # the newest sample is a dropout; the loop keeps the last valid
+    assert np.all(np.isnan(sample.position))
+
+
+STREAMS = {
+    "7000 s old": (lambda n: {"x": 950.0, "y": 100.0, "z": 50.0, "t": time.monotonic() - 7000.0},
+                   "the newest position is 7000"),
+    "all occluded": (lambda n: {"x": None, "y": None, "z": None}, "all"),
+    "NaN-stamped": (lambda n: {"x": 950.0, "y": 100.0, "z": 50.0, "t": math.nan},
+                    "non-finite time stamp"),
+    "1e308 mm": (lambda n: {"x": 1e308, "y": 100.0, "z": 50.0}, "implausible position"),
+}
+
+
+def test_check_devices_fails_in_plain_words_on_a_stale_occluded_or_invalid_stream(tmp_path, capsys):
+    port = _free_udp_port()
+    lab = tmp_path / "lab.toml"
+    lab.write_text(f'[hand_source]\nkind = "udp"\nudp_host = "{HOST}"\nudp_port = {port}\n')
+    results = {}
+    with standin(HOST):
+        with sending(port, lambda n: {"x": 950.0, "y": 100.0, "z": 50.0}):
+            healthy = main(["check-devices", "--ur-host", HOST, "--config", str(lab)])
+        healthy_out = capsys.readouterr().out
+        for name, (message, _) in STREAMS.items():
+            with sending(port, message):
+                code = main(["check-devices", "--ur-host", HOST, "--config", str(lab)])
+            results[name] = (code, capsys.readouterr().out)
+    assert healthy == 0, healthy_out  # the positive control: the same set-up with a good stream
+    assert "hand: udp," in healthy_out
+    for name, (code, out) in results.items():
+        hand_line = next(line for line in out.splitlines() if line.startswith("hand:"))
+        assert code == 1, (name, out)
+        assert hand_line.startswith("hand: NOT OK — ") and STREAMS[name][1] in hand_line, name
+        assert "arm: UR at" in out and "Traceback" not in out

@@ -1,0 +1,93 @@
+"""`handover serve` closed to the outside, tried as a hostile page or a careless set-up would: a real
+websocket client (the ``websockets`` package viser itself uses) speaking viser's protocol to the real
+server, a real browser for the token, a port already taken by another program."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+import time
+
+import msgspec
+import pytest
+import viser
+from support.browser import TOKEN, chromium, click, fill, open_page, serve, wait_text
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.client import connect
+
+SUBPROTOCOL = f"viser-v{viser.__version__}"
+
+
+def _ws(url: str, origin: str | None):
+    return connect(url.replace("http://", "ws://"), origin=origin, subprotocols=[SUBPROTOCOL],
+                   open_timeout=10)
+
+
+def _wait_for(served, text: str, timeout: float = 20.0) -> str:
+    deadline = time.monotonic() + timeout
+    while text not in (log := served.log.read_text()):
+        assert time.monotonic() < deadline, f"{text!r} not in the server's output:\n{log[-2000:]}"
+        time.sleep(0.05)
+    return log
+
+
+def test_a_share_link_request_is_refused_on_both_ports(tmp_path):
+    """viser lets any page ask for a public tunnel (share.viser.studio); neither screen opens one."""
+    with serve(tmp_path) as served:
+        for url in (served.tablet_url, served.dashboard_url):
+            with _ws(url, origin=url) as ws:
+                ws.recv(timeout=10)  # connected: the server is sending its state
+                ws.send(msgspec.msgpack.encode({"type": "ShareUrlRequest"}))
+                _wait_for(served, "share-link request (ShareUrlRequest) from client 0 at "
+                                  "127.0.0.1: public tunnels are disabled")
+        output = served.shutdown()
+    assert output.count("refused share-link request") == 2
+    assert "Share URL requested" not in output and "Traceback" not in output
+
+
+def test_a_websocket_from_a_foreign_origin_is_closed_before_any_message(tmp_path):
+    with serve(tmp_path) as served:
+        for url in (served.tablet_url, served.dashboard_url):
+            with _ws(url, origin=url) as ws:  # positive control: the page the server served
+                assert ws.recv(timeout=10)
+            for origin in ("http://evil.example", url.replace("127.0.0.1", "attacker.example"),
+                           None):
+                with _ws(url, origin=origin) as ws, pytest.raises(ConnectionClosed) as closed:
+                    ws.recv(timeout=10)
+                assert closed.value.rcvd is not None and closed.value.rcvd.code == 1008, origin
+        output = served.shutdown()
+    assert output.count("refused websocket from 127.0.0.1 with Origin") == 6
+
+
+@pytest.mark.browser
+def test_dashboard_token_attempts_are_rate_limited_and_logged(tmp_path):
+    with serve(tmp_path) as served, chromium() as browser:
+        page = open_page(browser, served.dashboard_url)
+        for attempt in range(5):
+            fill(page, "Token", f"guess-{attempt}")
+            click(page, "Unlock")
+            wait_text(page, "Wrong token.")
+            _wait_for(served, f"({attempt + 1} of 5 allowed in 60 s)")
+        fill(page, "Token", TOKEN)  # the right token, too late: refused unchecked for a minute
+        click(page, "Unlock")
+        wait_text(page, "Too many wrong tokens from this address")
+        assert "Participant" not in page.inner_text("body")
+        output = served.shutdown()
+    assert output.count("dashboard: wrong token from 127.0.0.1") == 5
+    assert "token attempts from 127.0.0.1 refused unchecked" in output
+
+
+def test_a_busy_tablet_port_is_an_error_naming_it(tmp_path):
+    """Today's viser would move to the next port — possibly the dashboard's — without a word."""
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        run = subprocess.run(
+            [sys.executable, "-m", "app.cli", "serve", "--study", str(tmp_path / "study"),
+             "--tablet-port", str(port), "--dashboard-port", str(port + 1)],
+            capture_output=True, text=True, timeout=60)
+    assert run.returncode != 0 and "dashboard token" not in run.stdout
+    assert f"tablet port {port} on 127.0.0.1 is in use" in run.stderr
+    assert "Traceback" not in run.stderr
