@@ -8,9 +8,8 @@ from enum import StrEnum
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.learning.models import Comparison, FitReport, Interaction, ParameterBox, RecommendationName
+from app.learning.models import Comparison, FitReport, Interaction, ParameterBox
 from app.learning.planner import BatchSchedule
-from app.learning.prior import PopulationPrior
 
 #: Serialisable kernel hyperparameters: raw parameter name → values (the warm start, the snapshot).
 Hyperparameters = dict[str, list[float]]
@@ -23,13 +22,6 @@ class AcquisitionName(StrEnum):
     QLOGNEI = "qlognei"
     EUBO = "eubo"
     SOBOL = "sobol"
-
-
-#: The recommendation default, chosen by the recommendation study of docs/learning.md: on the same
-#: searches neither the box maximiser nor the LCB moved the final distance of qNEI or EUBO at any σ
-#: (paired differences within ±0.03 and their CIs across 0), so the paper's θ* stays: an observed
-#: handover the participant has felt, at the cost of one posterior.
-DEFAULT_RECOMMENDATION = RecommendationName.IN_SAMPLE_MEAN
 
 
 class OptimizerConfig(BaseModel):
@@ -78,14 +70,6 @@ class LearnerConfig(BaseModel):
     schedule: BatchSchedule = BatchSchedule()
     model: ModelConfig = ModelConfig()
     optimizer: OptimizerConfig = OptimizerConfig()
-    recommendation: RecommendationName = Field(
-        DEFAULT_RECOMMENDATION, description="how θ* is recommended (docs/learning.md, "
-        "recommendation study); the batch-opening θ* is the in-sample incumbent whatever this is")
-    lcb_beta: float = Field(1.0, ge=0.0, le=10.0,
-                            description="β of the in-sample lower confidence bound mean − β·std")
-    prior: PopulationPrior | None = Field(
-        None, description="prior mean from earlier participants (app.learning.population); "
-        "None: the zero mean of eq. (12)")
     seed: int = 0
 
 

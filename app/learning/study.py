@@ -1,23 +1,17 @@
-"""Running the simulated study (Sect. IV): many trials per condition, on Dask, resumable.
+"""Running the simulated study (Sect. IV): many trials per condition, in parallel, resumable.
 
 Files in ``<out>/<condition name>/``:
 
 - ``condition.json``: the condition and the study seed. Resuming with a different condition or seed
   is an error, so raw rows of different studies are never mixed.
-- ``trials.csv``: raw rows, one per (trial, interaction): the inference distance u(θ*) of the
-  condition's recommendation strategy (``distance``), the distance of the point shown, the oracle
-  distance (best point shown so far), the inference distance of every strategy
-  (``distance_<strategy>``) and the fit failures of the trial. A trial's rows are appended in one
-  ``write`` and flushed to disk when the trial is done; on resume, completed trials are read back
-  and skipped, a partial trial (killed mid-write) is discarded and rerun. At the end the file is
-  rewritten in trial order, so it is the same file whatever the workers and the order they
-  finished in.
-- ``timings.csv``: seconds per trial (machine-dependent, hence apart from the results).
+- ``trials.csv``: raw rows, one per (trial, interaction): the distance u(θ*) of the best point,
+  the distance of the point shown, fit failures and seconds of the trial. A trial's rows are
+  appended in one ``write`` and flushed to disk when the trial is done; on resume, completed trials
+  are read back and skipped, a partial trial (killed mid-write) is discarded and rerun.
 - ``summary.csv``: per interaction, over the trials: mean distance with its 95 % confidence interval
-  (Student t) and success rate (u(θ*) < 0.1), and the mean oracle distance.
+  (Student t) and success rate (u(θ*) < 0.1).
 
-Trials are seeded per (study seed, trial index) and run on Dask (:mod:`app.learning.cluster`), so
-results do not depend on the number of workers or where they run.
+Trials are seeded per (study seed, trial index), so results do not depend on ``jobs``.
 """
 
 from __future__ import annotations
@@ -31,25 +25,21 @@ import os
 import statistics
 import time
 from collections import defaultdict
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
 from pathlib import Path
 
-from distributed import Client
 from pydantic import BaseModel, ConfigDict
 from scipy import stats
+from tqdm import tqdm
 
-from app.learning.cluster import run_tasks
 from app.learning.errors import StudyError
-from app.learning.models import RecommendationName
 from app.learning.simulation import SUCCESS_DISTANCE, StudyCondition, TrialResult, run_trial
 
 logger = logging.getLogger(__name__)
 
-STRATEGY_COLUMNS = tuple(f"distance_{s.value}" for s in RecommendationName)
-TRIAL_COLUMNS = ("trial", "interaction", "distance", "shown_distance", "oracle_distance",
-                 *STRATEGY_COLUMNS, "fit_failures")
-TIMING_COLUMNS = ("trial", "seconds")
-SUMMARY_COLUMNS = ("interaction", "n_trials", "mean_distance", "ci_low", "ci_high", "success_rate",
-                   "mean_oracle_distance")
+TRIAL_COLUMNS = ("trial", "interaction", "distance", "shown_distance", "fit_failures", "seconds")
+SUMMARY_COLUMNS = ("interaction", "n_trials", "mean_distance", "ci_low", "ci_high", "success_rate")
 
 
 class InteractionSummary(BaseModel):
@@ -63,17 +53,14 @@ class InteractionSummary(BaseModel):
     ci_low: float
     ci_high: float
     success_rate: float
-    mean_oracle_distance: float
 
 
 class ConditionSummary(BaseModel):
     """What ``handover benchmark-pl --json`` prints for one condition.
 
-    ``seconds_per_trial`` is the mean time one trial takes in its (single-threaded) worker,
+    ``seconds_per_trial`` is the mean time one trial takes in its (single-threaded) process,
     ``wall_seconds_per_trial`` this run's elapsed time divided by the trials it ran (lower with
-    more workers; None when every trial was resumed from disk). ``final_strategy_distances``: the
-    final mean inference distance of every recommendation strategy, ``final_oracle_distance`` the
-    final mean distance of the best point shown.
+    ``--jobs`` > 1; None when every trial was resumed from disk).
     """
 
     model_config = ConfigDict(frozen=True)
@@ -87,8 +74,6 @@ class ConditionSummary(BaseModel):
     final_mean_distance: float
     final_ci: tuple[float, float]
     final_success_rate: float
-    final_strategy_distances: dict[str, float]
-    final_oracle_distance: float
     seconds_per_trial: float
     wall_seconds_per_trial: float | None
     fit_failures: int
@@ -96,11 +81,8 @@ class ConditionSummary(BaseModel):
 
 
 def summarise(results: list[TrialResult]) -> list[InteractionSummary]:
-    """Mean distance of θ* to the target with 95 % CI, success rate and mean oracle distance, per
-    interaction."""
+    """Mean distance of θ* to the target with 95 % CI, and success rate, per interaction."""
     rows = []
-    oracle = [statistics.fmean(v) for v in zip(*(r.oracle_distances for r in results),
-                                                   strict=True)]
     for i, values in enumerate(zip(*(r.distances for r in results), strict=True)):
         n = len(values)
         mean = statistics.fmean(values)
@@ -109,8 +91,7 @@ def summarise(results: list[TrialResult]) -> list[InteractionSummary]:
         rows.append(InteractionSummary(
             interaction=i + 1, n_trials=n, mean_distance=mean, ci_low=mean - half,
             ci_high=mean + half,
-            success_rate=sum(v < SUCCESS_DISTANCE for v in values) / n,
-            mean_oracle_distance=oracle[i]))
+            success_rate=sum(v < SUCCESS_DISTANCE for v in values) / n))
     return rows
 
 
@@ -120,7 +101,6 @@ class TrialStore:
     def __init__(self, directory: Path, condition: StudyCondition, seed: int) -> None:
         self.directory = directory
         self.path = directory / "trials.csv"
-        self.timings = directory / "timings.csv"
         self.n_interactions = condition.schedule.n_interactions
         directory.mkdir(parents=True, exist_ok=True)
         meta = {"condition": condition.model_dump(mode="json"), "seed": seed}
@@ -150,50 +130,26 @@ class TrialStore:
                 map(len, complete.values())):
             logger.warning("%s: discarding %d partial trial(s)", self.path,
                            len(rows) - len(complete))
-        seconds = self._seconds()
-        results = {t: _result_from_rows(t, r, seconds.get(t, math.nan))
-                   for t, r in complete.items()}
-        self.rewrite(results)
+        results = {t: _result_from_rows(t, r) for t, r in complete.items()}
+        self._rewrite(results)
         return results
 
     def append(self, result: TrialResult) -> None:
         """Append one trial's rows with a single ``write`` and flush them to disk."""
-        append_durably(self.path, _rows_text(result, header=_empty(self.path)))
-        append_durably(self.timings, _timing_text(result, header=_empty(self.timings)))
+        new_file = not self.path.exists() or self.path.stat().st_size == 0
+        data = _rows_text(result, header=new_file).encode()
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, data)
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
-    def rewrite(self, results: dict[int, TrialResult]) -> None:
-        """Replace the file by ``results`` in trial order (atomically)."""
+    def _rewrite(self, results: dict[int, TrialResult]) -> None:
         tmp = self.path.with_suffix(".csv.tmp")
         text = "".join(_rows_text(results[t], header=i == 0) for i, t in enumerate(sorted(results)))
         tmp.write_text(text or _rows_text(None, header=True))
         os.replace(tmp, self.path)
-
-    def _seconds(self) -> dict[int, float]:
-        if not self.timings.exists():
-            return {}
-        with self.timings.open(newline="") as handle:
-            return {int(r["trial"]): float(r["seconds"]) for r in csv.DictReader(handle)
-                    if None not in r.values() and r["seconds"]}
-
-
-def _empty(path: Path) -> bool:
-    return not path.exists() or path.stat().st_size == 0
-
-
-def append_durably(path: Path, text: str) -> None:
-    """Append ``text`` with a single ``write`` and flush it to disk (a kill leaves whole lines or
-    one torn last line)."""
-    fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-    try:
-        os.write(fd, text.encode())
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def _timing_text(result: TrialResult, header: bool) -> str:
-    return (",".join(TIMING_COLUMNS) + "\n" if header else "") + \
-        f"{result.trial},{result.seconds:.4f}\n"
 
 
 def _rows_text(result: TrialResult | None, header: bool) -> str:
@@ -202,22 +158,18 @@ def _rows_text(result: TrialResult | None, header: bool) -> str:
     if header:
         writer.writerow(TRIAL_COLUMNS)
     if result is not None:
-        curves = [result.strategy_distances[s] for s in RecommendationName]
-        rows = zip(result.distances, result.shown_distances, result.oracle_distances, *curves,
-                   strict=True)
-        for i, (d, s, o, *by_strategy) in enumerate(rows):
-            writer.writerow((result.trial, i + 1, repr(d), repr(s), repr(float(o)),
-                             *map(repr, by_strategy), result.fit_failures))
+        for i, (d, s) in enumerate(zip(result.distances, result.shown_distances, strict=True)):
+            writer.writerow((result.trial, i + 1, repr(d), repr(s), result.fit_failures,
+                             f"{result.seconds:.4f}"))
     return buffer.getvalue()
 
 
-def _result_from_rows(trial: int, rows: list[dict[str, str]], seconds: float) -> TrialResult:
+def _result_from_rows(trial: int, rows: list[dict[str, str]]) -> TrialResult:
     rows = sorted(rows, key=lambda r: int(r["interaction"]))
-    curves = {s: [float(r[f"distance_{s.value}"]) for r in rows] for s in RecommendationName}
     return TrialResult(trial=trial, distances=[float(r["distance"]) for r in rows],
                        shown_distances=[float(r["shown_distance"]) for r in rows],
-                       strategy_distances=curves, fit_failures=int(rows[0]["fit_failures"]),
-                       seconds=seconds)
+                       fit_failures=int(rows[0]["fit_failures"]),
+                       seconds=float(rows[0]["seconds"]))
 
 
 def write_summary(path: Path, rows: list[InteractionSummary]) -> None:
@@ -227,11 +179,16 @@ def write_summary(path: Path, rows: list[InteractionSummary]) -> None:
         writer.writerows(row.model_dump() for row in rows)
 
 
-def run_condition(condition: StudyCondition, *, trials: int, seed: int, client: Client,
-                  out: Path, progress: bool = True
-                  ) -> tuple[ConditionSummary, list[InteractionSummary]]:
-    """Run (or resume) ``trials`` trials of ``condition`` on ``client``'s cluster and write its CSV
-    files under ``out``."""
+def _init_trial_process() -> None:
+    """Each trial process runs torch single-threaded: parallelism comes from the processes."""
+    import torch
+
+    torch.set_num_threads(1)
+
+
+def run_condition(condition: StudyCondition, *, trials: int, seed: int, jobs: int, out: Path,
+                  progress: bool = True) -> tuple[ConditionSummary, list[InteractionSummary]]:
+    """Run (or resume) ``trials`` trials of ``condition`` and write its CSV files under ``out``."""
     directory = out / condition.name
     store = TrialStore(directory, condition, seed)
     results = {t: r for t, r in store.load().items() if t < trials}
@@ -239,6 +196,8 @@ def run_condition(condition: StudyCondition, *, trials: int, seed: int, client: 
     if results:
         logger.info("%s: resuming, %d of %d trials already done", condition.name, len(results),
                     trials)
+    bar = tqdm(total=trials, initial=len(results), desc=condition.name, unit="trial",
+               disable=not progress, mininterval=2.0, dynamic_ncols=True)
     fresh: list[TrialResult] = []
     start = time.monotonic()
 
@@ -246,26 +205,30 @@ def run_condition(condition: StudyCondition, *, trials: int, seed: int, client: 
         store.append(result)
         results[result.trial] = result
         fresh.append(result)
+        bar.update()
 
-    run_tasks(client, run_trial, [(condition, seed, t) for t in todo], done, total=trials,
-              initial=len(results), desc=condition.name, progress=progress)
+    if jobs == 1:
+        for trial in todo:
+            done(run_trial(condition, seed, trial))
+    else:
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn"),
+                                 initializer=_init_trial_process) as pool:
+            futures = [pool.submit(run_trial, condition, seed, trial) for trial in todo]
+            for future in as_completed(futures):
+                done(future.result())
+    bar.close()
     wall = time.monotonic() - start
-    store.rewrite(results)
     ordered = [results[t] for t in sorted(results)]
     rows = summarise(ordered)
     write_summary(directory / "summary.csv", rows)
-    timed = [r.seconds for r in fresh or ordered if not math.isnan(r.seconds)]
+    timed = fresh or ordered
     final = rows[-1]
     summary = ConditionSummary(
         condition=condition.name, acquisition=condition.acquisition.value, q=condition.q,
         noise=condition.noise, trials=len(ordered), interactions=len(rows),
         final_mean_distance=final.mean_distance, final_ci=(final.ci_low, final.ci_high),
         final_success_rate=final.success_rate,
-        final_strategy_distances={s.value: statistics.fmean(r.strategy_distances[s][-1]
-                                                            for r in ordered)
-                                  for s in RecommendationName},
-        final_oracle_distance=final.mean_oracle_distance,
-        seconds_per_trial=statistics.fmean(timed) if timed else math.nan,
+        seconds_per_trial=statistics.fmean(r.seconds for r in timed),
         wall_seconds_per_trial=wall / len(fresh) if fresh else None,
         fit_failures=sum(r.fit_failures for r in ordered), out_dir=str(directory))
     return summary, rows
