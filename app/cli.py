@@ -6,11 +6,15 @@ import argparse
 import logging
 import sys
 from collections.abc import Callable, Sequence
+from pathlib import Path
 
 from pydantic import ValidationError
 
+from app.protocol.errors import ProtocolError
 from robot_io.errors import RobotIOError, explain
+from session_store import lock as writer_lock
 from session_store.errors import StoreError
+from session_store.paths import participant_path
 
 #: Modules that contribute subcommands: each has ``register(subparsers) -> None`` and sets
 #: ``func(args) -> int`` on its parsers.
@@ -21,6 +25,35 @@ _COMMAND_MODULES: tuple[str, ...] = (
     "app.analysis.cli",
     "app.ui.cli",
 )
+
+
+#: The study folder of ``serve`` when ``--study`` is not given.
+DEFAULT_STUDY = Path("study")
+#: Commands that write a participant's database (``--participant``).
+WRITERS = ("run-session", "serve")
+
+
+def reserve_participant(argv: Sequence[str]) -> writer_lock.WriterLock | None:
+    """For a command that writes an existing participant, take its writer lock first — before
+    the command's slow imports (torch, BoTorch, viser) — so that a second writer is refused at once,
+    naming the holder. The lock is kept for the command (its session claims it). Anything odd in
+    the arguments is left to the full parser, which reports it."""
+    command = next((word for word in argv if not word.startswith("-")), None)
+    if command not in WRITERS:
+        return None
+    early = argparse.ArgumentParser(add_help=False)
+    early.add_argument("--study", type=Path, default=DEFAULT_STUDY)
+    early.add_argument("--participant")
+    known, _ = early.parse_known_args(argv)
+    if known.participant is None:
+        return None
+    try:
+        database = participant_path(known.study, known.participant)
+    except StoreError:
+        return None
+    if not database.exists():
+        return None  # a new participant: its creation takes the lock, after the arguments are valid
+    return writer_lock.reserve(database, command=" ".join(["handover", *argv]))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,6 +68,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        reserve_participant(argv)
+    except StoreError as exc:
+        print(f"handover: error: {exc}", file=sys.stderr)
+        return 2
     parser = build_parser()
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
@@ -42,8 +81,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     func: Callable[[argparse.Namespace], int] = args.func
     try:
         return func(args)
-    except (ValidationError, RobotIOError, StoreError, ValueError) as exc:
+    except (ValidationError, RobotIOError, StoreError, ProtocolError, ValueError) as exc:
         print(f"handover {args.command}: error: {explain(exc)}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a full disk, a missing or read-only folder, a port: the system's words
+        logging.getLogger(__name__).info("%s failed", args.command, exc_info=True)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"handover {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
 
 

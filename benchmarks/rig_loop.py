@@ -75,9 +75,10 @@ def wait(condition, timeout: float = 60.0) -> None:
 
 class Figures:
     def __init__(self) -> None:
-        self.misses = self.cycles = 0
+        self.misses = self.cycles = self.faults = 0
         self.lateness: list[float] = []
         self.go_to_servo: list[float] = []
+        self.click_to_go: list[float] = []
 
     def add(self, misses: int, samples: dict[str, np.ndarray], go_to_servo: float | None) -> None:
         self.misses += misses
@@ -92,7 +93,10 @@ class Figures:
         return (f"{label:38s} misses {self.misses:4d} of {self.cycles:6d} = "
                 f"{100 * self.misses / max(self.cycles, 1):6.3f} %   lateness p50 "
                 f"{np.percentile(late, 50):.3f} ms, p99 {np.percentile(late, 99):.3f} ms   "
-                f"Go → first servoL median {statistics.median(go):.1f} ms (max {go[-1]:.1f})")
+                f"Go → first servoL median {statistics.median(go):.1f} ms (max {go[-1]:.1f})"
+                + (f" (click → rig's Go stage {statistics.median(self.click_to_go):.1f} ms)"
+                   if self.click_to_go else "")
+                + (f"   trials aborted by a fault: {self.faults}" if self.faults else ""))
 
 
 def both_variants(study: Path, browser, priority: bool, trials: int) -> tuple[Figures, Figures]:
@@ -117,19 +121,36 @@ def both_variants(study: Path, browser, priority: bool, trials: int) -> tuple[Fi
 def rig_process(runner: SessionRunner, dashboard, trials: int) -> Figures:
     """Trials run by the session runner's rig process, Go clicked on the dashboard page."""
     figures = Figures()
+    go_stage: list[float] = []
+    play = runner.rehearsal.play
+
+    def played(scenario: Scenario, seed: int, go_monotonic: float) -> None:
+        go_stage.append(go_monotonic)  # the rig's Go stage, on its clock (time.monotonic)
+        play(scenario, seed, go_monotonic)
+
+    runner.rehearsal.play = played
     for n in range(1, trials + 1):
         wait(lambda: runner.view.step is not None and runner.view.step.value == "ready")
         runner.start_trial()
         wait(lambda: runner.view.waiting_for == "loaded")
         runner.object_loaded()
         wait(lambda: runner.view.waiting_for == "go")
+        index = runner.view.trials[-1].trial_index
         clicked = time.monotonic()
         click(dashboard, "Go")
-        wait(lambda: runner.view.step.value == "place")
+        wait(lambda: runner.view.trials[-1].outcome is not None)
         trial = runner.view.trials[-1]
+        assert trial.trial_index == index
         servo = first_servo_after(runner.rehearsal, clicked)
         figures.add(trial.deadline_misses, runner.rig.stream.columns(),
                     None if servo is None else servo - clicked)
+        figures.click_to_go.append(go_stage[-1] - clicked)
+        if trial.outcome.value != "completed":  # e.g. the controller's watchdog under load
+            figures.faults += 1
+            if runner.view.arm_fault is not None:
+                runner.recover_arm()
+            continue
+        wait(lambda: runner.view.step.value == "place")
         runner.place(trial.interaction, position=n / (trials + 1))
     return figures
 

@@ -7,6 +7,7 @@ clock keeps a fixed grid (deadline n·period) and catches up after a late cycle 
 
 from __future__ import annotations
 
+import gc
 import logging
 import os
 import sys
@@ -40,20 +41,24 @@ class Clock(Protocol):
         """The loop has ended: undo whatever start() changed for the calling thread."""
 
 
-#: SCHED_FIFO priority of the control thread where the OS allows it (root or CAP_SYS_NICE).
-REALTIME_PRIORITY = 50
+#: SCHED_FIFO priorities where the OS allows it (root or CAP_SYS_NICE). The control loop's thread
+#: runs above every other real-time thread: the rig's own (hand receiver, ur_rtde's, the inbox) and a
+#: rehearsal's stand-in controller and hand publisher, which stand for hardware with cores of its
+#: own. At equal priority, FIFO threads run until they block, so on a 2-core machine three busy ones
+#: could hold a woken control thread back for a whole cycle.
+CONTROL_PRIORITY = 50
+SUPPORT_PRIORITY = 40
 
 
-def raise_priority() -> tuple[int, int] | None:
-    """Run the calling (control) thread under SCHED_FIFO where permitted, so a browser or the learner
-    on the same cores cannot delay a cycle; return the policy and priority it had, or None if it
-    keeps the normal policy. Threads it starts afterwards inherit the policy (a rehearsal's stand-in
-    controller and hand publisher use that: they stand for hardware with cores of its own). The
-    loop sleeps between cycles and Linux keeps 5 % of each second for other tasks, so this cannot
-    starve the machine."""
+def raise_priority(priority: int = CONTROL_PRIORITY) -> tuple[int, int] | None:
+    """Run the calling thread under SCHED_FIFO at ``priority`` where permitted, so a browser or the
+    learner on the same cores cannot delay it; return the policy and priority it had, or None if it
+    keeps the normal policy. Threads it starts afterwards inherit the policy. The loop sleeps
+    between cycles and Linux keeps 5 % of each second for other tasks, so this cannot starve the
+    machine."""
     try:
         before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(REALTIME_PRIORITY))
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     except (AttributeError, PermissionError, OSError) as exc:
         log.info("control thread keeps the normal scheduling policy (%s)", exc)
         return None
@@ -91,7 +96,9 @@ class RealClock:
     interval so that a busy thread holding the GIL delays a cycle by at most a fraction of a period.
     With ``realtime_priority`` it also runs the calling thread under SCHED_FIFO where the OS allows it
     (root or CAP_SYS_NICE): with a browser and the learner on a 2-core machine this took 500 Hz
-    deadline misses from 2.5 % to 0.1–0.3 %. :meth:`stop` undoes both.
+    deadline misses from 2.5 % to 0.1–0.3 %. The garbage collector is off between start() and
+    stop(): a trial allocates little that is cyclic, while one full collection of a process's heap
+    pauses every thread for milliseconds, several cycles. :meth:`stop` undoes all three.
     A cycle more than ``resync_cycles`` late moves the grid instead of catching up in a burst.
     """
 
@@ -107,6 +114,7 @@ class RealClock:
         self._next = 0.0
         self._switch_interval: float | None = None
         self._policy_before: tuple[int, int] | None = None
+        self._collector_was_enabled = False
 
     @property
     def priority_raised(self) -> bool:
@@ -122,11 +130,16 @@ class RealClock:
         if self._switch_interval is not None:
             sys.setswitchinterval(self._switch_interval)
             self._switch_interval = None
+        if self._collector_was_enabled:
+            gc.enable()
+            self._collector_was_enabled = False
 
     def start(self) -> None:
         self._switch_interval = sys.getswitchinterval()
         sys.setswitchinterval(min(self._switch_interval, self.period / 10.0))
         self._policy_before = raise_priority() if self.realtime_priority else None
+        self._collector_was_enabled = gc.isenabled()
+        gc.disable()
         self._origin = time.monotonic()
         self._next = 0.0
 

@@ -20,7 +20,7 @@ from multiprocessing.connection import Connection
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from robot_io.clock import raise_priority
+from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
 from robot_io.simulated_hand import Scenario, SimulatedHand
@@ -44,7 +44,7 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
     from robot_io.ur_standin.control import ControlClient
 
     if spec.realtime_priority:
-        raise_priority()
+        raise_priority(SUPPORT_PRIORITY)
     config = spec.config
     transform = tracker_transform(config)
     rate = config.hand.tracker_rate_hz

@@ -19,5 +19,18 @@ class CorruptStoreError(StoreError):
     """The file is not a readable SQLite database, or its integrity check fails."""
 
 
-class RefusedAction(StoreError, ValueError):
-    """An action that the protocol's current state does not allow (nothing was written)."""
+class EmptyStoreError(CorruptStoreError):
+    """The file holds no session: empty, no tables, or a creation that never committed."""
+
+
+class MisnamedStoreError(StoreError):
+    """The file holds another participant's session than its name says (a copy or a rename)."""
+
+
+class StoreWriteError(StoreError):
+    """The database could not be written (disk full, I/O error, read-only); nothing of the write
+    was stored, everything stored before it is kept."""
+
+
+class ParticipantLocked(StoreError):
+    """Another writer holds the participant's database (names the holder); nothing was written."""

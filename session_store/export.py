@@ -9,16 +9,19 @@ The dtypes of every column are documented once, in :data:`DTYPES` (rendered in `
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import sqlite3
-from collections.abc import Collection, Iterator
+from collections.abc import Collection
 from pathlib import Path
 from typing import NamedTuple
 
 import pandas as pd
-from pydantic import BaseModel
+from pydantic import BaseModel, ValidationError
 
-from session_store.errors import StoreError
+from robot_io.errors import explain
+from session_store.errors import CorruptStoreError, StoreError, StoreWriteError
+from session_store.inspection import explained_writes
 from session_store.models import (
     Answer,
     Comparison,
@@ -28,6 +31,7 @@ from session_store.models import (
     Trial,
     ValidationRating,
 )
+from session_store.reading import reading
 from session_store.schema import TABLES, columns_of, sample_column_names, sample_columns
 from session_store.store import SUFFIX, ParticipantStore, participant_codes
 
@@ -93,9 +97,10 @@ def _participant_frame(store: ParticipantStore) -> pd.DataFrame:
     completed = store.db.execute("SELECT count(*) FROM trials WHERE outcome = 'completed'"
                                  ).fetchone()[0]
     return pd.DataFrame([{"participant": participant.code,
-                          "scenario": participant.config.scenario.value,
-                          "seed": participant.config.seed, "created_at": participant.created_at,
-                          "completed": completed, "config": participant.config.model_dump_json()}])
+                          "scenario": participant.config["scenario"],
+                          "seed": participant.config["seed"], "created_at": participant.created_at,
+                          "completed": completed,
+                          "config": json.dumps(participant.config, separators=(",", ":"))}])
 
 
 def _table_frame(store: ParticipantStore, table: str,
@@ -122,15 +127,6 @@ def participant_tables(store: ParticipantStore, tables: Collection[str] = tuple(
             else _table_frame(store, table, sample_phases) for table in tables}
 
 
-@contextlib.contextmanager
-def _opened(study_dir: Path, code: str) -> Iterator[ParticipantStore]:
-    store = ParticipantStore.open(study_dir, code)
-    try:
-        yield store
-    finally:
-        store.close()
-
-
 def _study_codes(study_dir: Path) -> list[str]:
     codes = participant_codes(study_dir)
     if not codes:
@@ -144,6 +140,44 @@ def _merged(parts: list[dict[str, pd.DataFrame]], tables: Collection[str]) -> di
             for table in tables}
 
 
+def _copy(store: ParticipantStore, target: Path) -> None:
+    """A consistent copy of a participant's database at ``target``."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    with explained_writes(target), contextlib.closing(sqlite3.connect(target)) as copy:
+        store.db.conn.backup(copy)
+
+
+def _read_study(study_dir: Path, tables: Collection[str], sample_phases: Collection[str] | None,
+                skip_unreadable: bool, copies: Path | None = None
+                ) -> tuple[list[dict[str, pd.DataFrame]], dict[Path, str]]:
+    """Every participant's tables (and, with ``copies``, a copy of their database there), read
+    without writing to the study folder. A file that cannot be read raises its StoreError, or with
+    ``skip_unreadable`` is left out and returned as path → why. Nothing readable raises."""
+    parts, unreadable = [], {}
+    for code in _study_codes(study_dir):
+        path = Path(study_dir) / f"{code}{SUFFIX}"
+        try:
+            with reading(study_dir, code) as store:
+                try:
+                    part = participant_tables(store, tables, sample_phases)
+                except (sqlite3.DatabaseError, ValidationError) as exc:
+                    raise CorruptStoreError(f"{path} could not be read: {explain(exc)}") from exc
+                if copies is not None:
+                    _copy(store, copies / f"{code}{SUFFIX}")
+            parts.append(part)
+        except StoreWriteError:
+            raise  # the output, not this participant's file, failed
+        except StoreError as exc:
+            if not skip_unreadable:
+                raise
+            log.warning("left out %s: %s", path, exc)
+            unreadable[path] = str(exc)
+    if not parts:
+        raise StoreError(f"{study_dir} holds no readable participant database: "
+                         + "; ".join(unreadable.values()))
+    return parts, unreadable
+
+
 class StudyTables(NamedTuple):
     """All participants' tidy tables, and the databases that could not be read (path → why)."""
 
@@ -155,46 +189,46 @@ def load_study(study_dir: Path, tables: Collection[str] = tuple(DTYPES), *,
                sample_phases: Collection[str] | None = None,
                skip_unreadable: bool = False) -> StudyTables:
     """The tidy tables of a study folder in memory, as :func:`export_study` writes them and
-    :func:`read_table` reads them back.
+    :func:`read_table` reads them back. Nothing is written to the study folder (a read-only one
+    is read as it is).
 
-    A database that cannot be opened (another schema version, corrupt, not ours) raises its
-    :class:`StoreError`; with ``skip_unreadable`` it is left out and listed in ``unreadable`` with
-    the error's message instead. An empty folder, or one in which nothing is readable, raises.
+    A database that cannot be read (empty, another schema version, corrupt, not ours, or holding
+    another participant's session than its name says) raises its :class:`StoreError`; with
+    ``skip_unreadable`` it is left out and listed in ``unreadable`` with the error's message
+    instead. An empty folder, or one in which nothing is readable, raises.
     """
     unknown = set(tables) - set(DTYPES)
     if unknown:
         raise StoreError(f"tables = {sorted(unknown)} are not among {list(DTYPES)}")
-    parts, unreadable = [], {}
-    for code in _study_codes(study_dir):
-        try:
-            with _opened(study_dir, code) as store:
-                parts.append(participant_tables(store, tables, sample_phases))
-        except StoreError as exc:
-            if not skip_unreadable:
-                raise
-            path = Path(study_dir) / f"{code}{SUFFIX}"
-            log.info("skipping %s: %s", path, exc)
-            unreadable[path] = str(exc)
-    if not parts:
-        raise StoreError(f"{study_dir} holds no readable participant database: "
-                         + "; ".join(unreadable.values()))
+    parts, unreadable = _read_study(study_dir, tables, sample_phases, skip_unreadable)
     return StudyTables(_merged(parts, tables), unreadable)
 
 
-def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv") -> dict[str, tuple[Path, int]]:
-    """Write every table of :data:`DTYPES` for all participants of ``study_dir`` into ``out_dir``
-    (plus ``sqlite/<code>.sqlite`` copies). Returns table → (file, rows)."""
+class Export(NamedTuple):
+    """What :func:`export_study` wrote: table → (file, rows), and the databases it left out
+    (path → why), which ``left_out.csv`` lists too."""
+
+    written: dict[str, tuple[Path, int]]
+    left_out: dict[Path, str]
+
+
+#: The file of an export that lists the databases it left out (header only when none).
+LEFT_OUT_FILE = "left_out.csv"
+
+
+def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv") -> Export:
+    """Write every table of :data:`DTYPES` for all readable participants of ``study_dir`` into
+    ``out_dir`` (plus ``sqlite/<code>.sqlite`` copies). A database that cannot be read is left out
+    and listed (in the result and in ``left_out.csv``); the others are exported all the same.
+    Nothing is written when nothing is readable, and nothing ever to the study folder."""
     if fmt not in FORMATS:
         raise StoreError(f"format = {fmt!r} is not one of {FORMATS}")
-    codes = _study_codes(study_dir)
     out_dir = Path(out_dir)
-    (out_dir / "sqlite").mkdir(parents=True, exist_ok=True)
-    parts = []
-    for code in codes:
-        with _opened(study_dir, code) as store:
-            parts.append(participant_tables(store))
-            with sqlite3.connect(out_dir / "sqlite" / f"{code}.sqlite") as copy:
-                store.db.conn.backup(copy)
+    if (out_dir / "sqlite").resolve() == Path(study_dir).resolve():
+        raise StoreError(f"--out {out_dir} would write the copies into the study folder "
+                         f"{study_dir} itself: choose another output folder")
+    parts, left_out = _read_study(study_dir, DTYPES, None, skip_unreadable=True,
+                                  copies=out_dir / "sqlite")
     written = {}
     for table, frame in _merged(parts, DTYPES).items():
         path = out_dir / f"{table}.{fmt}"
@@ -203,7 +237,9 @@ def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv") -> dict[str, 
         else:
             frame.to_parquet(path, index=False)
         written[table] = (path, len(frame))
-    return written
+    pd.DataFrame({"file": [str(p) for p in left_out], "reason": list(left_out.values())},
+                 dtype="string").to_csv(out_dir / LEFT_OUT_FILE, index=False)
+    return Export(written, left_out)
 
 
 def read_table(out_dir: Path, table: str) -> pd.DataFrame:

@@ -6,97 +6,38 @@ The data dictionary of the export is ``docs/data.md``.
 
 from __future__ import annotations
 
-import re
 from datetime import UTC, datetime
 from enum import StrEnum
-from typing import Annotated, Any, ClassVar, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from robot_io.config import ControllerConfig
-from robot_io.simulated_hand import Scenario
-from robot_io.theta import THETA_BOUNDS, Theta
-from session_store.errors import UnsafeParticipantCode
-
-#: A participant code is pseudonymous and becomes a file name: letters, digits, '-' and '_' only.
-CODE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
+from app.protocol.vocabulary import QUESTION_BY_ID, Actor, Phase, Rater, ThetaOrigin
+from robot_io.theta import Theta
+from session_store.paths import check_participant_code
 
 
 def utc_now() -> str:
     return datetime.now(UTC).isoformat(timespec="microseconds")
 
 
-def check_participant_code(code: str) -> str:
-    """Return ``code`` if it is a safe file name, else raise UnsafeParticipantCode saying why."""
-    if not isinstance(code, str) or not CODE_PATTERN.fullmatch(code):
-        shown = code if isinstance(code, str) and len(code) <= 40 else f"{str(code)[:40]}…"
-        raise UnsafeParticipantCode(
-            f"participant code {shown!r} is not allowed: use 1 to 64 letters, digits, '-' or '_', "
-            "starting with a letter or digit (a pseudonym, never a name)")
-    return code
+#: What the provenance column of placements, validation ratings and answers means.
+RATER_DESCRIPTION = ("who made it: participant (on the tablet), simulated_participant (the "
+                     "simulation), experimenter (on the participant's behalf); empty in rows "
+                     "stored before schema version 3, whose origin was not recorded")
 
 
 class _Row(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
 
-# -- the study --------------------------------------------------------------------------------------
-class Phase(StrEnum):
-    """The protocol's phases in order (Sect. V-C)."""
-
-    INITIAL = "initial"  # random (Sobol) interactions that initialise the model
-    LEARNING = "learning"  # batches that open with θ* followed by new queries
-    BEST = "best"  # one interaction with the learned θ*
-    QUESTIONNAIRE = "questionnaire"  # Q1–Q3
-    VALIDATION = "validation"  # pairs: learned θ* vs a Sobol point, in random order, blind
-    DONE = "done"
-
-
-class ThetaOrigin(StrEnum):
-    SOBOL = "sobol"  # a quasi-random point (initial batch, validation reference)
-    LEARNED = "learned"  # a new query of the acquisition function
-    BEST = "best"  # θ*, the best point observed so far (learning batches, best, validation)
-
-
-class StudyConfig(_Row):
-    """One participant's session plan: the paper's protocol by default (Sect. V-C)."""
-
-    scenario: Scenario
-    seed: int = Field(0, description="seeds the learner, the Sobol points, the order of validation "
-                                     "pairs and, with --auto, the simulated participant and hand")
-    initial_trials: int = Field(5, ge=2, le=50, description="random interactions (paper: 5)")
-    batch_size: int = Field(5, ge=2, le=10, description="q, interactions per learning batch (paper: 5)")
-    learning_batches: int = Field(4, ge=0, le=50, description="learning batches (paper: 4)")
-    best_trials: int = Field(1, ge=0, le=5, description="interactions with θ* after learning (paper: 1)")
-    validation_batches: int = Field(4, ge=0, le=20, description="validation pairs (paper: 4)")
-    acquisition: Literal["qnei", "qlognei", "eubo"] = Field("qnei", description="paper: qNEI")
-    theta_bounds: dict[str, tuple[float, float]] = Field(
-        default_factory=lambda: dict(THETA_BOUNDS), description="Θ of Table I")
-    controller: ControllerConfig = ControllerConfig()
-
-    @field_validator("theta_bounds")
-    @classmethod
-    def _bounds_within_table_i(cls, bounds: dict[str, tuple[float, float]]) -> dict:
-        if set(bounds) != set(THETA_BOUNDS):
-            raise ValueError(f"theta_bounds must name {sorted(THETA_BOUNDS)}, not {sorted(bounds)}")
-        for name, (low, high) in bounds.items():
-            safe_low, safe_high = THETA_BOUNDS[name]
-            if not safe_low <= low < high <= safe_high:
-                raise ValueError(f"theta_bounds.{name} = [{low}, {high}] must lie within the safe "
-                                 f"range [{safe_low}, {safe_high}] with low < high")
-        return bounds
-
-    @property
-    def interactions(self) -> int:
-        """Completed interactions of a full session: 5 + 20 + 1 + 8 = 34 with the defaults."""
-        return (self.initial_trials + self.batch_size * self.learning_batches + self.best_trials
-                + 2 * self.validation_batches)
-
-
 class Participant(_Row):
+    """The participant row: the code, when the session was created and its plan, as the protocol
+    wrote it (JSON; ``app.protocol.study.StudyConfig`` reads it)."""
+
     code: str
     created_at: str = Field(default_factory=utc_now)
-    config: StudyConfig
+    config: dict[str, Any]
 
     @field_validator("code")
     @classmethod
@@ -173,6 +114,7 @@ class Placement(_Row):
                                                         "Better; only the order carries meaning")
     equal_to: int | None = Field(None, description="interaction it was dropped on (= equal)")
     placed_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time of Confirm")
+    actor: Rater | None = Field(description=RATER_DESCRIPTION)
 
 
 class Comparison(_Row):
@@ -201,31 +143,10 @@ class ValidationRating(_Row):
     learned_preferred: bool | None = Field(
         description="the learned θ* was preferred; None when rated equal")
     rated_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
+    actor: Rater | None = Field(description=RATER_DESCRIPTION)
 
 
 # -- questionnaire ----------------------------------------------------------------------------------
-class Question(_Row):
-    id: str
-    text: str
-    answers: tuple[str, ...]
-    numeric: bool  # answers are 1..n on a Likert scale
-
-
-QUESTIONS: tuple[Question, ...] = (
-    # Worded for the participant; the paper's wording (Sect. V-C) and why each was changed are in
-    # docs/running-a-study.md, "The questionnaire". Ids, answers and meaning are the paper's.
-    Question(id="Q1", text="When you placed a handover on the scale, it was easy to remember the "
-                           "earlier handovers on the same scale.",
-             answers=("Not at all", "2", "3", "4", "Perfectly"), numeric=True),
-    Question(id="Q2", text="Did you feel that the robot kept getting better?",
-             answers=("Yes", "No", "Maybe"), numeric=False),
-    Question(id="Q3", text="Think only of the very last handover, just before these questions. "
-                           "How well did the robot coordinate its movement with yours?",
-             answers=("Not at all", "2", "3", "4", "Perfectly"), numeric=True),
-)
-QUESTION_BY_ID: dict[str, Question] = {q.id: q for q in QUESTIONS}
-
-
 class Answer(_Row):
     """An answer to Q1–Q3: 1–5 for Q1 and Q3, "Yes"/"No"/"Maybe" for Q2."""
 
@@ -233,14 +154,14 @@ class Answer(_Row):
     value: str = Field(description="1–5 for Q1 and Q3 (Not at all … Perfectly), Yes/No/Maybe "
                                    "for Q2")
     answered_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
+    actor: Rater | None = Field(description=RATER_DESCRIPTION)
 
     @model_validator(mode="after")
     def _allowed(self) -> Answer:
         question = QUESTION_BY_ID.get(self.question)
         if question is None:
             raise ValueError(f"question = {self.question!r} is not one of {sorted(QUESTION_BY_ID)}")
-        allowed = ([str(i) for i in range(1, len(question.answers) + 1)] if question.numeric
-                   else list(question.answers))
+        allowed = question.allowed()
         if self.value not in allowed:
             raise ValueError(f"answer to {self.question} = {self.value!r} is not one of {allowed}")
         return self
@@ -263,30 +184,13 @@ class LearnerSnapshotRow(_Row):
     created_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
 
 
-class Actor(StrEnum):
-    SYSTEM = "system"
-    EXPERIMENTER = "experimenter"
-    PARTICIPANT = "participant"
-    LEARNER = "learner"
-
-
 class Event(_Row):
     """One line of the append-only log: who did what, when. Replaying the log rebuilds the state."""
 
-    KINDS: ClassVar[tuple[str, ...]] = (
-        "session_created", "session_resumed", "theta_planned", "trial_started", "trial_ended",
-        "placement_made", "validation_rated", "answer_given", "paused", "resumed", "trial_stage",
-        "devices_recorded", "rig_change_confirmed")
-
     seq: int | None = Field(None, description="position in the log, 1…")
     at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
-    actor: Actor = Field(description="system, experimenter, participant or learner")
-    kind: Annotated[str, Field(min_length=1, description="what happened (see docs/data.md)")]
+    actor: Actor = Field(description="system, experimenter, participant, simulated_participant "
+                                     "or learner")
+    kind: Annotated[str, Field(min_length=1, description="what happened (the protocol's event "
+                                                         "kinds: see docs/data.md)")]
     payload: dict[str, Any] = Field(default_factory=dict, description="details, as JSON")
-
-    @field_validator("kind")
-    @classmethod
-    def _known(cls, kind: str) -> str:
-        if kind not in cls.KINDS:
-            raise ValueError(f"event kind = {kind!r} is not one of {list(cls.KINDS)}")
-        return kind

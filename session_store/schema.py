@@ -1,7 +1,10 @@
-"""The participant database's tables, derived from the pydantic models, and their migrations.
+"""The participant database's tables and their migrations.
 
 The schema version is SQLite's ``PRAGMA user_version``. ``MIGRATIONS[n]`` takes a database from
 version n − 1 to n; opening a file runs the missing ones in order, each in its own transaction.
+Every version is written out literally (version 1 in :data:`V1_TABLES`, later ones as the columns
+their migration adds), never derived from the models: a model that gains a field needs a migration,
+and ``tests/store/test_schema.py`` checks that the models and the latest version agree.
 """
 
 from __future__ import annotations
@@ -73,16 +76,52 @@ TABLES: dict[str, tuple[type[BaseModel], str | tuple[str, ...]]] = {
 }
 
 
+#: Version 1, frozen: the tables as the first release created them, written out literally so that
+#: changing a model never changes what a version-1 file is. Later columns come by migration.
+V1_TABLES: dict[str, tuple[dict[str, type], str | tuple[str, ...]]] = {
+    "participant": ({"code": str, "created_at": str, "config": str}, "code"),
+    "trials": ({"trial_index": int, "interaction": int, "attempt": int, "phase": str, "batch": int,
+                "position": int, "theta_a": float, "theta_delta": float, "theta_k": float,
+                "origin": str, "hand_seed": int, "started_at": str, "ended_at": str, "outcome": str,
+                "reason": str, "robot_arrival_s": float, "hand_arrival_s": float,
+                "arrival_gap_s": float, "peak_speed_mps": float, "max_tau": float,
+                "deadline_misses": int}, "trial_index"),
+    "placements": ({"trial_index": int, "interaction": int, "batch": int, "position": float,
+                    "equal_to": int, "placed_at": str}, "trial_index"),
+    "comparisons": ({"batch": int, "source": int, "winner": int, "loser": int},
+                    ("source", "winner", "loser")),
+    "validation_ratings": ({"batch": int, "trial_index": int, "interaction": int, "rating": str,
+                            "learned_preferred": int, "rated_at": str}, "trial_index"),
+    "answers": ({"question": str, "value": str, "answered_at": str}, "question"),
+    "learner_snapshots": ({"after_interaction": int, "theta_star_a": float,
+                           "theta_star_delta": float, "theta_star_k": float,
+                           "utility_mean": float, "fit_failed": int, "message": str,
+                           "n_points": int, "n_comparisons": int, "state": str,
+                           "created_at": str}, "after_interaction"),
+    "events": ({"seq": int, "at": str, "actor": str, "kind": str, "payload": str}, "seq"),
+}
+V1_SAMPLE_COLUMNS: tuple[str, ...] = (
+    "t", "s", "tau", "x_x", "x_y", "x_z", "xd_x", "xd_y", "xd_z", "hand_x", "hand_y", "hand_z",
+    "hand_t", "d", "d_filtered", "d_rate", "sigma_d", "sigma_j", "c_t", "c_s_x", "c_s_y", "c_s_z",
+    "commanded_x", "commanded_y", "commanded_z", "measured_x", "measured_y", "measured_z",
+    "limited", "compute_s", "lateness_s")
+
+
 def _create_v1(db: Database) -> None:
-    db["participant"].create({"code": str, "created_at": str, "config": str}, pk="code")
-    for table, (model, pk) in TABLES.items():
-        db[table].create(columns_of(model), pk=pk)
-    sample_columns = {"trial_index": int, "cycle": int} | {name: float for name in
-                                                         sample_column_names()}
-    db["samples"].create(sample_columns, pk=("trial_index", "cycle"),
+    for table, (columns, pk) in V1_TABLES.items():
+        db[table].create(columns, pk=pk)
+    samples = {"trial_index": int, "cycle": int} | {name: float for name in V1_SAMPLE_COLUMNS}
+    db["samples"].create(samples, pk=("trial_index", "cycle"),
                          foreign_keys=[("trial_index", "trials", "trial_index")])
     db["trials"].create_index(["interaction"])
     db["events"].create_index(["kind"])
+
+
+def _add_columns(db: Database, table: str, columns: dict[str, type]) -> None:
+    existing = db[table].columns_dict
+    for name, kind in columns.items():
+        if name not in existing:  # files made when version 1 was built from the models have them
+            db[table].add_column(name, kind)
 
 
 #: Version 2 (the whole handover cycle on the rig): each trial's cycle times and peak pull, and the
@@ -94,12 +133,20 @@ V2_SAMPLE_COLUMNS = {"stage": float, "force_x": float, "force_y": float, "force_
 
 
 def _add_cycle_columns(db: Database) -> None:
-    for table, columns in (("trials", V2_TRIAL_COLUMNS), ("samples", V2_SAMPLE_COLUMNS)):
-        existing = db[table].columns_dict
-        for name, kind in columns.items():
-            if name not in existing:  # a file created by this version has them already
-                db[table].add_column(name, kind)
+    _add_columns(db, "trials", V2_TRIAL_COLUMNS)
+    _add_columns(db, "samples", V2_SAMPLE_COLUMNS)
 
 
-MIGRATIONS: dict[int, Callable[[Database], None]] = {1: _create_v1, 2: _add_cycle_columns}
+#: Version 3 (provenance): who made each placement, validation rating and answer — participant,
+#: simulated_participant or experimenter. Rows stored before it keep an empty (unknown) origin.
+V3_PROVENANCE_TABLES = ("placements", "validation_ratings", "answers")
+
+
+def _add_provenance(db: Database) -> None:
+    for table in V3_PROVENANCE_TABLES:
+        _add_columns(db, table, {"actor": str})
+
+
+MIGRATIONS: dict[int, Callable[[Database], None]] = {1: _create_v1, 2: _add_cycle_columns,
+                                                     3: _add_provenance}
 SCHEMA_VERSION = max(MIGRATIONS)

@@ -15,9 +15,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from pydantic import BaseModel
 from sqlite_utils import Database
 
+from session_store import lock as writer_lock
 from session_store.errors import CorruptStoreError, SchemaVersionError, StoreError
+from session_store.inspection import check_participant_file, explained_writes, write_failure
 from session_store.models import (
     Answer,
     Comparison,
@@ -25,38 +28,32 @@ from session_store.models import (
     LearnerSnapshotRow,
     Participant,
     Placement,
-    StudyConfig,
     Trial,
     ValidationRating,
-    check_participant_code,
 )
+from session_store.paths import SUFFIX, participant_codes, participant_path
 from session_store.schema import MIGRATIONS, SCHEMA_VERSION, TABLES, sample_column_names
 
-SUFFIX = ".sqlite"
-
-
-def participant_path(study_dir: Path, code: str) -> Path:
-    return Path(study_dir) / f"{check_participant_code(code)}{SUFFIX}"
-
-
-def participant_codes(study_dir: Path) -> list[str]:
-    """Codes of the participant databases in a study folder, sorted."""
-    return sorted(p.stem for p in Path(study_dir).glob(f"*{SUFFIX}"))
-
+__all__ = ["SUFFIX", "ParticipantStore", "participant_codes", "participant_path"]
 
 class ParticipantStore:
-    """The database of one participant. Use :meth:`create` or :meth:`open`."""
+    """The database of one participant. :meth:`create` and :meth:`open_for_writing` hold the
+    participant's writer lock (:mod:`session_store.lock`) until :meth:`close`; :meth:`open` is for
+    readers (or, to read without touching the file, :func:`session_store.reading.reading`, which
+    passes the ``connection`` of an in-memory copy)."""
 
-    def __init__(self, path: Path) -> None:
+    def __init__(self, path: Path, connection: sqlite3.Connection | None = None) -> None:
         self.path = Path(path)
+        self.lock: writer_lock.WriterLock | None = None
         try:
-            self.db = Database(self.path)
+            self.db = Database(connection or self.path)
             self.db.execute("PRAGMA journal_mode=WAL")
             self.db.execute("PRAGMA synchronous=FULL")
             self.db.execute("PRAGMA foreign_keys=ON")
             result = self.db.execute("PRAGMA quick_check").fetchone()[0]
         except sqlite3.DatabaseError as exc:
-            raise CorruptStoreError(f"{self.path} is not a readable SQLite database: {exc}") from exc
+            raise write_failure(exc, self.path) or CorruptStoreError(
+                f"{self.path} is not a readable SQLite database: {exc}") from exc
         try:
             if result != "ok":
                 raise CorruptStoreError(f"{self.path} fails SQLite's integrity check: {result}")
@@ -67,29 +64,58 @@ class ParticipantStore:
 
     # -- opening --------------------------------------------------------------------------------
     @classmethod
-    def create(cls, study_dir: Path, code: str, config: StudyConfig) -> ParticipantStore:
-        """A new database for participant ``code``; refuses an unsafe code or one that already
-        has a database, before anything is written."""
+    def create(cls, study_dir: Path, code: str, config: BaseModel) -> ParticipantStore:
+        """A new database for participant ``code`` with its session plan ``config``; refuses an
+        unsafe code, one that already has a database or one another writer holds, before anything
+        is written."""
         path = participant_path(study_dir, code)
-        participant = Participant(code=code, config=config)
+        participant = Participant(code=code, config=config.model_dump(mode="json"))
         if cls.exists(study_dir, code):
             raise StoreError(f"participant {participant.code!r} already has a database at {path}; "
                              "resume it instead")
-        for leftover in (path, path.with_name(path.name + "-wal"), path.with_name(path.name + "-shm")):
-            leftover.unlink(missing_ok=True)  # a creation that was interrupted before it committed
-        path.parent.mkdir(parents=True, exist_ok=True)
-        store = cls(path)
+        held = writer_lock.claim(path)
+        try:
+            if cls.exists(study_dir, code):  # created by the writer that held the lock before
+                raise StoreError(f"participant {code!r} already has a database at {path}; resume "
+                                 "it instead")
+            for leftover in (path, path.with_name(path.name + "-wal"),
+                             path.with_name(path.name + "-shm")):
+                leftover.unlink(missing_ok=True)  # a creation interrupted before it committed
+            store = cls(path)
+        except BaseException:
+            writer_lock.unclaim(held)
+            raise
+        store.lock = held
         with store.transaction():
             store.db["participant"].insert({"code": participant.code,
                                             "created_at": participant.created_at,
-                                            "config": participant.config.model_dump_json()})
+                                            "config": config.model_dump_json()})
         return store
 
     @classmethod
     def open(cls, study_dir: Path, code: str) -> ParticipantStore:
+        """Open for reading (export, report): takes no lock, so it works during a session."""
         if not cls.exists(study_dir, code):
             raise StoreError(f"participant {code!r} has no session in {study_dir}")
+        check_participant_file(participant_path(study_dir, code), code)
         return cls(participant_path(study_dir, code))
+
+    @classmethod
+    def open_for_writing(cls, study_dir: Path, code: str) -> ParticipantStore:
+        """Open to continue the session: refused, before anything is written, while another
+        writer holds the participant (the message names it)."""
+        path = participant_path(study_dir, code)
+        if not cls.exists(study_dir, code):
+            raise StoreError(f"participant {code!r} has no session in {study_dir}")
+        check_participant_file(path, code)
+        held = writer_lock.claim(path)
+        try:
+            store = cls(path)
+        except BaseException:
+            writer_lock.unclaim(held)
+            raise
+        store.lock = held
+        return store
 
     @staticmethod
     def exists(study_dir: Path, code: str) -> bool:
@@ -119,11 +145,15 @@ class ParticipantStore:
 
     def close(self) -> None:
         self.db.close()
+        if self.lock is not None:
+            writer_lock.unclaim(self.lock)
+            self.lock = None
 
     @contextlib.contextmanager
     def transaction(self) -> Iterator[None]:
-        """All writes inside commit together or not at all (nested blocks are savepoints)."""
-        with self.db.atomic():
+        """All writes inside commit together or not at all (nested blocks are savepoints); a failed
+        write (a full disk) raises StoreWriteError and leaves the file as it was."""
+        with explained_writes(self.path), self.db.atomic():
             yield
 
     # -- writing --------------------------------------------------------------------------------
@@ -160,7 +190,7 @@ class ParticipantStore:
     def participant(self) -> Participant:
         row = next(self.db["participant"].rows)
         return Participant(code=row["code"], created_at=row["created_at"],
-                           config=StudyConfig.model_validate_json(row["config"]))
+                           config=json.loads(row["config"]))
 
     def events(self) -> list[Event]:
         return [Event.model_validate({**row, "payload": json.loads(row["payload"])})

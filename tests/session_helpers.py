@@ -8,8 +8,8 @@ from app.protocol.auto import step_once
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
+from app.protocol.study import StudyConfig
 from robot_io.simulated_hand import Scenario
-from session_store.models import StudyConfig
 
 #: 3 initial + 1 learning batch of 3 + 1 best + 1 validation pair = 9 interactions
 SHORT = {"initial_trials": 3, "batch_size": 3, "learning_batches": 1, "best_trials": 1,

@@ -45,7 +45,8 @@ def study(tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def report(study, tmp_path_factory):
-    return build_report(study, tmp_path_factory.mktemp("report"))
+    # Every rating of this study is the simulated participant's: count them.
+    return build_report(study, tmp_path_factory.mktemp("report"), include_simulated=True)
 
 
 def query(study: Path, code: str, sql: str) -> list[tuple]:
@@ -171,7 +172,8 @@ def test_report_command_with_benchmark(study, tmp_path, capsys):
     assert main(["benchmark-pl", "--trials", "2", "--queries", "6", "--initial", "3", "--q", "2",
                  "--out", str(bench), "--no-progress"]) == 0
     capsys.readouterr()
-    assert main(["report", str(study), "--out", str(tmp_path / "r"), "--benchmark", str(bench)]) == 0
+    assert main(["report", str(study), "--out", str(tmp_path / "r"), "--benchmark", str(bench),
+                 "--include-simulated"]) == 0
     captured = capsys.readouterr()
     assert "validation score > 50 %" in captured.out and "Sign test, N=" in captured.out
     assert f"incomplete sessions, left out of the tests: {STOPPED}" in captured.err

@@ -42,7 +42,7 @@ def db_counts(study: Path) -> dict[str, dict[str, int]]:
 
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])
 def test_exported_tables_reload_with_documented_dtypes_and_counts(study, tmp_path, fmt):
-    written = export_study(study, tmp_path, fmt)
+    written = export_study(study, tmp_path, fmt).written
     assert set(written) == set(DTYPES)
     counts = db_counts(study)
     for table in DTYPES:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from robot_io.arm import ArmState
-from robot_io.clock import RealClock, SimClock
+from robot_io.clock import CONTROL_PRIORITY, SUPPORT_PRIORITY, RealClock, SimClock
 from robot_io.config import ControllerConfig, LoopConfig
 from robot_io.coupling import sigmoid
 from robot_io.hand import HandSample
@@ -259,8 +259,10 @@ def test_real_time_priority_comes_from_the_config_or_the_caller(config, in_confi
 
 
 def test_the_real_clock_gives_the_thread_back_its_scheduling_policy(config):
-    """Under SCHED_FIFO while a trial runs (where the OS allows it), the normal policy after it: a
-    real-time trial run on a caller's own thread must not leave that thread real-time."""
+    """Under SCHED_FIFO while a trial runs (where the OS allows it), above the rig's other
+    real-time threads, with the garbage collector off; all as before after it: a real-time trial
+    run on a caller's own thread must not leave that thread real-time."""
+    import gc
     import os
     import sys
 
@@ -268,17 +270,21 @@ def test_the_real_clock_gives_the_thread_back_its_scheduling_policy(config):
     plain = RealClock(500)
     plain.start()
     assert not plain.priority_raised and os.sched_getscheduler(0) == before[0]  # opt-in only
+    assert not gc.isenabled()
     plain.stop()
+    assert gc.isenabled()
     clock = RealClock(500, realtime_priority=True)
     clock.start()
     try:
         during = os.sched_getscheduler(0)
         assert during == (os.SCHED_FIFO if clock.priority_raised else before[0])
-        assert sys.getswitchinterval() <= 0.0002
+        if clock.priority_raised:
+            assert os.sched_getparam(0).sched_priority == CONTROL_PRIORITY > SUPPORT_PRIORITY
+        assert sys.getswitchinterval() <= 0.0002 and not gc.isenabled()
     finally:
         clock.stop()
     assert (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority,
-            sys.getswitchinterval()) == before
+            sys.getswitchinterval(), gc.isenabled()) == (*before, True)
     record = simulate_trial(config.model_copy(update={"loop": LoopConfig(
         rate_hz=125, realtime_priority=True)}), REACTIVE, Scenario.STRAIGHTFORWARD, seed=9,
         realtime=True)

@@ -9,8 +9,9 @@ from session_helpers import drive_until
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
+from app.protocol.study import StudyConfig
+from app.protocol.vocabulary import QUESTION_BY_ID, Phase
 from robot_io.simulated_hand import Scenario
-from session_store.models import QUESTION_BY_ID, Phase, StudyConfig
 
 
 @pytest.fixture(scope="module")

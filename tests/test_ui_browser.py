@@ -47,10 +47,11 @@ def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
         start_trial(dashboard)
         wait_text(dashboard, "[reach]")
         click(dashboard, "STOP ARM")
-        wait_text(dashboard, "Stop: the arm is stopped")
+        wait_text(dashboard, "Arm: STOPPED")
         wait_text(dashboard, "stopped by the experimenter (Stop)")
         shot(dashboard, screens, "dashboard-stopped")
         assert tablet_screen(tablet, not_="go") == "wait"
+        click(dashboard, "Re-arm (scene is safe)")  # the scene is safe: trials may start again
         # The repeated trial completes and is placed.
         assert run_trial(dashboard, tablet) == "place"
         touch_drag_to(tablet, 0.3)

@@ -19,6 +19,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="output folder (default out/report)")
     parser.add_argument("--benchmark", type=Path, default=None,
                         help="a `handover benchmark-pl` output folder: adds Fig. 3")
+    parser.add_argument("--include-simulated", action="store_true",
+                        help="count the simulated participant's validation ratings and answers "
+                             "too (by default only the participants' own count)")
     parser.set_defaults(func=run)
 
 
@@ -26,7 +29,9 @@ def run(args: argparse.Namespace) -> int:
     from app.analysis.report import build_report
     from app.analysis.report_page import unreadable_text
 
-    report = build_report(args.study, args.out, args.benchmark)
+    report = build_report(args.study, args.out, args.benchmark,
+                          include_simulated=args.include_simulated)
+    print(report.ratings_counted)
     for path, reason in report.unreadable.items():
         print(f"warning: {unreadable_text(path, reason)}", file=sys.stderr)
     if report.incomplete:

@@ -20,7 +20,7 @@ from matplotlib.figure import Figure
 from pydantic import BaseModel, ConfigDict
 
 from app.analysis.tables import THETA_COLUMNS
-from session_store.models import StudyConfig
+from app.protocol.study import StudyConfig
 
 HUMAN, ROBOT = "tab:red", "tab:blue"  # the paper's colours (Fig. 4 caption)
 ORIGIN_STYLE = {"sobol": ("tab:gray", "o", "Sobol (random)"), "learned": ("tab:orange", "^", "qNEI query"),

@@ -20,7 +20,8 @@ import pandas as pd
 from pydantic import BaseModel
 
 from app.analysis import figures as fig
-from app.analysis.benchmark import draw_benchmark_figure3
+from app.analysis.benchmark import draw_benchmark_figure3, load_benchmark
+from app.analysis.provenance import counted_ratings
 from app.analysis.report_page import render_page
 from app.analysis.stats import StatTest, paper_tests
 from app.analysis.tables import (
@@ -74,6 +75,7 @@ class Report(BaseModel):
     tests: list[StatTest]
     incomplete: list[str]
     unreadable: dict[str, str]
+    ratings_counted: str
 
 
 def tests_frame(tests: list[StatTest]) -> pd.DataFrame:
@@ -119,24 +121,30 @@ def draw_participant_figures(analysis: StudyAnalysis, directory: Path) -> dict[s
     return drawn
 
 
-def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = None) -> Report:
+def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = None,
+                 include_simulated: bool = False) -> Report:
     """Analyse ``study_dir`` and write ``report.html``, ``tables/*.csv`` and ``figures/*`` under
-    ``out_dir`` (plus Fig. 3 when ``benchmark_dir`` is a benchmark-pl result folder)."""
+    ``out_dir`` (plus Fig. 3 when ``benchmark_dir`` is a benchmark-pl result folder). Both inputs
+    are read before anything is written: a refusal leaves ``out_dir`` as it was. Only the
+    participants' own ratings and answers count unless ``include_simulated``."""
     out_dir = Path(out_dir)
     loaded = load_study(study_dir, REPORT_TABLES, sample_phases=("validation",),
                         skip_unreadable=True)
-    analysis = StudyAnalysis.of(loaded.tables)
+    benchmark = None if benchmark_dir is None else load_benchmark(benchmark_dir)
+    tables, counted = counted_ratings(loaded.tables, include_simulated)
+    analysis = StudyAnalysis.of(tables)
     tables = write_tables(analysis, out_dir / "tables")
     figures = draw_participant_figures(analysis, out_dir / "figures")
-    if benchmark_dir is not None:
-        figures["fig3"] = draw_benchmark_figure3(benchmark_dir, out_dir / "figures")
+    if benchmark is not None:
+        figures["fig3"] = draw_benchmark_figure3(benchmark, out_dir / "figures")
     unreadable = {str(path): reason for path, reason in loaded.unreadable.items()}
     html = out_dir / "report.html"
     html.write_text(render_page(analysis, figures, study_dir=Path(study_dir), unreadable=unreadable,
-                                generated=datetime.now(UTC).isoformat(timespec="seconds")))
+                                generated=datetime.now(UTC).isoformat(timespec="seconds"),
+                                ratings_counted=counted.text()))
     incomplete = analysis.status.loc[~analysis.status["complete"], "participant"].tolist()
     if incomplete:
         log.info("incomplete sessions (reported, left out of the tests): %s", incomplete)
     return Report(html=html, tables=tables, figures=figures, tests=analysis.tests,
-                  incomplete=incomplete, unreadable=unreadable)
+                  incomplete=incomplete, unreadable=unreadable, ratings_counted=counted.text())
 

@@ -131,8 +131,9 @@ def figure_list(figures: Mapping[str, FigureFiles], prefix: str, caption: str) -
 
 
 def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, study_dir: Path,
-                unreadable: Mapping[str, str], generated: str) -> str:
-    """The whole report as one HTML string (figures embedded)."""
+                unreadable: Mapping[str, str], generated: str, ratings_counted: str) -> str:
+    """The whole report as one HTML string (figures embedded); ``ratings_counted`` says whose
+    ratings it counts."""
     counts = analysis.status["scenario"].value_counts()
     intro = html.paragraph(
         f"Study folder {study_dir}, {len(analysis.status)} participants ("
@@ -140,7 +141,8 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
     fig4 = figure_list(figures, "fig4-", "Fig. 4: human (red) and robot (blue) distance to the "
                        "handover point, normalised by the distance at the start, validation trials:")
     curves = figure_list(figures, "learning-", "θ over interactions and θ*'s posterior utility:")
-    parts = [intro, problems(analysis, unreadable), sessions(analysis), validation_tables(analysis),
+    parts = [intro, html.paragraph(ratings_counted), problems(analysis, unreadable),
+             sessions(analysis), validation_tables(analysis),
              statistics(analysis.tests), survey(analysis),
              html.section("Fig. 4: trajectories of the validation trials (Sect. VI-C)",
                           *(fig4 or [html.paragraph("No completed validation trial.")])),

@@ -26,7 +26,8 @@ import pandas as pd
 
 from app.protocol.plan import protocol_slots
 from app.protocol.state import Step, replay
-from session_store.models import Event, StudyConfig
+from app.protocol.study import StudyConfig
+from session_store.models import Event
 
 #: Two validation trials whose robot arrivals differ by less than this are the same robot behaviour
 #: to a person (10 control cycles at 500 Hz; people do not resolve timing differences this small).

@@ -8,8 +8,9 @@ from enum import StrEnum
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.learning.models import Comparison, FitReport, Interaction, ParameterBox
+from app.learning.models import Comparison, FitReport, Interaction, ParameterBox, RecommendationName
 from app.learning.planner import BatchSchedule
+from app.learning.prior import PopulationPrior
 
 #: Serialisable kernel hyperparameters: raw parameter name → values (the warm start, the snapshot).
 Hyperparameters = dict[str, list[float]]
@@ -22,6 +23,14 @@ class AcquisitionName(StrEnum):
     QLOGNEI = "qlognei"
     EUBO = "eubo"
     SOBOL = "sobol"
+
+
+#: The recommendation default, chosen by the recommendation study of docs/learning.md (N = 100
+#: paired seeds, qNEI q = 5 and EUBO at σ = 0, 0.03, 0.05): the box maximiser of the posterior mean
+#: is never worse than the in-sample argmax (σ = 0.05: +0.001 [−0.007, +0.010] and −0.004
+#: [−0.009, +0.001]) and better where placements are reliable (σ = 0: −0.012 and −0.009, paired
+#: CIs excluding 0; EUBO at σ = 0.03: −0.006 [−0.011, −0.002]), at one optimisation per θ*.
+DEFAULT_RECOMMENDATION = RecommendationName.POSTERIOR_MEAN
 
 
 class OptimizerConfig(BaseModel):
@@ -70,6 +79,14 @@ class LearnerConfig(BaseModel):
     schedule: BatchSchedule = BatchSchedule()
     model: ModelConfig = ModelConfig()
     optimizer: OptimizerConfig = OptimizerConfig()
+    recommendation: RecommendationName = Field(
+        DEFAULT_RECOMMENDATION, description="how θ* is recommended (docs/learning.md, "
+        "recommendation study); the batch-opening θ* is the in-sample incumbent whatever this is")
+    lcb_beta: float = Field(1.0, ge=0.0, le=10.0,
+                            description="β of the in-sample lower confidence bound mean − β·std")
+    prior: PopulationPrior | None = Field(
+        None, description="prior mean from earlier participants (app.learning.population); "
+        "None: the zero mean of eq. (12)")
     seed: int = 0
 
 

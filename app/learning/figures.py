@@ -1,4 +1,5 @@
-"""Fig. 3 of the paper: mean distance to the target (95 % CI) and success rate, by interaction."""
+"""Figures: Fig. 3 of the paper (mean distance to the target, 95 % CI, and success rate, by
+interaction; the oracle curve thin) and the pilot's validation scores and power."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from app.learning.pilot import ALPHAS, PilotReport
 from app.learning.study import ConditionSummary, InteractionSummary
 
 
@@ -29,18 +31,49 @@ def draw_figure3(results: Sequence[tuple[ConditionSummary, list[InteractionSumma
         colour = colours[(summary.acquisition, summary.q)]
         top.errorbar(x, mean, yerr=err, capsize=2, linestyle=style, linewidth=1.2, color=colour,
                      elinewidth=0.8, label=f"{summary.condition} (N={summary.trials})")
+        top.plot(x, [r.mean_oracle_distance for r in rows], linestyle=style, linewidth=0.6,
+                 color=colour, alpha=0.7)
         bottom.plot(x, [r.success_rate for r in rows], linestyle=style, linewidth=1.2,
                     color=colour)
     top.set_ylabel("mean distance to target u(θ*)")
-    top.set_title("Simulated task (Sect. IV): mean distance, 95 % CI")
+    top.set_title("Simulated task (Sect. IV): mean distance of θ* (95 % CI); thin: best shown")
     top.legend(fontsize=8, ncol=2)
     top.grid(alpha=0.3)
     bottom.set_ylabel("success rate (u(θ*) < 0.1)")
     bottom.set_xlabel("interaction")
     bottom.set_ylim(0.0, 1.0)
     bottom.grid(alpha=0.3)
+    return _save(fig, path, dpi=90)
+
+
+def draw_pilot(report: PilotReport, path: Path) -> Path:
+    """Validation scores (left) and the sign test's power against participants (right)."""
+    fig, (left, right) = plt.subplots(1, 2, figsize=(9.0, 3.6))
+    labels = list(report.score_distribution)
+    left.bar(labels, list(report.score_distribution.values()), color="tab:blue")
+    left.set_xlabel("validation score (θ* preferred)")
+    left.set_ylabel("share of participants")
+    left.set_title(f"{report.config.studies} studies × {report.config.scenarios} × "
+                   f"{report.config.participants} participants", fontsize=9)
+    for alpha, colour in zip(ALPHAS, ("tab:green", "tab:red"), strict=True):
+        points = [p for p in report.power_curve if p.alpha == alpha]
+        n = [report.config.scenarios * p.participants_per_scenario for p in points]
+        power = [p.power for p in points]
+        err = [[p.power - p.ci_low for p in points], [p.ci_high - p.power for p in points]]
+        right.errorbar(n, power, yerr=err, capsize=2, color=colour, marker="o", markersize=3,
+                       label=f"α = {alpha:g}")
+    right.axhline(0.8, color="grey", linewidth=0.8, linestyle=":")
+    right.set_xlabel("participants in all (sign test N)")
+    right.set_ylabel("power (95 % CI)")
+    right.set_ylim(0.0, 1.02)
+    right.legend(fontsize=8)
+    right.grid(alpha=0.3)
+    return _save(fig, path, dpi=80)
+
+
+def _save(fig: plt.Figure, path: Path, dpi: int) -> Path:
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path

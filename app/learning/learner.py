@@ -7,7 +7,7 @@ Typical use by a session engine (or through :mod:`app.learning.worker` in its ow
     ...run the handover with suggestion.theta, collect the participant's placement...
     comparisons = comparisons_for_newest(batch_placements)   # app.learning.scale
     learner.observe(Interaction(interaction_id="1", theta=suggestion.theta), comparisons)
-    learner.best()                                  # θ*, posterior-mean argmax over observed points
+    learner.best()                                  # θ*, by LearnerConfig.recommendation
     learner.snapshot()                              # everything needed to rebuild it
 
 Every step is deterministic given ``LearnerConfig.seed`` and the observations.
@@ -30,11 +30,14 @@ from app.learning.models import (
     FitReport,
     Interaction,
     PosteriorSlice,
+    RecommendationName,
     Slot,
     SlotKind,
     Suggestion,
 )
+from app.learning.population import PopulationMean
 from app.learning.preference_model import PreferenceModel, posterior_at
+from app.learning.recommendation import Recommendation, recommend
 from app.learning.rng import derive_seed, seeded
 
 logger = logging.getLogger(__name__)
@@ -47,10 +50,13 @@ class PreferenceLearner:
                  hyperparameters: Hyperparameters | None = None) -> None:
         self.config = config
         self.data = PreferenceData(config.box.dim)
-        self.model = PreferenceModel(config.model, hyperparameters)
+        prior_mean = PopulationMean(config.prior) if config.prior is not None else None
+        self.model = PreferenceModel(config.model, hyperparameters, prior_mean)
         self.last_fit = FitReport()
         self._interactions: list[Interaction] = []
         self._comparisons: list[Comparison] = []
+        self._recommended: tuple[object, int, dict[RecommendationName, Recommendation]] = (
+            None, 0, {})
 
     @property
     def n_interactions(self) -> int:
@@ -107,18 +113,46 @@ class PreferenceLearner:
             self.last_fit = self.model.update(self.data, fit_hyperparameters=fit_hyperparameters)
         return self.last_fit
 
-    def best(self) -> BestPoint | None:
-        """θ*: the observed point with the largest posterior mean utility.
+    def best(self, strategy: RecommendationName | None = None) -> BestPoint | None:
+        """θ*, recommended by ``strategy`` (default: ``LearnerConfig.recommendation``).
 
         Before any model exists (no comparisons yet, e.g. only ties) it is the first point shown;
         ``None`` before any interaction.
         """
         if not self.data.points:
             return None
+        strategy = strategy or self.config.recommendation
+        found = self._recommendation(strategy)
+        if found is None:
+            return BestPoint(theta=self.config.box.from_unit(self.data.points[0]),
+                             interaction_ids=self.data.interactions_at(0), utility_mean=None)
+        ids = () if found.index is None else self.data.interactions_at(found.index)
+        return BestPoint(theta=self.config.box.from_unit(found.unit), interaction_ids=ids,
+                         utility_mean=found.mean, strategy=strategy)
+
+    def _recommendation(self, strategy: RecommendationName) -> Recommendation | None:
+        model = self.model.model
+        if model is None:
+            return None
+        cached_model, size, found = self._recommended
+        if cached_model is not model or size != len(self.data.points):
+            found = {}  # the box search costs an optimisation: once per model and strategy
+            self._recommended = (model, len(self.data.points), found)
+        if strategy not in found:
+            seed = derive_seed(self.config.seed, len(self.data.points), len(self.data.comparisons), 3)
+            found[strategy] = recommend(strategy, model, self.data, self.config.optimizer, seed,
+                                        self.config.lcb_beta)
+        return found[strategy]
+
+    def incumbent(self) -> dict[str, float] | None:
+        """The batch-opening θ*: the observed point with the largest posterior mean, a handover
+        the participant has felt (the reference of the refreshing scale); the first point shown
+        before a model exists, ``None`` before any interaction."""
+        if not self.data.points:
+            return None
         best = self.model.best(self.data)
-        index, mean = best if best is not None else (0, None)
-        return BestPoint(theta=self.config.box.from_unit(self.data.points[index]),
-                         interaction_ids=self.data.interactions_at(index), utility_mean=mean)
+        index = best[0] if best is not None else 0
+        return self.config.box.from_unit(self.data.points[index])
 
     def suggest(self) -> Suggestion:
         """The θ for the next interaction of the schedule (``theta=None`` once it is done)."""
@@ -126,7 +160,7 @@ class PreferenceLearner:
         if slot.kind is SlotKind.DONE:
             return Suggestion(theta=None, slot=slot, fit=self.last_fit)
         if slot.kind is SlotKind.BEST:
-            theta = self.best().theta  # type: ignore[union-attr]  # the initial batch precedes
+            theta = self.incumbent()  # the initial batch precedes: points exist
             return Suggestion(theta=theta, slot=slot, fit=self.last_fit)
         unit = self._query(slot) if slot.kind is SlotKind.QUERY else self._sobol(slot)
         return Suggestion(theta=self.config.box.from_unit(unit.tolist()), slot=slot,

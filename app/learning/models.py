@@ -147,6 +147,20 @@ class SlotKind(StrEnum):
     DONE = "done"  #: the schedule is complete
 
 
+class RecommendationName(StrEnum):
+    """How θ*, the learned best, is recommended from the posterior of eq. (13).
+
+    The batch-opening θ* of the schedule (Sect. III-C) is always the in-sample incumbent: it is a
+    handover the participant has felt, the reference of the refreshing scale. The strategy decides
+    the θ* the learner *recommends* (``PreferenceLearner.best``): the protocol's final "best"
+    interaction, validation, and what a session stores as learned.
+    """
+
+    IN_SAMPLE_MEAN = "in_sample_mean"  #: the observed point with the largest posterior mean
+    POSTERIOR_MEAN = "posterior_mean"  #: argmax of the posterior mean over the whole box
+    IN_SAMPLE_LCB = "in_sample_lcb"  #: the observed point with the largest mean − β·std
+
+
 class Slot(_Frozen):
     """Position of one interaction in the batch schedule."""
 
@@ -170,11 +184,15 @@ class FitReport(_Frozen):
 
 
 class BestPoint(_Frozen):
-    """θ*: the observed point with the largest posterior mean utility."""
+    """θ*: the recommended point, by the strategy that produced it (``strategy``)."""
 
     theta: dict[str, float]
-    interaction_ids: tuple[InteractionId, ...]
+    interaction_ids: tuple[InteractionId, ...] = Field(
+        description="the interactions that showed θ*; empty when θ* was not shown (posterior_mean)")
     utility_mean: float | None = Field(description="posterior mean at θ*, None without a model")
+    strategy: RecommendationName | None = Field(
+        None, description="the recommendation strategy; None before a model exists (θ* is then "
+        "the first point shown)")
 
 
 class Suggestion(_Frozen):

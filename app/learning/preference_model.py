@@ -33,6 +33,7 @@ from app.learning.config import Hyperparameters, ModelConfig
 from app.learning.data import PreferenceData
 from app.learning.expected_warnings import expected_warnings
 from app.learning.models import FitReport
+from app.learning.population import PopulationMean, PopulationPairwiseGP
 from app.learning.rng import derive_seed, seeded
 
 logger = logging.getLogger(__name__)
@@ -71,19 +72,24 @@ def _covar_module_at(dim: int, config: ModelConfig,
 
 
 def fit_model(data: PreferenceData, config: ModelConfig,
-              hyperparameters: Hyperparameters | None = None, *, optimize: bool = True
-              ) -> PairwiseGP:
+              hyperparameters: Hyperparameters | None = None, *, optimize: bool = True,
+              prior_mean: PopulationMean | None = None) -> PairwiseGP:
     """Build a ``PairwiseGP`` on ``data`` and (``optimize``) fit its kernel hyperparameters.
 
     ``hyperparameters`` (a previous fit's :func:`hyperparameters_of`) are the starting values of the
     fit; with ``optimize=False`` they are kept, and only the Laplace approximation of eq. (13) is
-    computed for the new data (a few milliseconds instead of a fit).
+    computed for the new data (a few milliseconds instead of a fit). ``prior_mean`` replaces the
+    zero prior mean of eq. (12) (earlier participants, :mod:`app.learning.population`).
     Raises ``ModelFittingError`` when every attempt of ``fit_gpytorch_mll`` fails.
     """
     X, C = data.tensors()
     covar = _covar_module_at(data.dim, config, hyperparameters)
     with expected_warnings(NumericalWarning, context="PairwiseGP"):
-        model = PairwiseGP(X, C, likelihood=PairwiseProbitLikelihood(), covar_module=covar)
+        if prior_mean is None:
+            model = PairwiseGP(X, C, likelihood=PairwiseProbitLikelihood(), covar_module=covar)
+        else:
+            model = PopulationPairwiseGP(X, C, prior_mean, likelihood=PairwiseProbitLikelihood(),
+                                         covar_module=covar)
     if optimize:
         mll = PairwiseLaplaceMarginalLogLikelihood(model.likelihood, model)
         # fit_gpytorch_mll re-emits an OptimizationWarning for every attempt it retries.
@@ -117,8 +123,10 @@ class PreferenceModel:
     last hyperparameter fit (``ModelConfig.refit_growth``) for a fit to be due.
     """
 
-    def __init__(self, config: ModelConfig, hyperparameters: Hyperparameters | None = None) -> None:
+    def __init__(self, config: ModelConfig, hyperparameters: Hyperparameters | None = None,
+                 prior_mean: PopulationMean | None = None) -> None:
         self.config = config
+        self.prior_mean = prior_mean
         self.model: PairwiseGP | None = None
         self.hyperparameters = hyperparameters
         self._fitted_comparisons = 0  # comparisons at the last successful hyperparameter fit
@@ -141,7 +149,8 @@ class PreferenceModel:
         start = time.monotonic()
         initial = self.hyperparameters if self.config.warm_start or not optimize else None
         try:
-            hyperparameters = (hyperparameters_of(fit_model(data, self.config, initial))
+            hyperparameters = (hyperparameters_of(fit_model(data, self.config, initial,
+                                                            prior_mean=self.prior_mean))
                                if optimize else self.hyperparameters)
             model = self._build(data, hyperparameters)
         except (ModelFittingError, NotPSDError) as exc:
@@ -180,7 +189,8 @@ class PreferenceModel:
         global generator). So it is a function of the data and the hyperparameters alone, and a
         learner restored from a snapshot suggests exactly what the stored one would have."""
         with seeded(derive_seed(len(data.points), len(data.comparisons))):
-            return fit_model(data, self.config, hyperparameters, optimize=False)
+            return fit_model(data, self.config, hyperparameters, optimize=False,
+                             prior_mean=self.prior_mean)
 
     def best(self, data: PreferenceData) -> tuple[int, float] | None:
         """θ*: index and posterior mean of the observed point with the largest posterior mean.

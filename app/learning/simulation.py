@@ -9,24 +9,43 @@ comparisons come from the same scale rule as in the human study (:mod:`app.learn
 newest interaction against every earlier one of its batch. The schedule is the paper's: 5 Sobol
 points, then batches of θ* + q − 1 queries until 25 unique points have been shown.
 
-Reported per interaction: the distance u(θ*) of the current best point θ* (posterior-mean argmax
-over the points observed so far, after the model has been updated with that interaction's
-comparisons) to the target; success is u(θ*) < 0.1. The distance of the point just shown is
-kept too.
+Reported per interaction, after the model has been updated with that interaction's comparisons:
+the *inference* distance u(θ*) of the recommended θ* to the target under every recommendation
+strategy (:mod:`app.learning.recommendation`; the same search, so the strategies are compared on
+identical data), and the distance of the point just shown, whose running minimum is the *oracle*
+curve (the best point shown so far). Success is u(θ*) < 0.1.
+
+Population mode (``spread``): the participants of a population share an optimum θ_0 ~ U[0, 1]^d and
+each one's target is θ_0 + N(0, spread²·I), clipped to the cube; without a spread every target is
+uniform (no shared structure). :func:`participant_target` draws them.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.learning.config import AcquisitionName, LearnerConfig, ModelConfig, OptimizerConfig
+from app.learning.config import (
+    DEFAULT_RECOMMENDATION,
+    AcquisitionName,
+    LearnerConfig,
+    ModelConfig,
+    OptimizerConfig,
+)
 from app.learning.learner import PreferenceLearner
-from app.learning.models import Interaction, ParameterBox, Placement
+from app.learning.models import (
+    Interaction,
+    ParameterBox,
+    Placement,
+    RecommendationName,
+    SlotKind,
+)
 from app.learning.planner import BatchSchedule
+from app.learning.prior import PopulationPrior
 from app.learning.rng import derive_seed
 from app.learning.scale import comparisons_for_newest
 
@@ -56,6 +75,9 @@ class StudyCondition(BaseModel):
     dim: int = Field(3, ge=1, le=10, description="dimension of θ (paper: 3)")
     model: ModelConfig = Field(STUDY_MODEL, description="fit settings (study preset)")
     optimizer: OptimizerConfig = Field(STUDY_OPTIMIZER, description="acquisition optimisation")
+    recommendation: RecommendationName = Field(
+        DEFAULT_RECOMMENDATION, description="the strategy of the ``distance`` column (all "
+        "strategies are recorded)")
 
     @property
     def name(self) -> str:
@@ -73,10 +95,28 @@ class TrialResult(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid")
 
     trial: int
-    distances: list[float]
+    distances: list[float] = Field(description="inference curve of the condition's strategy")
     shown_distances: list[float]
+    strategy_distances: dict[RecommendationName, list[float]] = Field(
+        default_factory=dict, description="inference curve of every recommendation strategy; "
+        "NaN where it was not computed (only the final value of untracked strategies is)")
     fit_failures: int
     seconds: float
+
+    @property
+    def oracle_distances(self) -> list[float]:
+        """The oracle curve: u of the best point shown so far."""
+        return list(np.minimum.accumulate(self.shown_distances))
+
+
+def participant_target(dim: int, seed: int, population: int, participant: int,
+                       spread: float | None) -> np.ndarray:
+    """The optimum θ_t of ``participant`` of ``population``: uniform, or around the shared θ_0."""
+    rng = np.random.default_rng(derive_seed(seed, population, participant, 0))
+    if spread is None:
+        return rng.uniform(size=dim)
+    shared = np.random.default_rng(derive_seed(seed, population, 0x5EED)).uniform(size=dim)
+    return np.clip(shared + rng.normal(0.0, spread, size=dim), 0.0, 1.0)
 
 
 def scale_position(y: float) -> float:
@@ -90,19 +130,38 @@ def run_trial(condition: StudyCondition, seed: int, trial: int) -> TrialResult:
     Target and noise depend only on ``(seed, trial)``, so every condition sees the same targets and
     results do not depend on how trials are spread over processes.
     """
-    start = time.monotonic()
     target = np.random.default_rng(derive_seed(seed, trial, 0)).uniform(size=condition.dim)
-    noise_rng = np.random.default_rng(derive_seed(seed, trial, 1))
+    return simulate_learner(condition, target, derive_seed(seed, trial, 1),
+                            derive_seed(seed, trial, 2), trial=trial)[0]
+
+
+def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: int,
+                     learner_seed: int, *, trial: int = 0,
+                     prior: PopulationPrior | None = None,
+                     strategies: Sequence[RecommendationName] = ()
+                     ) -> tuple[TrialResult, PreferenceLearner]:
+    """One simulated participant with optimum ``target`` through the schedule of ``condition``,
+    with ``prior`` as the GP's prior mean; returns the trial and the final learner (whose
+    snapshot feeds the priors of later participants).
+
+    The inference curve of the condition's strategy is recorded at every interaction, those of
+    ``strategies`` too (each costs a recommendation per interaction, a box search for
+    ``posterior_mean``); every other strategy only at the final interaction (NaN before)."""
+    start = time.monotonic()
+    noise_rng = np.random.default_rng(noise_seed)
     box = ParameterBox.unit_cube(condition.dim)
     learner = PreferenceLearner(LearnerConfig(
         box=box, acquisition=condition.acquisition, schedule=condition.schedule,
-        model=condition.model, optimizer=condition.optimizer, seed=derive_seed(seed, trial, 2)))
+        model=condition.model, optimizer=condition.optimizer,
+        recommendation=condition.recommendation, prior=prior, seed=learner_seed))
 
     def distance(theta: dict[str, float]) -> float:
         return float(np.linalg.norm(target - np.array([theta[n] for n in box.names])))
 
     placements: list[Placement] = []
-    distances, shown, failures = [], [], 0
+    shown, failures = [], 0
+    tracked = {s for s in strategies} | {condition.recommendation}
+    curves: dict[RecommendationName, list[float]] = {s: [] for s in RecommendationName}
     while (suggestion := learner.suggest()).theta is not None:
         slot = suggestion.slot
         if slot.position == 1:
@@ -114,7 +173,12 @@ def run_trial(condition: StudyCondition, seed: int, trial: int) -> TrialResult:
         fit = learner.observe(Interaction(interaction_id=iid, theta=suggestion.theta),
                               comparisons_for_newest(placements))
         failures += fit.fit_failed
-        distances.append(distance(learner.best().theta))  # type: ignore[union-attr]
+        final = learner.next_slot().kind is SlotKind.DONE
+        for strategy, curve in curves.items():
+            curve.append(distance(learner.best(strategy).theta)  # type: ignore[union-attr]
+                         if final or strategy in tracked else math.nan)
         shown.append(u)
-    return TrialResult(trial=trial, distances=distances, shown_distances=shown,
-                       fit_failures=failures, seconds=time.monotonic() - start)
+    result = TrialResult(trial=trial, distances=curves[condition.recommendation],
+                         shown_distances=shown, strategy_distances=curves,
+                         fit_failures=failures, seconds=time.monotonic() - start)
+    return result, learner

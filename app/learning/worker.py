@@ -12,12 +12,13 @@ method (torch lives only in the child, single-threaded). The caller's side,
     client.submit([Interaction(interaction_id="1", theta=suggestion.theta)], comparisons)
     client.pending                         # True until the reply has arrived (non-blocking)
     client.poll()                          # the reply if it has arrived, else None
-    client.best                            # θ* from the latest reply
+    client.best                            # the recommended θ* from the latest reply
+    client.incumbent                       # the batch-opening θ* (an observed point)
     client.state                           # the worker's exact LearnerSnapshot, for storage
     client.close()
 
 Fallback: when ``get`` times out, the caller receives a Sobol point of the box (or the last known
-θ* if the schedule's slot is θ*), flagged ``fallback=True``; the learner keeps its state and the
+batch-opening θ* if the schedule's slot is θ*), flagged ``fallback=True``; the learner keeps its state and the
 late reply is dropped. Crashes: a dead worker is detected on ``pending``/``poll``/``get`` and
 restarted with the full history replayed (one fit), up to ``max_restarts`` times; after that
 :class:`WorkerError` is raised.
@@ -70,6 +71,8 @@ class WorkerReply(BaseModel):
     request_id: int
     suggestion: Suggestion | None = None
     best: BestPoint | None = None
+    #: the batch-opening θ* (in-sample incumbent), which a late reply's fallback shows on a θ* slot
+    incumbent: dict[str, float] | None = None
     state: LearnerSnapshot | None = None
     slices: list[PosteriorSlice] = []
     error: str | None = None
@@ -108,7 +111,8 @@ def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, A
         try:
             learner.observe_many(request.interactions, request.comparisons)
             reply = WorkerReply(request_id=request.request_id, suggestion=learner.suggest(),
-                                best=learner.best(), state=learner.snapshot(),
+                                best=learner.best(), incumbent=learner.incumbent(),
+                                state=learner.snapshot(),
                                 slices=learner.posterior_slices())
         except LearningError as exc:
             reply = WorkerReply(request_id=request.request_id, error=str(exc))
@@ -124,6 +128,8 @@ class LearnerClient:
         self.max_restarts = max_restarts
         self.restarts = 0
         self.best: BestPoint | None = None
+        #: the batch-opening θ* from the latest reply (an observed point, unlike ``best``)
+        self.incumbent: dict[str, float] | None = None
         #: the worker's exact state after its latest reply (what a session stores to resume)
         self.state: LearnerSnapshot | None = snapshot
         #: the posterior utility along each parameter through θ*, from the latest reply
@@ -230,6 +236,8 @@ class LearnerClient:
         reply = WorkerReply.model_validate(message)
         if reply.best is not None:
             self.best = reply.best
+        if reply.incumbent is not None:
+            self.incumbent = reply.incumbent
         if reply.state is not None:
             self.state = reply.state
             self.slices = reply.slices
@@ -262,10 +270,11 @@ class LearnerClient:
             self._requests.put(self._pending.model_dump(mode="json"))
 
     def _fallback(self) -> Suggestion:
-        """A θ the caller can use now: last θ* on a θ* slot, else the next fallback Sobol point."""
+        """A θ the caller can use now: the last batch-opening θ* on a θ* slot, else the next
+        fallback Sobol point."""
         slot = self.config.schedule.slot(self._n_interactions)
-        if slot.kind is SlotKind.BEST and self.best is not None:
-            theta = self.best.theta
+        if slot.kind is SlotKind.BEST and self.incumbent is not None:
+            theta = self.incumbent
         else:
             theta = self.config.box.from_unit(self._fallback_engine.random(1)[0].tolist())
         logger.warning("learner reply late: fallback θ for interaction %d (%s)", slot.index,

@@ -4,11 +4,12 @@
 from __future__ import annotations
 
 from app.protocol.engine import SessionEngine
+from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
+from app.protocol.vocabulary import QUESTIONS, Phase, Rater
 from robot_io.trial import simulate_trial
-from session_store.errors import RefusedAction
-from session_store.models import QUESTIONS, Phase, Trial
+from session_store.models import Trial
 
 
 def _trial(engine: SessionEngine, interaction: int) -> Trial:
@@ -17,22 +18,24 @@ def _trial(engine: SessionEngine, interaction: int) -> Trial:
 
 
 def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
-    """The simulated participant places, rates or answers whatever the session waits for, once."""
+    """The simulated participant places, rates or answers whatever the session waits for, once;
+    every row it makes is recorded as the simulated participant's."""
+    by = Rater.SIMULATED_PARTICIPANT
     state = engine.state
     step, slot = state.step, state.slot
     if step is Step.PLACE:
         earlier = [(m, _trial(engine, m.interaction)) for m in state.markers]
         position, equal_to = participant.place(_trial(engine, slot.interaction), slot.position,
                                                earlier)
-        engine.place(position=position, equal_to=equal_to)
+        engine.place(position=position, equal_to=equal_to, by=by)
     elif step is Step.RATE:
         engine.rate_validation(participant.rate(_trial(engine, slot.interaction - 1),
-                                                _trial(engine, slot.interaction)))
+                                                _trial(engine, slot.interaction)), by=by)
     elif step is Step.ANSWER:
         best = [s.interaction for s in engine.slots if s.phase is Phase.BEST]
         best_trial = _trial(engine, best[-1]) if best else None
         question = next(q.id for q in QUESTIONS if q.id not in state.answers)
-        engine.answer(question, participant.answer(question, best_trial))
+        engine.answer(question, participant.answer(question, best_trial), by=by)
     else:
         raise RefusedAction(f"the simulated participant has nothing to do at {step.value!r}")
 

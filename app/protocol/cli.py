@@ -11,6 +11,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
@@ -18,7 +19,7 @@ from app.session.runner import RunnerView, SessionRunner, recorded_session
 from robot_io.cli import argument_type
 from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
-from session_store.export import FORMATS, export_study
+from session_store.export import FORMATS, LEFT_OUT_FILE, export_study
 from session_store.store import ParticipantStore, participant_path
 
 
@@ -35,7 +36,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                      help="straightforward or perturbed (required for a new session)")
     run.add_argument("--auto", action="store_true",
                      help="the simulated participant rates and answers (required headless)")
-    run.add_argument("--seed", type=int, default=0, help="seed of the session (new sessions)")
+    run.add_argument("--seed", type=argument_type(parse_seed), default=None,
+                     help="seed of a new session, 0 … 2**63-1 (default: a fresh random one, "
+                          "recorded); one another participant of the study has is refused unless "
+                          "--reuse-seed")
+    run.add_argument("--reuse-seed", action="store_true",
+                     help="confirm a --seed that another participant of the study already has")
     run.add_argument("--resume", action="store_true",
                      help="continue an interrupted session (with --scenario: start it if it never "
                           "got created)")
@@ -52,11 +58,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export = subparsers.add_parser(
         "export", help="export a study folder as tidy tables",
         description="Write one table per kind of row (trials, placements, comparisons, samples, "
-                    "answers, ...) merging all participants, plus copies of the .sqlite files.")
+                    "answers, ...) merging all participants, plus copies of the .sqlite files. "
+                    "Nothing is written to the study folder (a read-only one is fine). A database "
+                    "that cannot be read, or that holds another participant's session than its "
+                    "name says (a copy), is left out and listed in left_out.csv; the others are "
+                    "exported all the same.")
     export.add_argument("study", type=Path, help="study folder")
     export.add_argument("--format", choices=FORMATS, default="csv")
     export.add_argument("--out", type=Path, required=True, help="output folder")
     export.set_defaults(func=export_command)
+
+    doctor = subparsers.add_parser(
+        "doctor", help="check every participant database of a study folder",
+        description="Check each .sqlite file of a study folder without changing it: SQLite's "
+                    "integrity, the schema version, the event log replayed through the protocol "
+                    "(an interaction completed twice, a placement for an unknown trial, ...), the "
+                    "tables' consistency and who holds the writer's lock. Prints a verdict per "
+                    "file; exits 1 if any file is bad.")
+    doctor.add_argument("study", type=Path, help="study folder")
+    doctor.set_defaults(func=doctor_command)
 
 
 def run_session(args: argparse.Namespace) -> int:
@@ -65,11 +85,19 @@ def run_session(args: argparse.Namespace) -> int:
                          "with a person runs from the tablet and dashboard")
     exists = ParticipantStore.exists(args.study, args.participant)
     resume = args.resume and (exists or args.scenario is None)
+    if exists or resume:  # read only: a refusal below leaves the file as it is
+        recorded = recorded_session(args.study, args.participant)
     if resume:
-        session, _ = recorded_session(args.study, args.participant)
-        if args.scenario is not None and args.scenario != session.scenario:
+        if args.scenario is not None and args.scenario != recorded.config.scenario:
             raise StoreError(f"--scenario {args.scenario.value} differs from the session's "
-                             f"{session.scenario.value}")
+                             f"{recorded.config.scenario.value}")
+        if recorded.state.step is Step.DONE:
+            raise StoreError(f"participant {args.participant!r}'s session is complete "
+                             f"({recorded.state.completed} handovers): nothing to resume; "
+                             "export or report it")
+        if args.seed is not None and args.seed != recorded.config.seed:
+            raise StoreError(f"--seed {args.seed} differs from the session's seed "
+                             f"{recorded.config.seed}")
     elif exists:
         raise StoreError(f"participant {args.participant!r} already has a session in "
                          f"{args.study}: add --resume to continue it")
@@ -82,7 +110,7 @@ def run_session(args: argparse.Namespace) -> int:
                      auto_experimenter=True) as runner:
         runner.set_auto(True)
         runner.open(args.participant, args.scenario, args.seed,
-                    confirm_rig_change=args.accept_rig_change)
+                    confirm_rig_change=args.accept_rig_change, confirm_seed_reuse=args.reuse_seed)
         view = wait_until_done(runner, progress=not args.no_progress)
         observed = None if runner.rehearsal is None else runner.rehearsal.observed()
     if view.failed is not None:
@@ -93,7 +121,7 @@ def run_session(args: argparse.Namespace) -> int:
         snapshot = store.rows("learner_snapshots")[-1]
     finally:
         store.close()
-    summary = {"participant": args.participant, "completed": view.state.completed,
+    summary = {"participant": args.participant, "seed": view.seed, "completed": view.state.completed,
                "rig": view.arm, "hand": view.hand,
                "theta_star": {"a": snapshot.theta_star_a, "delta": snapshot.theta_star_delta,
                               "k": snapshot.theta_star_k},
@@ -106,7 +134,8 @@ def run_session(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         star = summary["theta_star"]
-        print(f"{args.participant}: {summary['completed']} handovers completed on {view.arm}; "
+        print(f"{args.participant} (seed {view.seed}): {summary['completed']} handovers completed "
+              f"on {view.arm}; "
               f"θ* = (a {star['a']:.2f}, δ {star['delta']:.2f}, k {star['k']:.2f}); "
               f"{summary['seconds']} s; database {summary['database_bytes'] / 1e6:.1f} MB")
         if observed is not None:
@@ -135,7 +164,28 @@ def wait_until_done(runner: SessionRunner, progress: bool) -> RunnerView:
 
 
 def export_command(args: argparse.Namespace) -> int:
-    written = export_study(args.study, args.out, args.format)
-    for table, (path, rows) in written.items():
+    export = export_study(args.study, args.out, args.format)
+    for path, reason in export.left_out.items():
+        print(f"warning: left out {path}: {reason}", file=sys.stderr)
+    for table, (path, rows) in export.written.items():
         print(f"{table}: {rows} rows -> {path}")
+    if export.left_out:
+        print(f"{len(export.left_out)} database(s) left out, listed in "
+              f"{Path(args.out) / LEFT_OUT_FILE}", file=sys.stderr)
     return 0
+
+
+def doctor_command(args: argparse.Namespace) -> int:
+    from app.protocol.doctor import examine_study
+
+    if not args.study.is_dir():
+        raise StoreError(f"study folder {args.study} does not exist")
+    verdicts = examine_study(args.study)
+    if not verdicts:
+        raise StoreError(f"{args.study} holds no participant database (*.sqlite)")
+    for verdict in verdicts:
+        print(verdict.text())
+    bad = [v.path.name for v in verdicts if not v.ok]
+    print(f"{len(verdicts)} files: {len(verdicts) - len(bad)} OK, {len(bad)} bad"
+          + (f" ({', '.join(bad)})" if bad else ""))
+    return 1 if bad else 0

@@ -19,27 +19,35 @@ from scipy.stats import qmc
 
 from app.learning.config import LearnerConfig, LearnerSnapshot
 from app.learning.models import Comparison as LearnerComparison
-from app.learning.models import Interaction, ParameterBox, PosteriorSlice, SlotKind, Suggestion
+from app.learning.models import (
+    Interaction,
+    ParameterBox,
+    PosteriorSlice,
+    RecommendationName,
+    SlotKind,
+    Suggestion,
+)
 from app.learning.models import Placement as ScalePlacement
 from app.learning.planner import BatchSchedule
+from app.learning.prior import PopulationPrior
 from app.learning.scale import comparisons_for_newest
 from app.learning.worker import LearnerClient
+from app.protocol import events as ev
+from app.protocol.earlier import earlier_participants_prior
+from app.protocol.errors import RefusedAction
 from app.protocol.plan import Slot, protocol_slots
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
+from app.protocol.study import StudyConfig
+from app.protocol.vocabulary import Actor, Rater, ThetaOrigin
 from robot_io.loop import Outcome, TrialRecord
 from robot_io.stages import Stage
 from robot_io.theta import Theta
-from session_store.errors import RefusedAction
 from session_store.models import (
-    Actor,
     Answer,
     Comparison,
-    Event,
     LearnerSnapshotRow,
     Participant,
     Placement,
-    StudyConfig,
-    ThetaOrigin,
     Trial,
     TrialOutcome,
     ValidationRating,
@@ -64,11 +72,13 @@ def rig_of(config: dict) -> dict:
     return {table: config.get(table) for table in RIG_TABLES}
 
 
-def learner_config(config: StudyConfig) -> LearnerConfig:
-    """The learner's schedule for the initial and learning phases of ``config``."""
+def learner_config(config: StudyConfig, prior: PopulationPrior | None = None) -> LearnerConfig:
+    """The learner of ``config``: its schedule for the initial and learning phases, acquisition,
+    recommendation strategy and ``prior`` (the session's, from earlier participants)."""
     unique = config.initial_trials + config.learning_batches * (config.batch_size - 1)
     return LearnerConfig(box=ParameterBox.from_bounds(config.theta_bounds),
                          acquisition=config.acquisition, seed=config.seed,
+                         recommendation=RecommendationName(config.recommendation), prior=prior,
                          schedule=BatchSchedule(n_initial=config.initial_trials,
                                                 q=config.batch_size, n_unique=unique))
 
@@ -97,11 +107,23 @@ class SessionEngine:
     """One participant's session. Create with :meth:`create`, continue with :meth:`resume`."""
 
     def __init__(self, store: ParticipantStore, learner_factory: LearnerFactory) -> None:
+        """The session of ``store`` as its event log leaves it (the log is validated: a log that
+        breaks the protocol raises :class:`~app.protocol.errors.EventLogError` and the store is
+        closed)."""
         self.store = store
-        self.participant: Participant = store.participant()
-        self.config: StudyConfig = self.participant.config
-        self.slots: list[Slot] = protocol_slots(self.config)
-        self.state: SessionState = replay(self.slots, store.events())
+        try:
+            self.participant: Participant = store.participant()
+            self.config: StudyConfig = StudyConfig.model_validate(self.participant.config)
+            self.slots: list[Slot] = protocol_slots(self.config)
+            events = store.events()
+            self.state: SessionState = replay(self.slots, events)
+        except BaseException:
+            store.close()
+            raise
+        #: the GP prior from earlier participants, fixed when the session was created (or None)
+        self.prior: PopulationPrior | None = next(
+            (PopulationPrior.model_validate(e.payload["prior"]) for e in events
+             if e.kind == "session_created" and e.payload.get("prior") is not None), None)
         self._learner_factory = learner_factory
         self._learner: LearnerClient | None = None
         #: the posterior utility through θ* after the latest learner reply (for the dashboard)
@@ -111,20 +133,32 @@ class SessionEngine:
     @classmethod
     def create(cls, study_dir: Path, code: str, config: StudyConfig,
                learner_factory: LearnerFactory = LearnerClient.for_session) -> SessionEngine:
+        """A new session for ``code``; with ``config.population_prior`` its prior is built from
+        the completed participants of ``study_dir`` first (:mod:`app.protocol.earlier`) and
+        recorded with it."""
+        prior = None
+        if config.population_prior:
+            prior = earlier_participants_prior(study_dir, code, config)
+            config = config.model_copy(
+                update={"prior_sources": prior.sources if prior is not None else []})
         store = ParticipantStore.create(study_dir, code, config)
         engine = cls(store, learner_factory)
-        engine._commit(Event(actor=Actor.EXPERIMENTER, kind="session_created",
-                             payload={"code": code, "config": config.model_dump(mode="json")}))
+        engine._commit(ev.SessionCreated(actor=Actor.EXPERIMENTER, code=code,
+                                         config=config.model_dump(mode="json"),
+                                         prior=None if prior is None
+                                         else prior.model_dump(mode="json")))
+        engine.prior = prior
         return engine
 
     @classmethod
     def resume(cls, study_dir: Path, code: str,
                learner_factory: LearnerFactory = LearnerClient.for_session) -> SessionEngine:
         """Reopen a session where it stopped. A trial that was running is recorded as aborted
-        (it will be repeated with the same θ); nothing already recorded changes."""
-        engine = cls(ParticipantStore.open(study_dir, code), learner_factory)
-        engine._commit(Event(actor=Actor.SYSTEM, kind="session_resumed",
-                             payload={"step": engine.state.step.value}))
+        (it will be repeated with the same θ; the interruption is the system's, not the
+        experimenter's); nothing already recorded changes. Refused while another writer holds the
+        participant."""
+        engine = cls(ParticipantStore.open_for_writing(study_dir, code), learner_factory)
+        engine._commit(ev.SessionResumed(actor=Actor.SYSTEM, step=engine.state.step.value))
         if engine.state.running_trial is not None:
             engine.end_trial(engine.state.running_trial, None, "session interrupted")
         return engine
@@ -159,16 +193,16 @@ class SessionEngine:
                       theta_a=theta.a, theta_delta=theta.delta, theta_k=theta.k,
                       origin=planned.origin, hand_seed=hand_seed(self.config, slot.interaction),
                       started_at=utc_now())
-        self._commit(Event(actor=Actor.EXPERIMENTER, kind="trial_started",
-                           payload={"trial_index": trial.trial_index, "interaction": slot.interaction,
-                                    "attempt": attempt}),
+        self._commit(ev.TrialStarted(actor=Actor.EXPERIMENTER, trial_index=trial.trial_index,
+                                     interaction=slot.interaction, attempt=attempt),
                      lambda: self.store.put_trial(trial))
         return TrialPlan(trial=trial, theta=theta)
 
     def end_trial(self, trial_index: int, record: TrialRecord | None,
-                  abort_reason: str | None = None) -> Trial:
+                  abort_reason: str | None = None, actor: Actor = Actor.SYSTEM) -> Trial:
         """Record the end of the running trial with its samples. It counts as completed only if the
-        controller completed the handover and nobody aborted it; otherwise it will be repeated."""
+        controller completed the handover and nobody aborted it; otherwise it will be repeated.
+        ``actor``: who ended it (the experimenter for Abort and Stop, else the system)."""
         if self.state.running_trial != trial_index:
             raise RefusedAction(f"end of trial {trial_index} refused: the running trial is "
                                 f"{self.state.running_trial}")
@@ -196,10 +230,8 @@ class SessionEngine:
             if record is not None:
                 self.store.add_samples(trial_index, record.samples)
 
-        actor = Actor.EXPERIMENTER if abort_reason else Actor.SYSTEM
-        self._commit(Event(actor=actor, kind="trial_ended",
-                           payload={"trial_index": trial_index,
-                                    "outcome": ended.outcome.value, "reason": reason}), write)
+        self._commit(ev.TrialEnded(actor=actor, trial_index=trial_index, outcome=ended.outcome,
+                                   reason=reason), write)
         return ended
 
     def record_stage(self, trial_index: int, stage: Stage, t: float | None,
@@ -209,23 +241,32 @@ class SessionEngine:
         if self.state.running_trial != trial_index:
             raise RefusedAction(f"stage {stage.value} of trial {trial_index} refused: the running "
                                 f"trial is {self.state.running_trial}")
-        self._commit(Event(actor=Actor.SYSTEM, kind="trial_stage", at=at or utc_now(),
-                           payload={"trial_index": trial_index, "stage": stage.value, "t": t}))
+        self._commit(ev.TrialStage(actor=Actor.SYSTEM, at=at or utc_now(), trial_index=trial_index,
+                                   stage=stage, t=t))
 
-    def record_devices(self, config: dict, devices: dict, changed_from: dict | None = None) -> None:
-        """The configuration in force and the devices actually opened (at creation and every
-        resume). ``changed_from``: the rig recorded before, when the experimenter confirmed that
-        this session continues on a different one."""
+    def record_devices(self, config: dict, devices: dict, rig: dict,
+                       changed_from: dict | None = None) -> None:
+        """The configuration in force, the devices actually opened and the ``rig`` a later resume
+        compares with its own (at creation and every resume). ``changed_from``: the rig recorded
+        before, when the experimenter confirmed that this session continues on a different one."""
         if changed_from is not None:
-            self._commit(Event(actor=Actor.EXPERIMENTER, kind="rig_change_confirmed",
-                               payload={"from": changed_from, "to": rig_of(config)}))
-        self._commit(Event(actor=Actor.SYSTEM, kind="devices_recorded",
-                           payload={"config": config, "devices": devices}))
+            self._commit(ev.RigChangeConfirmed(actor=Actor.EXPERIMENTER, previous=changed_from,
+                                               to=rig))
+        self._commit(ev.DevicesRecorded(actor=Actor.SYSTEM, config=config, devices=devices,
+                                        rig=rig))
 
-    def place(self, position: float | None = None, equal_to: int | None = None) -> list[Comparison]:
+    def switch_simulated_participant(self, on: bool) -> None:
+        """The experimenter switches the simulated participant on (it rates from now on) or off
+        (the participant does); recorded, so every later rating's origin is known."""
+        if self.state.simulated_participant != on:
+            self._commit(ev.SimulatedParticipantSwitched(actor=Actor.EXPERIMENTER, on=on))
+
+    def place(self, position: float | None = None, equal_to: int | None = None,
+              by: Rater = Rater.PARTICIPANT) -> list[Comparison]:
         """The participant's placement of the last interaction on the relative scale: a position
         in [0, 1] ("Strongly Worse" … "Strongly Better") or ``equal_to`` an earlier marker of the
-        batch. Returns the comparisons it adds (newest against every earlier one; ties none)."""
+        batch; ``by`` whom (its provenance). Returns the comparisons it adds (newest against every
+        earlier one; ties none)."""
         slot = self._require(Step.PLACE)
         markers = {m.interaction: m for m in self.state.markers}
         if equal_to is not None:
@@ -247,17 +288,17 @@ class SessionEngine:
                                   loser=int(c.loser)) for c in learned]
         trial_index = self.state.completed_trial[slot.interaction]
         placement = Placement(trial_index=trial_index, interaction=slot.interaction,
-                              batch=slot.batch, position=position, equal_to=equal_to)
+                              batch=slot.batch, position=position, equal_to=equal_to, actor=by)
 
         def write() -> None:
             self.store.add(placement)
             for comparison in comparisons:
                 self.store.add(comparison)
 
-        self._commit(Event(actor=Actor.PARTICIPANT, kind="placement_made",
-                           payload={"trial_index": trial_index, "interaction": slot.interaction,
-                                    "position": position, "equal_to": equal_to,
-                                    "comparisons": [[c.winner, c.loser] for c in comparisons]}),
+        self._commit(ev.PlacementMade(actor=by.actor, trial_index=trial_index,
+                                      interaction=slot.interaction, position=position,
+                                      equal_to=equal_to,
+                                      comparisons=[(c.winner, c.loser) for c in comparisons]),
                      write)
         if slot.learner_index is not None:
             if self._learner is None:
@@ -268,8 +309,8 @@ class SessionEngine:
                                                   theta=theta.model_dump())], learned)
         return comparisons
 
-    def rate_validation(self, rating: str) -> ValidationRating:
-        """The second interaction of a validation pair, rated against the first."""
+    def rate_validation(self, rating: str, by: Rater = Rater.PARTICIPANT) -> ValidationRating:
+        """The second interaction of a validation pair, rated against the first (``by`` whom)."""
         slot = self._require(Step.RATE)
         if rating not in ("better", "worse", "equal"):
             raise RefusedAction(f"rating = {rating!r} is not one of 'better', 'worse', 'equal'")
@@ -277,19 +318,18 @@ class SessionEngine:
         preferred = None if rating == "equal" else (rating == "better") == learned_second
         row = ValidationRating(batch=slot.batch, trial_index=self.state.completed_trial[
             slot.interaction], interaction=slot.interaction, rating=rating,
-            learned_preferred=preferred)
-        self._commit(Event(actor=Actor.PARTICIPANT, kind="validation_rated",
-                           payload={"interaction": slot.interaction, "rating": rating}),
+            learned_preferred=preferred, actor=by)
+        self._commit(ev.ValidationRated(actor=by.actor, interaction=slot.interaction, rating=rating),
                      lambda: self.store.add(row))
         return row
 
-    def answer(self, question: str, value: str) -> Answer:
+    def answer(self, question: str, value: str, by: Rater = Rater.PARTICIPANT) -> Answer:
+        """An answer to Q1–Q3 (``by`` whom)."""
         self._require(Step.ANSWER)
-        row = Answer(question=question, value=str(value))
+        row = Answer(question=question, value=str(value), actor=by)
         if question in self.state.answers:
             raise RefusedAction(f"{question} is already answered ({self.state.answers[question]!r})")
-        self._commit(Event(actor=Actor.PARTICIPANT, kind="answer_given",
-                           payload={"question": question, "value": row.value}),
+        self._commit(ev.AnswerGiven(actor=by.actor, question=question, value=row.value),
                      lambda: self.store.add(row))
         return row
 
@@ -298,12 +338,14 @@ class SessionEngine:
             raise RefusedAction("pause refused: the session is already paused")
         if self.state.step is Step.RUNNING:
             raise RefusedAction("pause refused while a trial runs: abort or finish it first")
-        self._commit(Event(actor=Actor.EXPERIMENTER, kind="paused", payload={"reason": reason}))
+        if self.state.step is Step.DONE:
+            raise RefusedAction("pause refused: the session is complete")
+        self._commit(ev.Paused(actor=Actor.EXPERIMENTER, reason=reason))
 
     def resume_session(self) -> None:
         if not self.state.paused:
             raise RefusedAction("resume refused: the session is not paused")
-        self._commit(Event(actor=Actor.EXPERIMENTER, kind="resumed"))
+        self._commit(ev.Resumed(actor=Actor.EXPERIMENTER))
 
     # -- internals ---------------------------------------------------------------------------------
     def _require(self, *steps: Step) -> Slot | None:
@@ -313,20 +355,28 @@ class SessionEngine:
             raise RefusedAction(f"refused: the session waits for '{step.value}', not '{wanted}'")
         return self.state.slot
 
-    def _commit(self, event: Event, *writes: Callable[[], None]) -> Event:
+    def _commit(self, event: ev.ProtocolEvent, *writes: Callable[[], None]) -> None:
+        """Check ``event`` against a copy of the state (a breach raises and writes nothing), write
+        it with its rows in one transaction, then make the copy the state."""
+        self._commit_all([event], *writes)
+
+    def _commit_all(self, events: list[ev.ProtocolEvent], *writes: Callable[[], None]) -> None:
+        state = self.state.model_copy(deep=True)
+        for event in events:
+            apply(state, event)
         with self.store.transaction():
-            stored = self.store.append_event(event)
+            for event in events:
+                state.last_event = self.store.append_event(ev.to_row(event)).seq
             for write in writes:
                 write()
-        apply(self.state, stored)
-        return stored
+        self.state = state
 
     def _ensure_learner(self) -> LearnerClient:
         """The learner process: fresh, or restored from the last stored snapshot plus the
         placements made after it."""
         if self._learner is not None:
             return self._learner
-        config = learner_config(self.config)
+        config = learner_config(self.config, self.prior)
         snapshots = self.store.rows("learner_snapshots")
         snapshot = LearnerSnapshot.model_validate_json(snapshots[-1].state) if snapshots else None
         self._learner = self._learner_factory(config, snapshot)
@@ -373,10 +423,10 @@ class SessionEngine:
         theta = Theta(**suggestion.theta)
         origin = ORIGIN_OF_KIND[suggestion.slot.kind]
         row = self._snapshot_row(learner, slot.interaction - 1, suggestion)
-        self._commit(Event(actor=Actor.LEARNER, kind="theta_planned",
-                           payload={"interaction": slot.interaction, **theta.model_dump(),
-                                    "origin": origin.value, "fallback": suggestion.fallback,
-                                    "fit_failed": suggestion.fit.fit_failed}),
+        self._commit(ev.ThetaPlanned(actor=Actor.LEARNER, interaction=slot.interaction,
+                                     **theta.model_dump(), origin=origin,
+                                     fallback=suggestion.fallback,
+                                     fit_failed=suggestion.fit.fit_failed),
                      lambda: self.store.add(row))
 
     def _plan_after_learning(self, timeout: float) -> None:
@@ -393,13 +443,8 @@ class SessionEngine:
         events = []
         for slot in remaining:
             theta = best if slot.origin is ThetaOrigin.BEST else next(references)
-            events.append(Event(actor=Actor.LEARNER, kind="theta_planned",
-                                payload={"interaction": slot.interaction, **theta.model_dump(),
-                                         "origin": slot.origin.value}))
-        with self.store.transaction():
-            self.store.add(row)
-            stored = [self.store.append_event(e) for e in events]
-        for event in stored:
-            apply(self.state, event)
+            events.append(ev.ThetaPlanned(actor=Actor.LEARNER, interaction=slot.interaction,
+                                          **theta.model_dump(), origin=slot.origin))
+        self._commit_all(events, lambda: self.store.add(row))
         self._learner.close()
         self._learner = None

@@ -17,7 +17,8 @@ from enum import StrEnum
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from session_store.models import Phase, StudyConfig, ThetaOrigin
+from app.protocol.study import StudyConfig
+from app.protocol.vocabulary import Phase, ThetaOrigin
 
 
 class Rating(StrEnum):

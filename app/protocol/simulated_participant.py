@@ -13,7 +13,8 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from app.protocol.state import Marker
-from session_store.models import QUESTION_BY_ID, Trial
+from app.protocol.vocabulary import QUESTION_BY_ID
+from session_store.models import Trial
 
 
 class Taste(BaseModel):

@@ -1,20 +1,30 @@
 """A participant's protocol state, rebuilt from the event log alone.
 
-``apply(state, event)`` is the only place that moves the protocol forward; the engine applies each
-event right after committing it, and a resumed session folds the stored log through the same function,
-so a resumed session cannot differ from one that never stopped.
+``apply(state, event)`` is the only place that moves the protocol forward: it dispatches each typed
+event (:mod:`app.protocol.events`) through :data:`HANDLERS`, and each handler first checks that the
+state allows the event (a trial starts only when the session is ready for it, an interaction is
+completed once, a placement is for the trial that waits for one, …). The engine applies each event to
+a copy of its state before committing it, and a resumed session folds the stored log through the same
+function, so a resumed session cannot differ from one that never stopped, and a log that breaks the
+protocol is reported as such (:class:`~app.protocol.errors.EventLogError`: event number, what is
+wrong).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from enum import StrEnum
+from typing import Any
 
 from pydantic import BaseModel, Field
 
+from app.protocol import events as ev
+from app.protocol.errors import EventLogError
 from app.protocol.plan import Rating, Slot
+from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase, ThetaOrigin
 from robot_io.stages import Stage
 from robot_io.theta import Theta
-from session_store.models import QUESTIONS, Event, Phase, ThetaOrigin
+from session_store.models import Event, TrialOutcome
 
 
 class Step(StrEnum):
@@ -58,6 +68,8 @@ class SessionState(BaseModel):
     paused: bool = False
     stage: Stage | None = None  # the running trial's stage of the handover cycle
     go_at: str | None = None  # UTC time of the running trial's Go
+    simulated_participant: bool = False  # the simulated participant rates (switched by events)
+    created: bool = False
     last_event: int = 0
 
     @property
@@ -109,54 +121,165 @@ def _advance(state: SessionState) -> None:
         state.markers = []  # the scale is cleared after every batch
 
 
-def apply(state: SessionState, event: Event) -> SessionState:
-    """Fold one stored event into the state (events are trusted: the engine validated them)."""
-    p = event.payload
-    kind = event.kind
-    if kind == "theta_planned":
-        state.planned[p["interaction"]] = PlannedTheta(
-            theta=Theta(a=p["a"], delta=p["delta"], k=p["k"]), origin=ThetaOrigin(p["origin"]),
-            fallback=p.get("fallback", False))
-    elif kind == "trial_started":
-        state.running_trial = p["trial_index"]
-        state.attempts[p["interaction"]] = p["attempt"]
-        state.next_trial_index = p["trial_index"] + 1
-        state.stage = state.go_at = None
-    elif kind == "trial_stage":
-        state.stage = Stage(p["stage"])
-        if state.stage is Stage.GO:
-            state.go_at = event.at
-    elif kind == "trial_ended":
-        state.running_trial = None
-        state.stage = None
-        if p["outcome"] == "completed":
-            slot = state.slots[state.cursor]
-            state.completed_trial[slot.interaction] = p["trial_index"]
-            rated = slot.rating is Rating.SCALE or (
-                slot.rating is Rating.VALIDATION and slot.position == slot.batch_size)
-            if rated:
-                state.awaiting = slot.rating
-            else:
-                _advance(state)
-    elif kind == "placement_made":
-        slot = state.slots[state.cursor]
-        state.markers.append(Marker(interaction=slot.interaction, label=slot.position,
-                                    position=p["position"], equal_to=p.get("equal_to")))
+class _Breach(Exception):
+    """An event the state does not allow (wrapped into EventLogError by :func:`apply`)."""
+
+
+def _check(condition: bool, problem: str) -> None:
+    if not condition:
+        raise _Breach(problem)
+
+
+def _waiting_for(state: SessionState) -> str:
+    return f"the session waits for '{state.step.value}'"
+
+
+def _created(state: SessionState, event: ev.SessionCreated) -> None:
+    _check(not state.created, "the session is created twice")
+    state.created = True
+
+
+def _theta_planned(state: SessionState, event: ev.ThetaPlanned) -> None:
+    _check(event.interaction <= len(state.slots), f"plans interaction {event.interaction}; the "
+                                                  f"protocol has {len(state.slots)}")
+    _check(event.interaction not in state.planned, f"interaction {event.interaction} is planned "
+                                                   "twice")
+    state.planned[event.interaction] = PlannedTheta(
+        theta=Theta(a=event.a, delta=event.delta, k=event.k), origin=event.origin,
+        fallback=event.fallback)
+
+
+def _trial_started(state: SessionState, event: ev.TrialStarted) -> None:
+    slot = state.slot
+    _check(state.running_trial is None, f"trial {event.trial_index} starts while trial "
+                                        f"{state.running_trial} runs")
+    _check(state.step is Step.READY, f"trial {event.trial_index} starts while "
+                                     f"{_waiting_for(state)}")
+    _check(not state.paused, f"trial {event.trial_index} starts while the session is paused")
+    _check(event.interaction == slot.interaction, f"trial {event.trial_index} is for interaction "
+                                                  f"{event.interaction}; the session is at "
+                                                  f"interaction {slot.interaction}")
+    _check(event.trial_index == state.next_trial_index, f"trial_index {event.trial_index}; the "
+                                                        f"next is {state.next_trial_index}")
+    expected = state.attempts.get(event.interaction, 0) + 1
+    _check(event.attempt == expected, f"attempt {event.attempt} of interaction "
+                                      f"{event.interaction}; the next is {expected}")
+    state.running_trial = event.trial_index
+    state.attempts[event.interaction] = event.attempt
+    state.next_trial_index = event.trial_index + 1
+    state.stage = state.go_at = None
+
+
+def _trial_stage(state: SessionState, event: ev.TrialStage) -> None:
+    _check(event.trial_index == state.running_trial, f"stage {event.stage.value} of trial "
+                                                     f"{event.trial_index}, which is not running "
+                                                     f"(running: {state.running_trial})")
+    state.stage = event.stage
+    if event.stage is Stage.GO:
+        state.go_at = event.at
+
+
+def _trial_ended(state: SessionState, event: ev.TrialEnded) -> None:
+    _check(event.trial_index == state.running_trial, f"trial {event.trial_index} ends but is not "
+                                                     f"running (running: {state.running_trial})")
+    state.running_trial = None
+    state.stage = None
+    if event.outcome is not TrialOutcome.COMPLETED:
+        return
+    slot = state.slots[state.cursor]
+    earlier = state.completed_trial.get(slot.interaction)
+    _check(earlier is None, f"interaction {slot.interaction} is completed twice (trials {earlier} "
+                            f"and {event.trial_index})")
+    state.completed_trial[slot.interaction] = event.trial_index
+    rated = slot.rating is Rating.SCALE or (
+        slot.rating is Rating.VALIDATION and slot.position == slot.batch_size)
+    if rated:
+        state.awaiting = slot.rating
+    else:
         _advance(state)
-    elif kind == "validation_rated":
-        _advance(state)
-    elif kind == "answer_given":
-        state.answers[p["question"]] = p["value"]
-    elif kind == "paused":
-        state.paused = True
-    elif kind == "resumed":
-        state.paused = False
+
+
+def _placement_made(state: SessionState, event: ev.PlacementMade) -> None:
+    _check(state.step is Step.PLACE, f"a placement of trial {event.trial_index} while "
+                                     f"{_waiting_for(state)}")
+    slot = state.slots[state.cursor]
+    completed = state.completed_trial.get(slot.interaction)
+    _check(event.interaction == slot.interaction and event.trial_index == completed,
+           f"a placement for trial {event.trial_index} (interaction {event.interaction}); the scale "
+           f"waits for trial {completed} (interaction {slot.interaction})")
+    markers = {m.interaction for m in state.markers}
+    _check(event.equal_to is None or event.equal_to in markers,
+           f"equal_to = {event.equal_to} is not on the scale (on it: {sorted(markers)})")
+    state.markers.append(Marker(interaction=slot.interaction, label=slot.position,
+                                position=event.position, equal_to=event.equal_to))
+    _advance(state)
+
+
+def _validation_rated(state: SessionState, event: ev.ValidationRated) -> None:
+    _check(state.step is Step.RATE, f"a validation rating while {_waiting_for(state)}")
+    slot = state.slots[state.cursor]
+    _check(event.interaction == slot.interaction, f"rates interaction {event.interaction}; the "
+                                                  f"session waits for {slot.interaction}")
+    _advance(state)
+
+
+def _answer_given(state: SessionState, event: ev.AnswerGiven) -> None:
+    _check(state.step is Step.ANSWER, f"an answer to {event.question} while "
+                                      f"{_waiting_for(state)}")
+    question = QUESTION_BY_ID.get(event.question)
+    _check(question is not None, f"question = {event.question!r} is not one of "
+                                 f"{sorted(QUESTION_BY_ID)}")
+    _check(event.question not in state.answers, f"{event.question} is answered twice")
+    _check(event.value in question.allowed(), f"answer to {event.question} = {event.value!r} is "
+                                              f"not one of {question.allowed()}")
+    state.answers[event.question] = event.value
+
+
+def _paused(state: SessionState, event: ev.Paused) -> None:
+    _check(not state.paused, "paused twice")
+    _check(state.running_trial is None, f"paused while trial {state.running_trial} runs")
+    state.paused = True
+
+
+def _resumed(state: SessionState, event: ev.Resumed) -> None:
+    _check(state.paused, "resumed while not paused")
+    state.paused = False
+
+
+def _switched(state: SessionState, event: ev.SimulatedParticipantSwitched) -> None:
+    state.simulated_participant = event.on
+
+
+def _recorded(state: SessionState, event: ev.ProtocolEvent) -> None:
+    """Events that record what happened around the protocol without moving it."""
+
+
+#: event type → the function that folds it into the state (and checks that the state allows it).
+HANDLERS: dict[type, Callable[[SessionState, Any], None]] = {
+    ev.SessionCreated: _created, ev.SessionResumed: _recorded, ev.ThetaPlanned: _theta_planned,
+    ev.TrialStarted: _trial_started, ev.TrialStage: _trial_stage, ev.TrialEnded: _trial_ended,
+    ev.PlacementMade: _placement_made, ev.ValidationRated: _validation_rated,
+    ev.AnswerGiven: _answer_given, ev.Paused: _paused, ev.Resumed: _resumed,
+    ev.DevicesRecorded: _recorded, ev.RigChangeConfirmed: _recorded,
+    ev.SimulatedParticipantSwitched: _switched,
+}
+
+
+def apply(state: SessionState, event: ev.ProtocolEvent) -> SessionState:
+    """Fold one event into the state. An event the state does not allow (the protocol's
+    invariants) raises :class:`EventLogError` naming the event; the state is then unusable."""
+    try:
+        HANDLERS[type(event)](state, event)
+    except _Breach as breach:
+        raise EventLogError(event.seq, event.kind, str(breach)) from None
     state.last_event = event.seq or state.last_event
     return state
 
 
 def replay(slots: list[Slot], events: list[Event]) -> SessionState:
+    """The state a stored log leads to; every event is validated (:func:`app.protocol.events.parse`)
+    and checked against the state before it (:class:`EventLogError` at the first breach)."""
     state = SessionState(slots=slots)
-    for event in events:
-        apply(state, event)
+    for row in events:
+        apply(state, ev.parse(row))
     return state

@@ -2,40 +2,69 @@
 ``simulate-trial`` and ``check-devices``: the controller's tables (``[arm]``, ``[cycle]``, ``[dmp]``,
 ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``, ``[gripper]``,
 ``[release]``, see :mod:`robot_io.config`) plus ``[protocol]`` (the study's counts, Sect. V-C) and
-``[learner]`` (acquisition and θ box). Every key has a documented default (the paper's where it has
-one); an unknown table or key is an error naming it. ``docs/hardware.md`` has a full example.
+``[learner]`` (acquisition, θ box, recommendation, prior). Every key has a documented default
+(the paper's where it has one); an unknown table or key is an error naming it.
+``docs/hardware.md`` has a full example.
 """
 
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
+from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, create_model
+import annotated_types
+from pydantic import BaseModel, BeforeValidator, ConfigDict, create_model
+from pydantic.fields import FieldInfo
 
+from app.protocol.study import StudyConfig
 from robot_io.config import ControllerConfig
 from robot_io.errors import ConfigError
 from robot_io.simulated_hand import Scenario
-from session_store.models import StudyConfig
 
 #: The fields of a participant's StudyConfig that a lab sets in [protocol] and [learner]; their
 #: types, bounds and documentation are StudyConfig's own.
 PROTOCOL_FIELDS = ("initial_trials", "batch_size", "learning_batches", "best_trials",
                    "validation_batches")
-LEARNER_FIELDS = ("acquisition", "theta_bounds")
+LEARNER_FIELDS = ("acquisition", "theta_bounds", "recommendation", "population_prior",
+                  "prior_weight")
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
 
 
+def _whole_number_in(low: int, high: int) -> BeforeValidator:
+    """Refuse anything but a whole number in [low, high] (``inf``, ``2.5``, ``30``) with the range."""
+
+    def check(value: Any) -> Any:
+        whole = (isinstance(value, int) and not isinstance(value, bool)) or (
+            isinstance(value, float) and math.isfinite(value) and value.is_integer())
+        if not (whole and low <= value <= high):
+            raise ValueError(f"must be a whole number in [{low}, {high}]")
+        return value
+
+    return BeforeValidator(check)
+
+
+def _annotation(field: FieldInfo) -> Any:
+    """The field's type; a bounded integer also names its range in every refusal."""
+    low = next((m.ge for m in field.metadata if isinstance(m, annotated_types.Ge)), None)
+    high = next((m.le for m in field.metadata if isinstance(m, annotated_types.Le)), None)
+    if field.annotation is int and low is not None and high is not None:
+        return Annotated[int, _whole_number_in(low, high)]
+    return field.annotation
+
+
 def _settings(name: str, fields: tuple[str, ...], doc: str) -> type[BaseModel]:
-    definitions = {field: (StudyConfig.model_fields[field].annotation, StudyConfig.model_fields[field])
-                   for field in fields}
+    definitions = {field: (_annotation(StudyConfig.model_fields[field]),
+                           StudyConfig.model_fields[field]) for field in fields}
     return create_model(name, __config__=_FROZEN, __doc__=doc, **definitions)
 
 
 ProtocolSettings = _settings("ProtocolSettings", PROTOCOL_FIELDS,
                              "[protocol]: the counts of the study's phases (the paper's by default).")
 LearnerSettings = _settings("LearnerSettings", LEARNER_FIELDS,
-                            "[learner]: the acquisition function and the θ box (Table I).")
+                            "[learner]: the acquisition function, the θ box (Table I), how θ* is "
+                            "recommended and the opt-in prior from earlier participants.")
 
 
 class LabConfig(ControllerConfig):

@@ -51,6 +51,20 @@ def free_udp_port(host: str) -> int:
         return probe.getsockname()[1]
 
 
+#: What a rehearsal chooses afresh on every run (a free loopback address, a stream name, a port).
+#: It is not the rig: resuming a rehearsed session in a new rehearsal is not a rig change.
+CHOSEN_PER_RUN = {"ur": ("host",), "hand_source": ("lsl_stream_name", "udp_host", "udp_port")}
+
+
+def rehearsal_rig(rig: dict) -> dict:
+    """``rig`` (the rig tables, as JSON) as a rehearsal is compared with another: what it chooses
+    per run reads ``"rehearsal"``."""
+    return {table: None if values is None else
+            {key: "rehearsal" if key in CHOSEN_PER_RUN.get(table, ()) else value
+             for key, value in values.items()}
+            for table, values in rig.items()}
+
+
 class Rehearsal:
     """The stand-in controller and the hand publisher; :meth:`close` ends both."""
 

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
-from typing import Literal, TypeVar
+from typing import Literal, NamedTuple, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -33,10 +33,18 @@ from app.learning.errors import LearningError
 from app.learning.models import PosteriorSlice
 from app.protocol.auto import rate_once
 from app.protocol.engine import RIG_TABLES, SessionEngine, TrialPlan, rig_of
+from app.protocol.errors import RefusedAction
+from app.protocol.seeds import choose_seed
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import SessionState, Step
+from app.protocol.stored import stored_session
+from app.protocol.study import StudyConfig
+from app.protocol.vocabulary import Actor
 from app.session.config import LabConfig
-from app.session.rehearsal import Rehearsal
+from app.session.overview import ParticipantSummary, study_overview
+from app.session.pairing import TabletPairing, TabletStatus
+from app.session.rehearsal import Rehearsal, rehearsal_rig
+from app.session.replay import stored_rows
 from robot_io.config import ControllerConfig, SceneConfig
 from robot_io.cycle import not_started
 from robot_io.errors import RobotIOError, explain
@@ -54,9 +62,11 @@ from robot_io.rig.messages import (
 )
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
-from session_store.errors import RefusedAction, StoreError
-from session_store.models import StudyConfig, Trial
-from session_store.store import ParticipantStore, participant_codes
+from session_store import lock as writer_lock
+from session_store.errors import StoreError, StoreWriteError
+from session_store.models import Trial
+from session_store.reading import reading
+from session_store.store import ParticipantStore, participant_codes, participant_path
 
 log = logging.getLogger(__name__)
 
@@ -67,12 +77,17 @@ AUTO_DELAY_S = 0.6
 #: The reasons recorded with a trial the experimenter aborted or stopped.
 ABORT_REASON = "aborted by the experimenter"
 STOP_REASON = "stopped by the experimenter (Stop)"
+#: The reason recorded with the pause of a session the experimenter ended before it was complete.
+END_REASON = "ended by the experimenter"
 #: How many recent events the dashboard lists.
 MESSAGES = 5
 #: The simulated experimenter gives up after this many trials in a row that did not complete.
 MAX_FAILED_TRIALS = 5
 
 Waiting = Literal["loaded", "go"]
+#: After STOP ARM: "stopping" until the arm has stopped (the running trial has ended), then
+#: "stopped" until the experimenter re-arms (the scene is safe); only "armed" lets a trial start.
+StopState = Literal["armed", "stopping", "stopped"]
 
 
 class ThetaStar(BaseModel):
@@ -90,6 +105,7 @@ class RunnerView(BaseModel):
     version: int = 0
     code: str | None = None
     scenario: Scenario | None = None
+    seed: int | None = None
     state: SessionState | None = None
     interactions: int = 0
     preparing: bool = False
@@ -103,7 +119,11 @@ class RunnerView(BaseModel):
     ready_wait: str | None = None  # why the hand is not ready at the start A
     learner: str = "idle"
     learner_fault: str | None = None
-    failed: str | None = None  # the simulated experimenter gave up (headless): why
+    failed: str | None = None  # the simulated experimenter gave up (headless), or storing failed: why
+    stop: StopState = "armed"
+    tablet: TabletStatus | None = None  # None: no tablet screen (headless)
+    tablet_required: bool = True  # exactly one paired tablet before a trial may start
+    overview: list[ParticipantSummary] = []  # every participant of the study folder
     messages: list[str] = []  # the latest events, newest last
     trials: list[Trial] = []
     theta_star: list[ThetaStar] = []
@@ -147,15 +167,21 @@ class SessionRunner:
         self._rig_fault: str | None = None
         self._plan: TrialPlan | None = None
         self._abort_reason: str | None = None
+        self._abort_actor = Actor.SYSTEM
+        self._lock: writer_lock.WriterLock | None = None
         self._ready_wait: str | None = None
         self._auto = False
         self._preparing = False
         self._failed_in_a_row = 0
         self._failed: str | None = None
+        self._store_fault: str | None = None  # a write to the study failed: the session stops
         self._messages: deque[str] = deque(maxlen=MESSAGES)
         self._learner_fault: str | None = None
         self._theta_star: list[ThetaStar] = []
         self._theta_star_key = -1
+        self._stop: StopState = "armed"
+        self._pairing: TabletPairing | None = None
+        self._overview: list[ParticipantSummary] | None = None  # None: to be read again
         self._listeners: list[Listener] = []
         self._view = RunnerView()
         self._wake = threading.Event()
@@ -192,13 +218,60 @@ class SessionRunner:
     def rig(self) -> RigClient | None:
         return self._rig
 
+    def trial_rows(self, trial_index: int) -> dict[str, np.ndarray]:
+        """A stored trial of the open participant, as the live view's columns (for a replay);
+        refused while a trial runs."""
+        def read() -> dict[str, np.ndarray]:
+            engine = self._require_engine()
+            if engine.state.running_trial is not None:
+                raise RefusedAction("replay refused while a trial runs")
+            if not any(t.trial_index == trial_index for t in engine.store.rows("trials")):
+                raise RefusedAction(f"trial {trial_index} is not a trial of "
+                                    f"{engine.participant.code}")
+            rows = stored_rows(engine.store.samples(trial_index))
+            if len(rows["t"]) < 2:
+                raise RefusedAction(f"trial {trial_index} has no recorded samples to replay")
+            return rows
+        return self._call(read)
+
+    # -- the tablet (one per session) -------------------------------------------------------------
+    def attach_tablet(self) -> TabletPairing:
+        """The tablet screen's pairing: from now on a trial starts only with exactly one paired
+        tablet open (the simulated participant on a simulated rig excepted)."""
+        self._pairing = TabletPairing()
+        self._publish()
+        return self._pairing
+
+    def tablet_connected(self, page: int, address: str) -> None:
+        self._pairing.connected(page, address)
+        self._changed_now(None)
+
+    def tablet_closed(self, page: int) -> None:
+        self._pairing.closed(page)
+        self._changed_now(None)
+
+    def pair_tablet(self, page: int, code: str) -> str | None:
+        """The code typed on a tablet page: None if it is now the study's tablet, else why not."""
+        refusal = self._pairing.pair(page, code)
+        self._changed_now(None if refusal else "the tablet is paired")
+        return refusal
+
+    @property
+    def tablet_required(self) -> bool:
+        """Whether a trial needs the paired tablet: always with a tablet screen, except when the
+        simulated participant rates on a simulated rig (mock arm or rehearsal)."""
+        simulated_rig = self.rehearsal is not None or self.lab.arm.kind == "mock"
+        return self._pairing is not None and not (self._auto and simulated_rig)
+
     # -- the experimenter's actions ---------------------------------------------------------------
-    def open(self, code: str, scenario: Scenario | None = None, seed: int = 0,
-             confirm_rig_change: bool = False) -> None:
-        """Resume ``code``'s session, or create it (with ``scenario``) if it has none. The rig is
-        opened first; a session recorded on a different rig is refused unless
+    def open(self, code: str, scenario: Scenario | None = None, seed: int | None = None,
+             confirm_rig_change: bool = False, confirm_seed_reuse: bool = False) -> None:
+        """Resume ``code``'s session, or create it (with ``scenario``) if it has none. Refused at
+        once while another writer holds the participant. A new session gets ``seed`` (a fresh
+        random one when None; one another participant has only with ``confirm_seed_reuse``). The
+        rig is opened first; a session recorded on a different rig is refused unless
         ``confirm_rig_change``, and then the change is recorded."""
-        self._call(lambda: self._open(code, scenario, seed, confirm_rig_change))
+        self._call(lambda: self._open(code, scenario, seed, confirm_rig_change, confirm_seed_reuse))
         self._changed(f"participant {code} open on {self._devices.arm_detail}")
 
     def start_trial(self) -> None:
@@ -241,9 +314,28 @@ class SessionRunner:
 
     def stop(self) -> None:
         """Stop the arm, whatever else is going on (never waits for the engine). A running trial
-        is aborted."""
-        self._halt(STOP_REASON)
-        self._changed("Stop: the arm is stopped")
+        is aborted. Start stays locked until :meth:`rearm`."""
+        self._stop = "stopping"  # before the rig is told: its trial's end makes it "stopped"
+        self._halt(STOP_REASON)  # first: nothing here waits for the engine thread
+        if self._rig is None or self._rig.running is None:
+            self._stop = "stopped"
+        self._changed_now("Stop: the arm is stopped" if self._stop == "stopped" else
+                          "STOP ARM: the arm is stopping")
+
+    def rearm(self) -> None:
+        """The experimenter confirms the scene is safe after a stop: trials may start again."""
+        if self._stop == "stopping":
+            raise RefusedAction("re-arm refused: the arm is still stopping")
+        if self._stop == "armed":
+            raise RefusedAction("re-arm refused: the arm was not stopped")
+        self._stop = "armed"
+        self._changed_now("re-armed: the experimenter confirmed the scene is safe")
+
+    def end_session(self) -> None:
+        """End the open participant's session (paused if it is not complete, so it resumes where
+        it was) and close its rig, so that another participant can be opened."""
+        code = self._call(self._end_session)
+        self._changed(f"session of {code} ended")
 
     def pause(self) -> None:
         self._call(lambda: self._require_engine().pause("paused by the experimenter"))
@@ -254,8 +346,13 @@ class SessionRunner:
         self._changed("session resumed")
 
     def set_auto(self, on: bool) -> None:
+        """Switch the simulated participant on or off; recorded in the open session (and in the
+        next one opened), so that every rating's origin is known. Published at once; the record is
+        written in order on the engine thread, without waiting for it (a screen's refresh may call
+        this)."""
         self._auto = on
-        self._changed(f"simulated participant {'on' if on else 'off'}")
+        self._executor.submit(self._record_switch, on)
+        self._changed_now(f"simulated participant {'on' if on else 'off'}")
 
     # -- the participant's actions (each names the interaction its screen showed) -----------------
     def place(self, interaction: int, position: float | None = None,
@@ -294,43 +391,99 @@ class SessionRunner:
 
     # -- internals: on the engine thread ----------------------------------------------------------
     def _call(self, job: Callable[[], T]) -> T:
-        """Run ``job`` on the engine thread and return its result (or raise its exception)."""
-        if threading.get_ident() == self._engine_thread:
-            return job()
-        return self._executor.submit(job).result()
+        """Run ``job`` on the engine thread and return its result (or raise its exception; a
+        failed write to the study stops the session, see :meth:`_storage_failed`)."""
+        try:
+            if threading.get_ident() == self._engine_thread:
+                return job()
+            return self._executor.submit(job).result()
+        except StoreWriteError as exc:
+            raise self._storage_failed(exc) from exc
 
-    def _open(self, code: str, scenario: Scenario | None, seed: int, confirm: bool) -> None:
+    def _storage_failed(self, exc: StoreWriteError) -> RefusedAction:
+        """A write to the study failed (a full disk): nothing of it was stored and the engine's
+        state is still the stored one, but the rig and the engine may now disagree, so the session
+        stops here — every further action is refused with the reason, and the worker stops — until
+        it is resumed (which records a trial left running as aborted)."""
+        if self._store_fault is None:
+            self._store_fault = (f"{exc} (run-session --resume, or restart serve and open the "
+                                 "participant)")
+            self._failed = self._failed or self._store_fault
+            log.error("the session stops: %s", self._store_fault)
+            self._changed(self._store_fault)
+        return RefusedAction(self._store_fault)
+
+    def _record_switch(self, on: bool) -> None:
         if self._engine is not None:
-            raise RefusedAction(f"participant {self._engine.participant.code!r} is open; "
-                                "close the server to switch participants")
+            try:
+                self._engine.switch_simulated_participant(on)
+            except (RefusedAction, StoreError) as exc:
+                log.error("the simulated participant's switch was not recorded: %s", exc)
+
+    def _end_session(self) -> str:
+        engine = self._require_engine()
+        if engine.state.running_trial is not None or (self._rig and self._rig.running is not None):
+            raise RefusedAction("ending the session refused while a trial runs: abort it first")
+        if engine.state.step is not Step.DONE and not engine.state.paused:
+            engine.pause(END_REASON)
+        code = engine.participant.code
+        if self._rig is not None:
+            self._rig.close()
+            self._rig, self._devices = None, None
+        self._close_engine()
+        self._plan, self._participant, self._theta_star = None, None, []
+        self._learner_fault, self._failed, self._failed_in_a_row = None, None, 0
+        self._overview = None
+        self._auto = False  # the next participant is not rated by the simulated one unless asked
+        return code
+
+    def _open(self, code: str, scenario: Scenario | None, seed: int | None, confirm: bool,
+              confirm_seed: bool) -> None:
+        if self._engine is not None:
+            raise RefusedAction(f"participant {self._engine.participant.code!r} is open: end "
+                                "that session first (End session)")
         exists = ParticipantStore.exists(self.study, code)
         if not exists and scenario is None:
             raise RefusedAction(f"participant {code!r} has no session yet: choose a scenario "
                                 "to create one")
         lab = self.lab.model_dump(mode="json")
         if exists:
-            config, recorded = recorded_session(self.study, code)
-            changed = recorded if recorded != rig_of(lab) else None
+            config, recorded, _ = recorded_session(self.study, code)
+            changed = recorded if recorded != self._rig_identity() else None
             if changed is not None and not confirm:
                 raise RefusedAction(
                     f"participant {code!r} was recorded on a different rig "
-                    f"({describe_change(recorded, rig_of(lab))}); to continue on this one, confirm "
+                    f"({describe_change(recorded, self._rig_identity())}); to continue on this one, confirm "
                     "the rig change (dashboard: 'Confirm a rig change'; run-session: "
                     "--accept-rig-change)")
         else:
+            seed = choose_seed(self.study, seed, confirm_seed)
             config, changed = self.lab.study_config(scenario, seed), None
-        self._open_rig(config)
-        if exists:
-            engine = SessionEngine.resume(self.study, code)
-        else:
-            engine = SessionEngine.create(self.study, code, config)
+        self._lock = writer_lock.reserve(participant_path(self.study, code))
+        try:
+            self._open_rig(config)
+            if exists:
+                engine = SessionEngine.resume(self.study, code)
+            else:
+                engine = SessionEngine.create(self.study, code, config)
+        except BaseException:
+            self._release_lock()
+            raise
         used = {**self._trial_config(config).model_dump(mode="json"),
                 **{table: lab[table] for table in ("protocol", "learner")}}
-        engine.record_devices(used, self._devices.model_dump(mode="json"), changed_from=changed)
+        engine.record_devices(used, self._devices.model_dump(mode="json"), self._rig_identity(),
+                              changed_from=changed)
+        engine.switch_simulated_participant(self._auto)
         self._engine = engine
         self._participant = SimulatedParticipant(engine.config.seed)
         self._theta_star_key = -1
+        self._overview = None
         log.info("session %s open at step %s", code, engine.state.step)
+
+    def _rig_identity(self) -> dict:
+        """The rig tables a resume compares (a rehearsal's per-run addresses left out)."""
+        rig = rig_of(self.lab.model_dump(mode="json"))
+        return rig if self.rehearsal is None else rehearsal_rig(rig)
 
     def _trial_config(self, session: StudyConfig) -> ControllerConfig:
         """The session's controller configuration on this lab's rig."""
@@ -353,6 +506,12 @@ class SessionRunner:
 
     def _start_trial(self) -> TrialPlan:
         engine = self._require_engine()
+        if self._stop != "armed":
+            raise RefusedAction("Start refused: the arm was stopped (STOP ARM); make sure the scene "
+                                "is safe, then press Re-arm")
+        blocker = self._pairing.status().blocker() if self.tablet_required else None
+        if blocker is not None:
+            raise RefusedAction(f"Start refused: {blocker}")
         if self._rig is None or not self._rig.alive:
             self._open_rig(engine.config)  # a fresh rig process after one died
         elif self._rig_fault is not None:
@@ -361,29 +520,39 @@ class SessionRunner:
         plan = engine.start_trial()
         auto = self._auto or self.auto_experimenter
         self._plan, self._abort_reason, self._ready_wait = plan, None, None
+        self._abort_actor = Actor.SYSTEM
         try:
             self._rig.run_trial(RunTrial(trial_index=plan.trial.trial_index, theta=plan.theta,
                                          hand_seed=plan.trial.hand_seed, auto_loaded=auto,
                                          auto_go=auto))
         except RobotIOError as exc:
-            engine.end_trial(plan.trial.trial_index, None, f"could not start: {exc}")
+            engine.end_trial(plan.trial.trial_index, None, f"could not start: {exc}", Actor.SYSTEM)
             raise RefusedAction(f"the trial could not start: {exc}") from exc
         return plan
 
     def _end_trial(self, trial_index: int, record: TrialRecord, reason: str | None) -> Trial | None:
-        """Record the trial's end, unless it was already recorded."""
+        """Record the trial's end, unless it was already recorded (by whom: the experimenter if
+        they aborted or stopped it, else the system)."""
         engine = self._engine
         if engine is None or engine.state.running_trial != trial_index:
             return None
-        return engine.end_trial(trial_index, record, reason)
+        actor = self._abort_actor if reason is not None else Actor.SYSTEM
+        return engine.end_trial(trial_index, record, reason, actor)
 
     def _close_engine(self) -> None:
-        if self._engine is None:
-            return
-        self._engine.close()
-        self._engine = None
+        if self._engine is not None:
+            self._engine.close()
+            self._engine = None
+        self._release_lock()
+
+    def _release_lock(self) -> None:
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
 
     def _require_engine(self) -> SessionEngine:
+        if self._store_fault is not None:
+            raise RefusedAction(self._store_fault)
         if self._engine is None:
             raise RefusedAction("no participant is open: create or resume one first")
         return self._engine
@@ -413,18 +582,28 @@ class SessionRunner:
             return "go"
         return None
 
+    def _device_status(self) -> dict:
+        """The view's fields that do not come from the engine (read without its thread)."""
+        devices = self._devices
+        return {"arm": "no rig open" if devices is None else devices.arm_detail,
+                "hand": "" if devices is None else devices.hand_detail,
+                "gripper": "" if devices is None else devices.gripper_detail,
+                "arm_fault": self._rig_fault, "rehearsal": self.rehearsal is not None,
+                "learner": "fitting the next θ" if self._preparing else "idle",
+                "learner_fault": self._learner_fault, "failed": self._failed,
+                "ready_wait": self._ready_wait, "stop": self._stop,
+                "tablet": None if self._pairing is None else self._pairing.status(),
+                "tablet_required": self.tablet_required, "messages": list(self._messages),
+                "auto": self._auto}
+
     def _make_view(self) -> RunnerView:
-        engine, devices = self._engine, self._devices
-        status = {"arm": "no rig open" if devices is None else devices.arm_detail,
-                  "hand": "" if devices is None else devices.hand_detail,
-                  "gripper": "" if devices is None else devices.gripper_detail,
-                  "arm_fault": self._rig_fault, "rehearsal": self.rehearsal is not None,
-                  "learner": "fitting the next θ" if self._preparing else "idle",
-                  "learner_fault": self._learner_fault, "failed": self._failed,
-                  "ready_wait": self._ready_wait}
+        engine, status = self._engine, self._device_status()
+        if self._overview is None:
+            self._overview = study_overview(self.study, None if engine is None else
+                                            engine.participant.code)
+        status["overview"] = self._overview
         if engine is None:
-            return RunnerView(version=self._view.version + 1, auto=self._auto,
-                              messages=list(self._messages), **status)
+            return RunnerView(version=self._view.version + 1, **status)
         state = engine.state
         if self._theta_star_key != len(state.planned):  # a new θ means a new learner snapshot
             self._theta_star_key = len(state.planned)
@@ -434,10 +613,9 @@ class SessionRunner:
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
         return RunnerView(
             version=self._view.version + 1, code=engine.participant.code,
-            scenario=engine.config.scenario, state=state.model_copy(deep=True),
-            interactions=engine.config.interactions, preparing=self._preparing, auto=self._auto,
+            scenario=engine.config.scenario, seed=engine.config.seed, state=state.model_copy(deep=True),
+            interactions=engine.config.interactions, preparing=self._preparing,
             waiting_for=self._waiting_for(state.stage) if state.step is Step.RUNNING else None,
-            messages=list(self._messages),
             trials=engine.store.rows("trials", order_by="trial_index"),
             theta_star=self._theta_star, posterior=engine.posterior_slices, **status)
 
@@ -459,6 +637,8 @@ class SessionRunner:
                                                              self._rig.stream.columns()),
                              self._abort_reason or report.reason)
             else:
+                if self._stop == "stopping":
+                    self._stop = "stopped"
                 self._changed(report.reason)
 
     def _on_stage(self, report: StageReached) -> None:
@@ -483,20 +663,30 @@ class SessionRunner:
         summary = record.summary
         if summary.outcome is Outcome.ARM_FAULT or summary.retract_fault is not None:
             self._rig_fault = summary.retract_fault or summary.reason
-        ended = self._call(lambda: self._end_trial(trial_index, record, reason or self._abort_reason))
-        if ended is None:
+        try:
+            ended = self._call(lambda: self._end_trial(trial_index, record,
+                                                       reason or self._abort_reason))
+        except RefusedAction as exc:  # not stored (the session stopped): resuming repeats it
+            log.error("trial %d's end not recorded: %s", trial_index, exc)
             return
+        if self._stop == "stopping":
+            self._stop = "stopped"  # the arm has stopped: the trial is over
+        if ended is None:
+            self._changed(None)
+            return
+        self._overview = None
         self._failed_in_a_row = 0 if ended.outcome.value == "completed" else self._failed_in_a_row + 1
         self._changed(f"trial {ended.trial_index} {ended.outcome.value}"
                       + (f": {ended.reason}" if ended.reason else ""))
 
     # -- internals: other threads -----------------------------------------------------------------
     def _halt(self, reason: str) -> None:
+        """The experimenter's Abort or Stop."""
         rig = self._rig
         if rig is None:
             return
-        if rig.running is not None:
-            self._abort_reason = self._abort_reason or reason
+        if rig.running is not None and self._abort_reason is None:
+            self._abort_reason, self._abort_actor = reason, Actor.EXPERIMENTER
         rig.stop(reason)
 
     def _changed(self, message: str | None) -> None:
@@ -506,10 +696,25 @@ class SessionRunner:
         self._publish()
         self._wake.set()
 
+    def _changed_now(self, message: str | None) -> None:
+        """Like :meth:`_changed` for device news (stop, tablet): published at once, without
+        waiting for the engine thread (which may be busy with the learner for a while)."""
+        if message is not None:
+            self._messages.append(f"{time.strftime('%H:%M:%S')} {message}")
+            log.info("%s", message)
+        if not self._closing:
+            view = self._view
+            self._notify(view.model_copy(update={"version": view.version + 1,
+                                                 **self._device_status()}))
+        self._wake.set()
+
     def _publish(self) -> None:
         if self._closing:
             return
-        view = self._view = self._call(self._make_view)
+        self._notify(self._call(self._make_view))
+
+    def _notify(self, view: RunnerView) -> None:
+        self._view = view
         for listener in list(self._listeners):
             try:
                 listener(view)
@@ -536,7 +741,11 @@ class SessionRunner:
         if self._auto and step in (Step.PLACE, Step.RATE, Step.ANSWER):
             if self.realtime:
                 time.sleep(AUTO_DELAY_S)
-            self._call(lambda: self._auto_step(step))
+            try:
+                self._call(lambda: self._auto_step(step))
+            except RefusedAction as exc:
+                log.warning("the simulated participant's answer was refused: %s", exc)
+                return False
             self._changed("the simulated participant rated")
             return True
         if self.auto_experimenter and step is Step.READY and not view.state.paused:
@@ -583,19 +792,25 @@ class SessionRunner:
             self._changed(None)
 
 
-def recorded_session(study: Path, code: str) -> tuple[StudyConfig, dict]:
-    """A stored session's plan and the rig it last ran on, read without recording anything."""
-    store = ParticipantStore.open(study, code)
-    try:
-        config = store.participant().config
-        rig = rig_of(config.controller.model_dump(mode="json"))
-        for event in reversed(store.events()):
-            if event.kind == "devices_recorded":
-                rig = rig_of(event.payload["config"])
-                break
-        return config, rig
-    finally:
-        store.close()
+class RecordedSession(NamedTuple):
+    """A stored session as it stands: its plan, the rig it last ran on, and its state."""
+
+    config: StudyConfig
+    rig: dict
+    state: SessionState
+
+
+def recorded_session(study: Path, code: str) -> RecordedSession:
+    """A stored session, read without writing anything (from a copy in memory: the file is neither
+    migrated nor touched)."""
+    with reading(study, code) as store:
+        config, events, state = stored_session(store)
+    rig = rig_of(config.controller.model_dump(mode="json"))
+    for event in reversed(events):
+        if event.kind == "devices_recorded":
+            rig = event.payload.get("rig") or rig_of(event.payload["config"])
+            break
+    return RecordedSession(config, rig, state)
 
 
 def describe_change(before: dict, after: dict) -> str:

@@ -8,9 +8,13 @@ import signal
 import threading
 from pathlib import Path
 
+from app.cli import DEFAULT_STUDY
+from app.protocol.seeds import parse_seed
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
 from app.ui.server import HandoverServers, ServeOptions
+from robot_io.cli import argument_type
+from robot_io.simulated_hand import Scenario
 
 log = logging.getLogger(__name__)
 
@@ -23,30 +27,57 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "the simulated hand by default, a UR5 and a tracker on a rig, or a rehearsal "
                     "rig with --rehearse) and the learner. Ctrl-C stops the arm, then closes the "
                     "session cleanly.")
-    serve.add_argument("--study", type=Path, default=Path("study"),
+    serve.add_argument("--study", type=Path, default=DEFAULT_STUDY,
                        help="study folder, one .sqlite per participant (default ./study)")
     serve.add_argument("--config", type=Path,
                        help="the lab configuration file (TOML, docs/hardware.md); the defaults "
                             "without it (mock arm, simulated hand, the paper's protocol)")
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to bind (default 127.0.0.1; 0.0.0.0 for a tablet on the LAN)")
-    serve.add_argument("--tablet-port", type=int, default=8080)
-    serve.add_argument("--dashboard-port", type=int, default=8081)
-    serve.add_argument("--token", help="dashboard access token (default: a random one, printed)")
+    serve.add_argument("--tablet-port", type=argument_type(port_number), default=8080)
+    serve.add_argument("--dashboard-port", type=argument_type(port_number), default=8081)
+    serve.add_argument("--token", help="dashboard access token (default: the study's own, created "
+                                       "on first use and kept in <study>/.dashboard-token)")
+    serve.add_argument("--blind", action="store_true",
+                       help="double-blind validation: the dashboard hides the θ and origin of "
+                            "validation trials, so the experimenter cannot tell which is θ*")
     add_rig_arguments(serve)
     serve.add_argument("--auto-participant", action="store_true",
                        help="the simulated participant rates and answers (demos, dry runs)")
+    serve.add_argument("--participant",
+                       help="open this participant at start (resume it, or create it with "
+                            "--scenario); refused at once while another process writes it")
+    serve.add_argument("--scenario", type=argument_type(Scenario.parse),
+                       help="with --participant: the scenario of a new participant")
+    serve.add_argument("--seed", type=argument_type(parse_seed), default=None,
+                       help="with --participant: the seed of a new participant (default: fresh)")
+    serve.add_argument("--reuse-seed", action="store_true",
+                       help="confirm a --seed that another participant of the study has")
     serve.set_defaults(func=serve_command)
+
+
+def port_number(text: str) -> int:
+    """A TCP port to serve on: a whole number in 1–65535."""
+    try:
+        port = int(text)
+    except ValueError:
+        port = None
+    if port is None or not 1 <= port <= 65535:
+        raise ValueError(f"port = {text!r} must be a whole number in [1, 65535]")
+    return port
 
 
 def serve_command(args: argparse.Namespace) -> int:
     lab = load_lab_config(args.config)
     with open_runner(args, lab, realtime=True) as runner:
-        servers = HandoverServers(runner, ServeOptions(host=args.host, tablet_port=args.tablet_port,
-                                                       dashboard_port=args.dashboard_port,
-                                                       token=args.token))
         if args.auto_participant:
             runner.set_auto(True)
+        if args.participant is not None:
+            runner.open(args.participant, args.scenario, args.seed,
+                        confirm_seed_reuse=args.reuse_seed)
+        servers = HandoverServers(runner, ServeOptions(host=args.host, tablet_port=args.tablet_port,
+                                                       dashboard_port=args.dashboard_port,
+                                                       token=args.token, blind=args.blind))
         tablet, dashboard = servers.urls()
         print(f"tablet (participant):     {tablet}", flush=True)
         print(f"dashboard (experimenter): {dashboard}", flush=True)

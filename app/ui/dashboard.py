@@ -1,9 +1,21 @@
-"""The experimenter's dashboard: participant, progress, trial control, devices, learner, live view.
+"""The experimenter's dashboard: safety, study overview, participant, session control, devices, live
+view and replay, learner.
 
-A client sees only a token field until it enters the token printed by ``handover serve``. After that
-its panels are rendered from the runner's published :class:`RunnerView` (a reload rebuilds them from
-the session state), and every refused action is shown with the engine's reason. Stop is never
-disabled: it stops the arm whatever else is going on.
+A client sees only a token field until it enters the dashboard token (kept with the study). After
+that its panels are rendered from the runner's published :class:`RunnerView` (a reload rebuilds them
+from the session state). Safety first:
+
+* **STOP ARM is pinned**: it lives in its own panel docked beside the main one, so it never scrolls
+  away, and **Esc** triggers it too (a viser command with a hotkey; ignored while typing in a field).
+  It is never disabled. After a stop, Start stays locked until **Re-arm** ("the scene is safe"), and
+  the arm's status says "stopping" until the stop has completed, then "stopped".
+* The physical e-stop is named beside it, and a lost connection covers the page with a banner
+  saying so (:data:`~app.ui.style.DASHBOARD_OFFLINE_CSS`): this page cannot stop the arm then.
+* Start is disabled, with the reason beside it, unless exactly one paired tablet is open.
+
+Refusals are shown next to the controls (or the form field) they concern and cleared as soon as the
+session moves on. With ``blind`` (double-blind validation) the θ and origin of validation trials are
+not shown.
 """
 
 from __future__ import annotations
@@ -18,84 +30,38 @@ import viser
 import viser.uplot
 
 from app.learning.models import PosteriorSlice
+from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.guard import TokenGate
 from app.ui.live_view import STRIDE, LiveView
-from app.ui.style import DASHBOARD_CSS, style_block
+from app.ui.replay import SPEEDS, Replay
+from app.ui.status_text import (
+    devices_markdown,
+    learner_markdown,
+    overview_markdown,
+    progress_markdown,
+    safety_markdown,
+    start_blocker,
+    status_line,
+    tablet_markdown,
+)
+from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, style_block
 from robot_io.errors import RobotIOError
 from robot_io.simulated_hand import Scenario
-from robot_io.stages import Stage
 from session_store.errors import StoreError
+from session_store.models import check_participant_code
 
 log = logging.getLogger(__name__)
 
-NEXT: dict[Step, str] = {
-    Step.PLAN: "the learner chooses the next θ; then Start trial",
-    Step.READY: "press Start trial when the participant is ready",
-    Step.RUNNING: "the handover cycle runs (Abort repeats it later; Stop stops the arm)",
-    Step.PLACE: "the participant places the handover on the tablet's scale",
-    Step.RATE: "the participant rates this handover against the previous one",
-    Step.ANSWER: "the participant answers the questionnaire on the tablet",
-    Step.DONE: "the session is complete: close the server (Ctrl-C) and export",
-}
-
-
-def progress_markdown(view: RunnerView) -> str:
-    """Where the protocol stands and what comes next."""
-    state = view.state
-    if state is None:
-        return "No participant open. Create or resume one above."
-    slot = state.slot
-    lines = [f"**{view.code}** · {view.scenario.value} · {state.completed} of "
-             f"{view.interactions} handovers completed"]
-    if slot is not None and state.step is not Step.ANSWER:
-        attempt = state.attempts.get(slot.interaction, 0) + (state.step in (Step.PLAN, Step.READY))
-        lines.append(f"phase **{slot.phase.value}** · batch {slot.batch} · handover "
-                     f"{slot.position} of {slot.batch_size} · interaction {slot.interaction} · "
-                     f"attempt {attempt}")
-    elif state.step is Step.ANSWER:
-        lines.append(f"phase **questionnaire** · {len(state.answers)} of 3 answered")
-    if state.step is Step.RUNNING:
-        lines.append(cycle_markdown(view))
-    status = "**paused**" if state.paused else f"waiting for **{state.step.value}**"
-    if view.preparing:
-        status = "**preparing** (the learner is fitting)"
-    lines.append(f"{status} — next: {NEXT[state.step]}")
-    return "  \n".join(lines)
-
-
-#: The handover cycle as the dashboard draws it, and what each stage waits for.
-CYCLE = (Stage.PREPARE, Stage.LOADED, Stage.READY, Stage.GO, Stage.REACH, Stage.HOLD,
-         Stage.RELEASE, Stage.RETRACT, Stage.DONE)
-WAITING_TEXT = {"loaded": "load the object into the gripper, then press **Object loaded**",
-                "go": "the participant's hand rests at the start: press **Go**"}
-
-
-def cycle_markdown(view: RunnerView) -> str:
-    """The running trial's stage within the cycle, the current one in bold, and what it waits for."""
-    stage = view.stage
-    shown = [f"**[{s.value}]**" if s is stage else s.value for s in CYCLE]
-    if stage is Stage.NOT_TAKEN:
-        shown[CYCLE.index(Stage.RELEASE)] = "**[not taken]**"
-    line = "cycle: " + " → ".join(shown)
-    if view.waiting_for is not None:
-        line += f"  \n⏳ {WAITING_TEXT[view.waiting_for]}"
-    if view.ready_wait and stage in (Stage.LOADED, Stage.PREPARE):
-        line += f"  \n⏳ not ready: {view.ready_wait}"
-    return line
-
-
-def devices_markdown(view: RunnerView) -> str:
-    def line(name: str, text: str, fault: str | None) -> str:
-        return f"- **{name}**: {text}" + (f" — ⚠ **{fault}**" if fault else "")
-    rig = ["- rehearsal: stand-in UR controller and simulated hand (no hardware)"] if view.rehearsal \
-        else []
-    return "\n".join([*rig, line("arm", view.arm, view.arm_fault), line("hand", view.hand, None),
-                      line("gripper", view.gripper, None),
-                      line("learner", view.learner, view.learner_fault),
-                      "", "Recent events:", *[f"- {m}" for m in view.messages]])
-
+#: The key that stops the arm (besides the pinned button).
+STOP_KEY = "escape"
+#: Width of the pinned safety panel [px].
+SAFETY_WIDTH = 230
+ESTOP_REMINDER = ("The **physical e-stop** (the red button on the teach pendant) stops the arm "
+                  "whatever this page shows. Use it if this page does not answer.")
+#: The page marker the offline banner looks for.
+LIVE_MARKER = '<span class="hl-live"></span>'
 
 #: Colours of the posterior slices along a, δ and k.
 SLICE_COLOURS = ("#1c7ed6", "#e8590c", "#2b8a3e")
@@ -118,61 +84,74 @@ def posterior_data(slices: list[PosteriorSlice]) -> tuple[np.ndarray, ...]:
     return (position, *(np.asarray(s.mean) for s in slices))
 
 
-def learner_markdown(view: RunnerView, rows: int = 10) -> str:
-    """θ* after each learner update and the θ of the latest attempts (the posterior slices are
-    drawn below it)."""
-    star = view.theta_star[-1] if view.theta_star else None
-    head = (f"θ* (best so far): **a {star.a:.2f}, δ {star.delta:.2f}, k {star.k:.2f}** after "
-            f"interaction {star.after_interaction}" if star else "θ*: none yet")
-    table = ["| trial | int. | phase | a | δ | k | origin | outcome |",
-             "|---|---|---|---|---|---|---|---|"]
-    table += [f"| {t.trial_index} | {t.interaction} | {t.phase.value} | {t.theta_a:.2f} | "
-              f"{t.theta_delta:.2f} | {t.theta_k:.2f} | {t.origin.value} | "
-              f"{t.outcome.value if t.outcome else 'running'} |" for t in view.trials[-rows:]]
-    history = ", ".join(f"({s.a:.1f}, {s.delta:.2f}, {s.k:.1f})" for s in view.theta_star[-6:])
-    return "\n".join([head, "", f"θ* history (latest 6): {history or '—'}", "", *table])
+def error_key(view: RunnerView) -> tuple:
+    """What a refusal was about: when any of it changes, the refusal is no longer current."""
+    tablet = view.tablet
+    return (view.code, view.step, view.state.paused if view.state else None, view.stop,
+            view.arm_fault, view.waiting_for, tablet.ready if tablet else None, view.auto)
 
 
 @dataclass
 class Controls:
     start: viser.GuiButtonHandle
+    start_why: viser.GuiMarkdownHandle
     loaded: viser.GuiButtonHandle
     go: viser.GuiButtonHandle
     abort: viser.GuiButtonHandle
-    stop: viser.GuiButtonHandle
     recover: viser.GuiButtonHandle
     pause: viser.GuiButtonHandle
     resume: viser.GuiButtonHandle
+    end: viser.GuiButtonHandle
     auto: viser.GuiCheckboxHandle
 
     def enable_for(self, view: RunnerView) -> None:
         step, state = view.step, view.state
         paused = state is not None and state.paused
-        self.start.disabled = step is not Step.READY or paused
+        blocker = start_blocker(view)
+        self.start.disabled = step is not Step.READY or blocker is not None
+        self.start_why.content = f"Start is locked: {blocker}." if blocker and state else ""
         self.loaded.disabled = view.waiting_for != "loaded"
         self.go.disabled = view.waiting_for != "go"
         self.abort.disabled = step is not Step.RUNNING
         self.recover.disabled = view.arm_fault is None or step is Step.RUNNING
         self.pause.disabled = state is None or paused or step in (Step.RUNNING, Step.DONE)
         self.resume.disabled = not paused
+        self.end.disabled = state is None or step is Step.RUNNING
         self.auto.value = view.auto
+
+
+@dataclass
+class Safety:
+    """The pinned panel: STOP ARM (and its key), Re-arm, the arm's stop state, the e-stop."""
+
+    stop: viser.GuiButtonHandle
+    rearm: viser.GuiButtonHandle
+    state: viser.GuiMarkdownHandle
+
+    def show(self, view: RunnerView) -> None:
+        self.rearm.disabled = view.stop != "stopped"
+        self.state.content = safety_markdown(view)
 
 
 class DashboardClient:
     """One experimenter's browser."""
 
-    def __init__(self, client: viser.ClientHandle, runner: SessionRunner, gate: TokenGate) -> None:
-        self.client, self.runner, self.gate = client, runner, gate
+    def __init__(self, client: viser.ClientHandle, runner: SessionRunner, gate: TokenGate,
+                 blind: bool = False) -> None:
+        self.client, self.runner, self.gate, self.blind = client, runner, gate, blind
         self.live: LiveView | None = None
+        self.replay: Replay | None = None
         self._code: str | None = "-"
+        self._error_key: tuple | None = None
         self._lock = threading.Lock()
         self._locked_screen()
 
     # -- access -----------------------------------------------------------------------------------
     def _locked_screen(self) -> None:
         gui = self.client.gui
-        gui.add_markdown("### handover-lab dashboard\nEnter the access token that "
-                         "`handover serve` printed.")
+        gui.add_html(style_block(DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
+        gui.add_markdown("### handover-lab dashboard\nEnter the dashboard token (printed by "
+                         "`handover serve` and kept in the study folder).")
         field = gui.add_text("Token", "")
         unlock = gui.add_button("Unlock")
         error = gui.add_markdown("")
@@ -192,106 +171,212 @@ class DashboardClient:
                 return  # still locked
             if rebuild or view.code != self._code:
                 self._build(view)
-            self.progress.content = progress_markdown(view)
+            self.safety.show(view)
+            self.status.content = status_line(view)
+            self.tablet.content = tablet_markdown(view)
+            self.overview.content = overview_markdown(view.overview)
             self.devices.content = devices_markdown(view)
-            self.learner.content = learner_markdown(view)
-            if view.posterior:
-                self.posterior.data = posterior_data(view.posterior)
-            self.controls.enable_for(view)
+            if view.state is not None:
+                self.progress.content = progress_markdown(view)
+                self.learner.content = learner_markdown(view, self.blind)
+                self.controls.enable_for(view)
+                self._trials_for_replay(view)
+                if view.posterior:
+                    self.posterior.data = posterior_data(view.posterior)
+            if self._error_key is not None and error_key(view) != self._error_key:
+                self._show_error(None)  # the refusal is no longer true
 
     def tick(self) -> None:
-        if self.live is not None:
+        if self.live is not None and (self.replay is None or not self.replay.running):
             self.live.update(self.runner.live(STRIDE)[1])
 
     def _build(self, view: RunnerView) -> None:
         gui = self.client.gui
         self._code = view.code
+        self.cancel_replay()
         with self.client.atomic():
             gui.reset()
             self.client.scene.reset()
-            gui.add_html(style_block(DASHBOARD_CSS))
-            with gui.add_folder("Participant"):
+            gui.add_html(style_block(DASHBOARD_CSS + DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
+            self.safety = self._safety(gui)
+            self.status = gui.add_markdown("")
+            self.error = gui.add_markdown("")
+            with gui.add_folder("Study"):
+                self.overview = gui.add_markdown("")
                 self._participant(gui, view)
-            with gui.add_folder("Session"):
-                self.progress = gui.add_markdown("")
-                self.controls = self._controls(gui)
-                self.error = gui.add_markdown("")
+            if view.state is not None:
+                with gui.add_folder("Session"):
+                    self.progress = gui.add_markdown("")
+                    self.controls = self._controls(gui)
+            self.tablet = gui.add_markdown("")
             with gui.add_folder("Devices"):
                 self.devices = gui.add_markdown("")
             with gui.add_folder("Coupling signals (live)"):
                 self.live = LiveView(self.client, self.runner.scene_config())
-            with gui.add_folder("Learner", expand_by_default=False):
-                self.learner = gui.add_markdown("")
-                self.posterior = posterior_plot(gui)
+            if view.state is not None:
+                with gui.add_folder("Replay a stored trial", expand_by_default=False):
+                    self._replay_controls(gui)
+                with gui.add_folder("Learner", expand_by_default=False):
+                    self.learner = gui.add_markdown("")
+                    self.posterior = posterior_plot(gui)
+
+    def _safety(self, gui: viser.GuiApi) -> Safety:
+        """The pinned safety panel, and Esc as STOP ARM."""
+        panel = gui.add_panel()
+        with panel.add_tab("Safety", viser.Icon.HAND_STOP):
+            gui.add_html('<span class="hl-safety"></span>')
+            safety = Safety(stop=gui.add_button("STOP ARM", color="red", icon=viser.Icon.HAND_STOP),
+                            rearm=gui.add_button("Re-arm (scene is safe)", color="teal",
+                                                 disabled=True),
+                            state=gui.add_markdown(""))
+            gui.add_markdown(f"**Esc** also stops the arm.\n\n{ESTOP_REMINDER}")
+        panel.dock_right()
+        panel.set_width(SAFETY_WIDTH)
+        safety.stop.on_click(lambda _: self._act(self.runner.stop))
+        safety.rearm.on_click(lambda _: self._act(self.runner.rearm))
+        command = gui.add_command("STOP ARM", description="Stop the arm now", hotkey="escape",
+                                  icon=viser.Icon.HAND_STOP)
+        command.on_trigger(lambda _: self._act(self.runner.stop))
+        return safety
 
     def _participant(self, gui: viser.GuiApi, view: RunnerView) -> None:
         if view.code is not None:
-            gui.add_markdown(f"**{view.code}** ({view.scenario.value})")
+            gui.add_markdown(f"Open: **{view.code}** ({view.scenario.value}, seed {view.seed}). "
+                             "End the session to open or create another participant.")
             return
-        known = self.runner.codes()
-        gui.add_markdown("Existing: " + (", ".join(known) if known else "none") +
-                         ". A known code resumes its session.")
+        gui.add_markdown("A known code resumes its session; a new code creates one.")
         code = gui.add_text("Code", "")
+        code_error = gui.add_markdown("")
         scenario = gui.add_dropdown("Scenario", [s.value for s in Scenario],
                                     initial_value=Scenario.PERTURBED.value)
-        seed = gui.add_number("Seed", 0, step=1)
+        seed = gui.add_text("Seed (empty: a fresh random one)", "")
+        reuse = gui.add_checkbox("Reuse a seed already used in this study", False)
         rig_change = gui.add_checkbox("Confirm a rig change (resume on other devices)", False)
         open_button = gui.add_button("Create or resume")
-        open_button.on_click(lambda _: self._act(lambda: self.runner.open(
-            code.value.strip(), Scenario(scenario.value), int(seed.value),
-            confirm_rig_change=rig_change.value)))
+
+        def check_code() -> bool:
+            """The code's error under its field while it is wrong (cleared once it is right)."""
+            try:
+                check_participant_code(code.value.strip())
+            except ValueError as exc:
+                code_error.content = f"⚠ {exc}" if code.value.strip() else ""
+                return False
+            code_error.content = ""
+            return True
+
+        code.on_update(lambda _: check_code())
+
+        def open_session() -> None:
+            if not check_code():
+                code_error.content = code_error.content or "⚠ enter the participant's code"
+                return
+            self._act(lambda: self.runner.open(
+                code.value.strip(), Scenario(scenario.value),
+                parse_seed(seed.value) if seed.value.strip() else None,
+                confirm_rig_change=rig_change.value, confirm_seed_reuse=reuse.value))
+
+        open_button.on_click(lambda _: open_session())
 
     def _controls(self, gui: viser.GuiApi) -> Controls:
         controls = Controls(
             start=gui.add_button("Start trial", color="green", icon=viser.Icon.PLAYER_PLAY),
+            start_why=gui.add_markdown(""),
             loaded=gui.add_button("Object loaded", color="blue"),
             go=gui.add_button("Go", color="green"),
             abort=gui.add_button("Abort trial", color="orange"),
-            stop=gui.add_button("STOP ARM", color="red", icon=viser.Icon.HAND_STOP),
             recover=gui.add_button("Recover arm (cause inspected)", color="yellow"),
             pause=gui.add_button("Pause session"),
             resume=gui.add_button("Resume session"),
+            end=gui.add_button("End session", color="gray"),
             auto=gui.add_checkbox("Simulated participant rates", False),
         )
         controls.start.on_click(lambda _: self._act(self.runner.start_trial))
         controls.loaded.on_click(lambda _: self._act(self.runner.object_loaded))
         controls.go.on_click(lambda _: self._act(self.runner.go))
         controls.abort.on_click(lambda _: self._act(self.runner.abort_trial))
-        controls.stop.on_click(lambda _: self._act(self.runner.stop))
         controls.recover.on_click(lambda _: self._act(self.runner.recover_arm))
         controls.pause.on_click(lambda _: self._act(self.runner.pause))
         controls.resume.on_click(lambda _: self._act(self.runner.resume))
-        controls.auto.on_update(lambda _: self._act(
-            lambda: self.runner.set_auto(controls.auto.value)))
+        controls.end.on_click(lambda _: self._act(self.runner.end_session))
+        controls.auto.on_update(lambda event: None if event.client is None else self._act(
+            lambda: self.runner.set_auto(controls.auto.value)))  # not when refresh sets it
         return controls
 
+    # -- replay -----------------------------------------------------------------------------------
+    def _replay_controls(self, gui: viser.GuiApi) -> None:
+        self.replay_trial = gui.add_dropdown("Trial", ["—"])
+        self.replay_speed = gui.add_dropdown("Speed", list(SPEEDS), initial_value="1×")
+        play = gui.add_button("Replay", icon=viser.Icon.PLAYER_PLAY)
+        stop = gui.add_button("Stop replay")
+        self.replay_status = gui.add_markdown("")
+        play.on_click(lambda _: self._act(self._start_replay))
+        stop.on_click(lambda _: self.cancel_replay())
+
+    def _trials_for_replay(self, view: RunnerView) -> None:
+        options = [f"trial {t.trial_index} · handover {t.interaction} · {t.outcome.value}"
+                   for t in view.trials if t.outcome is not None] or ["—"]
+        if tuple(options) != tuple(self.replay_trial.options):
+            self.replay_trial.options = options
+            self.replay_trial.value = options[-1]
+
+    def _start_replay(self) -> None:
+        choice = self.replay_trial.value
+        if not choice.startswith("trial "):
+            raise ValueError("no stored trial to replay yet")
+        trial_index = int(choice.split()[1])
+        rows = self.runner.trial_rows(trial_index)
+        self.cancel_replay()
+        self.replay_status.content = f"replaying trial {trial_index} at {self.replay_speed.value}"
+        self.replay = Replay(self.live, rows, SPEEDS[self.replay_speed.value],
+                             busy=lambda: self.runner.view.step is Step.RUNNING,
+                             on_end=self._replay_ended)
+
+    def _replay_ended(self, why: str) -> None:
+        """The replay's last frame stays until the live view has new rows (the next trial)."""
+        self.replay_status.content = why
+
+    def cancel_replay(self) -> None:
+        if self.replay is not None:
+            self.replay.cancel()
+
+    # -- actions ----------------------------------------------------------------------------------
     def _act(self, action: Callable[[], None]) -> None:
-        """Run an experimenter's action; show why it was refused."""
+        """Run an experimenter's action; show why it was refused, next to the controls."""
         try:
             action()
-            self.error.content = ""
+            self._show_error(None)
         except (StoreError, RobotIOError, ValueError) as exc:
             log.warning("dashboard action refused: %s", exc)
-            self.error.content = f"⚠ **{exc}**"
+            self._show_error(str(exc))
+
+    def _show_error(self, text: str | None) -> None:
+        self._error_key = None if text is None else error_key(self.runner.view)
+        self.error.content = "" if text is None else f"⚠ **{text}**"
 
 
 class Dashboard:
     """The dashboard server: token-gated clients, refreshed on every change and ticked for the
-    live view."""
+    live view. ``blind``: double-blind validation (see the module's docstring)."""
 
-    def __init__(self, server: viser.ViserServer, runner: SessionRunner, gate: TokenGate) -> None:
-        self.server, self.runner, self.gate = server, runner, gate
+    def __init__(self, server: viser.ViserServer, runner: SessionRunner, gate: TokenGate,
+                 blind: bool = False) -> None:
+        self.server, self.runner, self.gate, self.blind = server, runner, gate, blind
         self.clients: dict[int, DashboardClient] = {}
         server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
         server.gui.main_panel.dock_right()
         server.gui.main_panel.set_width(520)
         server.on_client_connect(self._connect)
-        server.on_client_disconnect(lambda client: self.clients.pop(client.client_id, None))
+        server.on_client_disconnect(self._disconnect)
         runner.subscribe(self.refresh)
 
     def _connect(self, client: viser.ClientHandle) -> None:
         client.scene.configure_environment_map(hdri=None)
-        self.clients[client.client_id] = DashboardClient(client, self.runner, self.gate)
+        self.clients[client.client_id] = DashboardClient(client, self.runner, self.gate, self.blind)
+
+    def _disconnect(self, client: viser.ClientHandle) -> None:
+        page = self.clients.pop(client.client_id, None)
+        if page is not None:
+            page.cancel_replay()
 
     def refresh(self, view: RunnerView) -> None:
         for client in list(self.clients.values()):

@@ -21,17 +21,16 @@ from __future__ import annotations
 
 import ipaddress
 import logging
-import secrets
 import socket
-import threading
 import time
-from collections import deque
 from collections.abc import Callable
 from urllib.parse import urlsplit
 
 import viser
 from viser import _messages
 from viser.infra import WebsockClientConnection
+
+from app.session.access import AttemptLimit
 
 log = logging.getLogger(__name__)
 
@@ -77,6 +76,10 @@ class Guard:
 
     def source_of(self, client_id: int) -> str:
         """The remote address of a connected client ("unknown" once it has gone)."""
+        if client_id not in self._addresses:  # asked before the origin check ran
+            connection = self._infra._live_connections.get(client_id)
+            if connection is not None and connection.remote_address:
+                return connection.remote_address[0]
         return self._addresses.get(client_id, "unknown")
 
     def _refuse(self, what: str) -> None:
@@ -130,37 +133,17 @@ def _trusted_name(name: str) -> bool:
 
 class TokenGate:
     """The dashboard token, checked at most ``max_failures`` times per ``window_s`` from one remote
-    address; every wrong attempt is logged with its address, further attempts are refused unchecked
-    until the window has slid past the oldest failure."""
+    address (:class:`~app.session.access.AttemptLimit`)."""
 
     def __init__(self, token: str, source_of: Callable[[int], str], max_failures: int = 5,
                  window_s: float = 60.0, clock: Callable[[], float] = time.monotonic) -> None:
         self._token, self._source_of = token, source_of
-        self.max_failures, self.window_s, self._clock = max_failures, window_s, clock
-        self._failures: dict[str, deque[float]] = {}
-        self._lock = threading.Lock()
-        self.refused_unchecked = 0
+        self._limit = AttemptLimit(max_failures, window_s, clock, what="token", role="dashboard")
+
+    @property
+    def refused_unchecked(self) -> int:
+        return self._limit.refused_unchecked
 
     def attempt(self, client_id: int, given: str) -> str | None:
         """None if ``given`` is the token; otherwise why not, for the screen."""
-        source, now = self._source_of(client_id), self._clock()
-        with self._lock:
-            failures = self._failures.setdefault(source, deque())
-            while failures and now - failures[0] >= self.window_s:
-                failures.popleft()
-            if len(failures) >= self.max_failures:
-                self.refused_unchecked += 1
-                wait = self.window_s - (now - failures[0])
-                if self.refused_unchecked == 1 or self.refused_unchecked % 100 == 0:
-                    log.warning("dashboard: token attempts from %s refused unchecked (%d wrong in "
-                                "%g s; %d refused so far)", source, len(failures), self.window_s,
-                                self.refused_unchecked)
-                return f"Too many wrong tokens from this address: try again in {wait:.0f} s."
-            if secrets.compare_digest(given.encode(), self._token.encode()):
-                failures.clear()
-                log.info("dashboard: unlocked by %s", source)
-                return None
-            failures.append(now)
-            log.warning("dashboard: wrong token from %s (%d of %d allowed in %g s)", source,
-                        len(failures), self.max_failures, self.window_s)
-            return "Wrong token."
+        return self._limit.check(self._source_of(client_id), given, self._token)

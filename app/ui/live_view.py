@@ -86,6 +86,11 @@ class LiveView:
         if rows is None or len(rows["t"]) == self.rows_shown or len(rows["t"]) == 0:
             return
         self.rows_shown = len(rows["t"])
+        self.draw(rows)
+
+    def draw(self, rows: dict[str, np.ndarray]) -> None:
+        """The robot and the hand where the last row has them, their paths and the signals so
+        far (a live trial's rows, or a replay's)."""
         measured, hand = rows["measured"], rows["hand"]
         tcp = measured[-1]
         self.tcp.position = tuple(tcp)

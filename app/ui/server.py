@@ -10,10 +10,10 @@ dashboard's live view ten times a second while the control loop runs in its own 
 from __future__ import annotations
 
 import logging
-import secrets
 import threading
 from dataclasses import dataclass
 
+from app.session.access import dashboard_token
 from app.session.runner import SessionRunner
 from app.ui.dashboard import Dashboard
 from app.ui.guard import TokenGate, open_server
@@ -30,7 +30,8 @@ class ServeOptions:
     host: str = "127.0.0.1"
     tablet_port: int = 8080
     dashboard_port: int = 8081
-    token: str | None = None
+    token: str | None = None  # None: the study's stored token (created on first use)
+    blind: bool = False  # double-blind validation: no θ or origin of validation trials shown
 
 
 class HandoverServers:
@@ -38,7 +39,7 @@ class HandoverServers:
 
     def __init__(self, runner: SessionRunner, options: ServeOptions) -> None:
         self.runner, self.options = runner, options
-        self.token = options.token or secrets.token_urlsafe(9)
+        self.token = dashboard_token(runner.study, options.token)
         self.tablet_server, self.tablet_guard = open_server(options.host, options.tablet_port,
                                                             "tablet")
         try:
@@ -47,9 +48,9 @@ class HandoverServers:
         except Exception:
             self.tablet_server.stop()
             raise
-        self.tablet = Tablet(self.tablet_server, runner)
+        self.tablet = Tablet(self.tablet_server, runner, self.tablet_guard.source_of)
         self.gate = TokenGate(self.token, self.dashboard_guard.source_of)
-        self.dashboard = Dashboard(self.dashboard_server, runner, self.gate)
+        self.dashboard = Dashboard(self.dashboard_server, runner, self.gate, blind=options.blind)
         self._closed = threading.Event()
         self._ticker = threading.Thread(target=self._tick, name="live-view", daemon=True)
         self._ticker.start()

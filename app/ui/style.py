@@ -37,17 +37,26 @@ canvas, .mantine-Notifications-root, [data-dock-region-handle], [data-dock-heade
 .mantine-Paper-root[style*="position: fixed"] .mantine-Divider-root { display: none !important; }
 """
 
-#: When the connection drops, viser keeps the last screen but dims it and blocks its input (its
-#: ``DisconnectedGate``: inline ``opacity: 0.5; pointer-events: none``). Over that, the whole
-#: screen asks the participant to call the experimenter; it goes away when the page reconnects and
-#: the server draws the current screen again. ``.hl-live`` is an empty marker in every screen.
-OFFLINE_CSS = f"""
+def offline_cover(message: str, colour: str, font: str) -> str:
+    """CSS that covers the whole page with ``message`` while the connection is down.
+
+    When the connection drops, viser keeps the last screen but dims it and blocks its input (its
+    ``DisconnectedGate``: inline ``opacity: 0.5; pointer-events: none``). Over that, the cover
+    says what to do; it goes away when the page reconnects and the server draws the current
+    screen again. ``.hl-live`` is an empty marker in every screen."""
+    text = message.replace("\n", "\\A ")
+    return f"""
 body:has([style*="opacity: 0.5"][style*="pointer-events: none"] .hl-live)::after {{
-  content: "Please tell the experimenter.\\A\\A The tablet has lost its connection.";
+  content: "{text}";
   white-space: pre-wrap; position: fixed; inset: 0; z-index: 2147483647; display: flex;
   align-items: center; justify-content: center; text-align: center; padding: 24px;
-  background: white; color: {RED}; font: 700 var(--hl-title) / 1.25 sans-serif; }}
+  background: white; color: {colour}; font: {font}; }}
 """
+
+
+#: The tablet's cover: the participant asks the experimenter.
+OFFLINE_CSS = offline_cover("Please tell the experimenter.\n\nThe tablet has lost its connection.",
+                            RED, "700 var(--hl-title) / 1.25 sans-serif")
 
 #: The tablet's own look: big type, big buttons, the slider as a big orange drag handle, the scale
 #: at a fixed height (stacked "equal" markers close up rather than push Confirm down), sizes for a
@@ -110,12 +119,22 @@ TABLET_CSS = f"""
   color: {GREY} !important; border: none !important; width: auto !important;
   height: calc(0.7 * var(--hl-button)) !important; font-size: var(--hl-text) !important; }}
 .mantine-Button-root:disabled {{ opacity: 0.45; }}
+.mantine-TextInput-input {{ height: var(--hl-button) !important; font-size: var(--hl-button-text)
+  !important; letter-spacing: 0.3em; text-align: center; }}
 """
 
-#: The dashboard: viser's default look, a more visible Stop.
-DASHBOARD_CSS = """
-.hl-stop .mantine-Button-root { height: 56px !important; font-size: 22px !important; }
+#: The dashboard: viser's default look; STOP ARM (the only red button) large, in the pinned
+#: safety panel.
+DASHBOARD_CSS = f"""
+.mantine-Button-root[style*="mantine-color-red"] {{ height: 84px !important;
+  font-size: 26px !important; font-weight: 800 !important; background: {RED} !important; }}
 """
+
+#: The dashboard's cover when the server is unreachable: this page cannot stop the arm then.
+DASHBOARD_OFFLINE_CSS = offline_cover(
+    "SERVER UNREACHABLE\n\nThis dashboard is not connected: its STOP ARM does nothing.\n"
+    "Use the PHYSICAL E-STOP if the arm must stop.\n\nThe page reconnects by itself when the "
+    "server is back.", RED, "700 34px / 1.3 sans-serif")
 
 
 def style_block(css: str) -> str:

@@ -11,9 +11,12 @@ Answers are deliberate: input counts only once a screen has been seen for
 :data:`~app.ui.deliberate.SETTLE_S`; Confirm is disabled until the handle has moved, and the handle
 never starts on an earlier marker; a rating or an answer is a choice followed by Confirm or Next.
 
-One tablet per session: the first page connected to the tablet port is the study's tablet; any
-other page shows "This tablet is not in use" and is offered nothing to rate, until the first one
-closes. :meth:`Tablet.connected_count` tells the dashboard how many pages are open.
+One tablet per session (:mod:`app.session.pairing`): a page on the tablet port becomes the study's
+tablet once the pairing code shown on the dashboard is typed on it ("Connect this tablet"); the
+pairing holds for that device across reloads. Another page of the same device shows "This tablet is
+not in use" and is offered nothing to rate, until the tablet's page closes; a page of another device
+is offered only the code. The runner hears of every page (:meth:`SessionRunner.tablet_connected`),
+so the dashboard shows how many are open and Start is refused without exactly one paired tablet.
 
 The page is a kiosk: viser's own chrome is hidden by CSS delivered with every screen
 (:data:`~app.ui.style.KIOSK_CSS`), and a dropped connection covers the screen with "Please tell the
@@ -30,16 +33,16 @@ from typing import Literal
 import viser
 from pydantic import BaseModel, ConfigDict
 
+from app.protocol.errors import RefusedAction
 from app.protocol.plan import Rating
 from app.protocol.state import Marker, Step
+from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.deliberate import SETTLE_S, Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
 from robot_io.stages import Stage
-from session_store.errors import RefusedAction
-from session_store.models import QUESTION_BY_ID, QUESTIONS, Phase
 
 log = logging.getLogger(__name__)
 
@@ -56,7 +59,7 @@ GO_STAGES = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
 BACK_STAGES = frozenset({Stage.NOT_TAKEN, Stage.RETRACT, Stage.DONE})
 
 ScreenKind = Literal["wait", "pairs", "go", "back", "place", "rate", "question", "done",
-                     "unused"]
+                     "unused", "pair"]
 
 
 class Screen(BaseModel):
@@ -73,6 +76,7 @@ class Screen(BaseModel):
 
 
 UNUSED = Screen(kind="unused")
+PAIR = Screen(kind="pair")
 
 
 def _next_up(view: RunnerView) -> Screen:
@@ -171,7 +175,7 @@ class TabletClient:
             gui.add_html(PAGE_STYLE)
             build = {"wait": self._wait, "pairs": self._pairs, "go": self._go, "back": self._back,
                      "place": self._place, "rate": self._rate, "question": self._question,
-                     "done": self._done, "unused": self._unused}
+                     "done": self._done, "unused": self._unused, "pair": self._pair}
             build[screen.kind](gui, screen)
         self.settle.restart()
 
@@ -200,6 +204,19 @@ class TabletClient:
         gui.add_html(screen_text("This tablet is not in use",
                                  "Another page is open as the study's tablet. "
                                  "Please close this page.", "hl-unused"))
+
+    def _pair(self, gui: viser.GuiApi, screen: Screen) -> None:
+        gui.add_html(screen_text("Connect this tablet", "Type the code shown on the "
+                                 "experimenter's screen.", "hl-unused"))
+        code = gui.add_text("Code", "")
+        connect = gui.add_button("Connect", color="green")
+        refusal = gui.add_html("")
+
+        def pair() -> None:
+            why = self.runner.pair_tablet(self.client.client_id, code.value)
+            refusal.content = "" if why is None else screen_text("", why)
+
+        connect.on_click(lambda _: self._input(pair))
 
     def _place(self, gui: viser.GuiApi, screen: Screen) -> tuple[viser.GuiSliderHandle,
                                                                  viser.GuiButtonHandle]:
@@ -306,14 +323,17 @@ class TabletClient:
 
 
 class Tablet:
-    """The tablet server: one :class:`TabletClient` per open page; the first is the study's
-    tablet, the others are told they are not in use. ``settle_s``: input is ignored for this
-    long after each screen change."""
+    """The tablet server: one :class:`TabletClient` per open page; the paired one is the study's
+    tablet (:class:`~app.session.pairing.TabletPairing`). ``source_of`` gives a page's remote
+    address (:meth:`app.ui.guard.Guard.source_of`); ``settle_s``: input is ignored for this long
+    after each screen change."""
 
     def __init__(self, server: viser.ViserServer, runner: SessionRunner,
-                 settle_s: float = SETTLE_S) -> None:
+                 source_of: Callable[[int], str], settle_s: float = SETTLE_S) -> None:
         self.server, self.runner, self.settle_s = server, runner, settle_s
         self._pages: dict[int, TabletClient] = {}  # in the order they connected
+        self._source_of = source_of
+        self.pairing = runner.attach_tablet()
         self._lock = threading.RLock()
         server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
         server.gui.main_panel.dock_left()
@@ -332,12 +352,14 @@ class Tablet:
         with self._lock:
             self._pages[client.client_id] = TabletClient(client, self.runner, self.redraw,
                                                          self.settle_s)
+        self.runner.tablet_connected(client.client_id, self._source_of(client.client_id))
         log.info("tablet page %d connected (%d open)", client.client_id, self.connected_count())
         self.redraw()
 
     def _disconnect(self, client: viser.ClientHandle) -> None:
         with self._lock:
             self._pages.pop(client.client_id, None)
+        self.runner.tablet_closed(client.client_id)
         log.info("tablet page %d closed (%d open)", client.client_id, self.connected_count())
         self.redraw()
 
@@ -346,6 +368,7 @@ class Tablet:
 
     def refresh(self, view: RunnerView) -> None:
         screen = screen_for(view)
+        shown = {"tablet": screen, "unused": UNUSED, "pair": PAIR}
         with self._lock:
-            for i, page in enumerate(list(self._pages.values())):
-                page.show(screen if i == 0 else UNUSED)
+            for page_id, page in list(self._pages.items()):
+                page.show(shown[self.pairing.role(page_id)])

@@ -12,6 +12,7 @@ process exits; when this process dies, the UR's control worker sees its pipe clo
 from __future__ import annotations
 
 import contextlib
+import gc
 import logging
 import math
 import os
@@ -20,7 +21,7 @@ import threading
 import time
 from multiprocessing.connection import Connection
 
-from robot_io.clock import raise_priority
+from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.cycle import Gates, run_cycle
 from robot_io.errors import RobotIOError, explain
 from robot_io.rig.devices import RigDevices
@@ -113,13 +114,16 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
     logging.basicConfig(level=log_level, format=f"rig[{os.getpid()}] %(levelname)s %(name)s: %(message)s")
     outbox = Outbox(conn)
     if spec.realtime_priority:
-        raise_priority()  # every thread of the rig inherits it: the hand receiver, ur_rtde's, inbox
+        # every thread of the rig inherits it (the hand receiver, ur_rtde's, the inbox); the loop's own
+        # thread runs above them while a trial runs (RealClock.start)
+        raise_priority(SUPPORT_PRIORITY)
     try:
         devices = RigDevices(spec)
     except (RobotIOError, OSError, ValueError) as exc:
         outbox.send(RigFailed(reason=explain(exc)))
         return
     stream = SampleStream(capacity, name=stream_name)
+    gc.freeze()  # what the rig holds from here on is never scanned by a collection again
     inbox = Inbox(conn, outbox, devices)
     outbox.send(RigOpened(devices=devices.report(), pid=os.getpid()))
     try:

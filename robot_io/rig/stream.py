@@ -57,7 +57,8 @@ class SampleStream:
         return int(self.header[0])
 
     def close(self, unlink: bool = False) -> None:
-        self.header = self.rows = None
+        """Release the block; a closed stream reads as empty (a screen may still ask)."""
+        self.header, self.rows = np.array([0.0, -1.0]), np.empty((0, WIDTH))
         self.shm.close()
         if unlink:
             self.shm.unlink()

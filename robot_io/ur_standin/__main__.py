@@ -13,7 +13,7 @@ import signal
 import sys
 import threading
 
-from robot_io.clock import raise_priority
+from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.ur_standin.control import DEFAULT_PORT
 from robot_io.ur_standin.model import Series
 from robot_io.ur_standin.standin import StandinController
@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(asctime)s stand-in %(levelname)s %(message)s")
     if args.realtime_priority:
-        raise_priority()  # before the threads start: they inherit it
+        raise_priority(SUPPORT_PRIORITY)  # before the threads start: they inherit it
     series = Series.CB3 if args.series == "cb3" else Series.E_SERIES
     standin = StandinController(args.host, series, control_port=args.control_port)
     signal.signal(signal.SIGTERM, lambda *_: standin.close())

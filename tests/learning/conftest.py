@@ -39,6 +39,15 @@ def drive(learner: PreferenceLearner, n: int) -> list[dict[str, float]]:
     return shown
 
 
+@pytest.fixture(scope="session")
+def client():
+    """A one-worker local Dask cluster, shared by the tests that run studies."""
+    from app.learning.cluster import dask_client
+
+    with dask_client(workers=1) as dask:
+        yield dask
+
+
 @pytest.fixture
 def make_learner():
     def make(acquisition: str = "qnei", seed: int = 0, q: int = 3) -> PreferenceLearner:

@@ -15,7 +15,7 @@ from app.learning import preference_model
 from app.learning.acquisition import propose
 from app.learning.errors import UnknownInteractionError
 from app.learning.learner import PreferenceLearner
-from app.learning.models import Comparison, Interaction, SlotKind
+from app.learning.models import Comparison, Interaction, RecommendationName, SlotKind
 from app.learning.rng import derive_seed
 
 from .conftest import drive
@@ -26,8 +26,8 @@ def test_theta_star_shown_again_reuses_its_datapoint_index(make_learner):
     drive(learner, 4)  # the initial batch
     suggestion = learner.suggest()
     assert suggestion.slot.kind is SlotKind.BEST
-    best = learner.best()
-    assert suggestion.theta == best.theta
+    best = learner.best(RecommendationName.IN_SAMPLE_MEAN)  # the batch-opening θ*
+    assert suggestion.theta == best.theta == learner.incumbent()
     n_points = len(learner.data.points)
     learner.observe(Interaction(interaction_id="5", theta=suggestion.theta))
     assert len(learner.data.points) == n_points
@@ -39,14 +39,14 @@ def test_theta_star_shown_again_reuses_its_datapoint_index(make_learner):
 def test_a_near_twin_is_merged_and_its_self_comparison_dropped(make_learner):
     learner = make_learner()
     drive(learner, 4)
-    theta = learner.best().theta
-    twin = {**theta, "a": theta["a"] + 1e-4 * 9.0}  # 1e-4 of the box width: below the tolerance
+    best = learner.best(RecommendationName.IN_SAMPLE_MEAN)  # an observed point
+    twin = {**best.theta, "a": best.theta["a"] + 1e-4 * 9.0}  # 1e-4 of the width: below tolerance
     m = len(learner.data.comparisons)
     report = learner.observe(Interaction(interaction_id="5", theta=twin),
-                             [Comparison(winner="5", loser=learner.best().interaction_ids[0])])
+                             [Comparison(winner="5", loser=best.interaction_ids[0])])
     assert not report.refitted
     assert len(learner.data.comparisons) == m
-    assert learner.data.index_of("5") == learner.data.index_of(learner.best().interaction_ids[0])
+    assert learner.data.index_of("5") == learner.data.index_of(best.interaction_ids[0])
 
 
 def test_comparisons_with_unknown_interactions_are_rejected_without_side_effects(make_learner):

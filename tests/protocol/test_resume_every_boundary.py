@@ -26,9 +26,10 @@ import pytest
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
+from app.protocol.study import StudyConfig
+from app.protocol.vocabulary import QUESTIONS, Phase
 from robot_io.simulated_hand import Scenario
 from robot_io.trial import simulate_trial
-from session_store.models import QUESTIONS, Phase, StudyConfig
 
 CODE = "B01"
 

@@ -7,6 +7,7 @@ import pytest
 from pydantic import ValidationError
 
 from app.cli import main
+from app.protocol.study import StudyConfig
 from app.session.config import LabConfig, load_lab_config
 from robot_io.simulated_hand import Scenario
 
@@ -33,9 +34,15 @@ batch_size = 3
 learning_batches = 2
 [learner]
 acquisition = "eubo"
+recommendation = "posterior_mean"
+population_prior = true
+prior_weight = 0.5
 """))
     study = lab.study_config(Scenario.PERTURBED, seed=9)
     assert (study.batch_size, study.learning_batches, study.acquisition) == (3, 2, "eubo")
+    assert (study.recommendation, study.population_prior, study.prior_weight) == (
+        "posterior_mean", True, 0.5)
+    assert study.prior_sources == []  # filled when the session is created, never by the lab
     assert study.initial_trials == 5  # the paper's default where the file says nothing
     assert study.controller.arm.kind == "ur" and study.controller.ur.host == "127.0.0.7"
     assert study.controller.hand_source.lsl_stream_name == "Vicon hand"
@@ -46,6 +53,9 @@ acquisition = "eubo"
     ("[protocol]\nbatch_size = 30\n", "protocol.batch_size"),
     ("[arm]\nkind = \"ur5\"\n", "arm.kind"),
     ("[cycle]\nstart_zone_m = 2.0\n", "cycle.start_zone_m"),
+    ("[learner]\nrecommendation = \"best\"\n", "learner.recommendation"),
+    ("[learner]\nprior_weight = 11\n", "learner.prior_weight"),
+    ("[learner]\nprior_sources = [\"P01\"]\n", "prior_sources"),
 ])
 def test_a_bad_file_is_refused_naming_the_field(tmp_path, text, message):
     with pytest.raises(ValidationError, match=message):
@@ -73,3 +83,38 @@ def test_the_controller_part_is_what_the_rig_gets():
     lab = LabConfig.model_validate({"protocol": {"batch_size": 4}, "loop": {"rate_hz": 125}})
     controller = lab.controller
     assert controller.loop.rate_hz == 125 and not hasattr(controller, "protocol")
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("[protocol]\nbatch_size = inf\n", "protocol.batch_size = inf: must be a whole number in [2, 10]"),
+    ("[protocol]\ninitial_trials = 2.5\n",
+     "protocol.initial_trials = 2.5: must be a whole number in [2, 50]"),
+    ("[protocol]\nvalidation_batches = -1\n",
+     "protocol.validation_batches = -1: must be a whole number in [0, 20]"),
+    ("[protocol]\nseed = 7\n", "protocol.seed = 7: Extra inputs are not permitted"),
+    ("[protocol.controller.safety]\nmax_speed = 1.4\n", "protocol.controller = "),
+    ("[learner.controller.loop]\nstaleness_limit_s = 0.4\n", "learner.controller = "),
+    ("[learner]\ntheta_bounds = {a = [1, 10], delta = [-1, 1], k = [0.01, 40]}\n",
+     "theta_bounds.k = [0.01, 40.0] must lie within the safe range [0.01, 15.0]"),
+])
+def test_protocol_and_learner_tables_cannot_reach_safety_and_name_the_range(tmp_path, capsys, text,
+                                                                           message):
+    """[protocol] and [learner] hold the study's counts and the θ box only: a controller table or
+    a seed inside them is refused, and every bad value names its field and range, before anything
+    is written."""
+    study = tmp_path / "study"
+    command = ["run-session", "--study", str(study), "--participant", "P1", "--scenario",
+               "perturbed", "--auto", "--config", str(write(tmp_path, text))]
+    assert main(command) == 2
+    assert message in capsys.readouterr().err
+    assert not study.exists()
+
+
+def test_the_sessions_default_recommendation_is_the_learners():
+    from app.learning.config import DEFAULT_RECOMMENDATION
+    from app.learning.models import RecommendationName
+
+    study = LabConfig().study_config(Scenario.STRAIGHTFORWARD, seed=1)
+    assert study.recommendation == DEFAULT_RECOMMENDATION.value
+    choices = StudyConfig.model_fields["recommendation"].annotation.__args__
+    assert set(choices) == {r.value for r in RecommendationName}

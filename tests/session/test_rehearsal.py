@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 from support.runner import SHORT_PROTOCOL, Probe
 
+from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
 from app.session.rehearsal import Rehearsal
 from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
-from session_store.errors import RefusedAction
 
 pytestmark = pytest.mark.slow
 
@@ -191,3 +191,24 @@ def test_the_rehearsal_plays_the_hand_over_udp_too(tmp_path):
         runner.close()
     trial = ended(view, 1)
     assert trial.outcome.value == "completed" and trial.peak_pull_n >= 10.0
+
+
+def test_a_rehearsed_session_resumes_in_a_new_rehearsal_without_a_rig_change(tmp_path):
+    """A new rehearsal has its own loopback address and stream name: not a different rig."""
+    lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
+    hosts = []
+    for attempt in range(2):
+        runner = SessionRunner(tmp_path / "study", lab, rehearsal=Rehearsal(lab))
+        try:
+            hosts.append(runner.lab.ur.host)
+            runner.open("F06", Scenario.PERTURBED if attempt == 0 else None, seed=6)
+        finally:
+            runner.close()
+    with sqlite3.connect(tmp_path / "study" / "F06.sqlite") as db:
+        kinds = [row[0] for row in db.execute("SELECT kind FROM events ORDER BY seq")]
+        rigs = [json.loads(row[0])["rig"] for row in db.execute(
+            "SELECT payload FROM events WHERE kind = 'devices_recorded' ORDER BY seq")]
+    assert hosts[0] != hosts[1]
+    assert "rig_change_confirmed" not in kinds and kinds.count("devices_recorded") == 2
+    assert rigs[0] == rigs[1] and rigs[0]["ur"]["host"] == "rehearsal"
+    assert rigs[0]["arm"]["kind"] == "ur"

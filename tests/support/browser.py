@@ -24,8 +24,8 @@ from pathlib import Path
 
 from playwright.sync_api import Browser, Page, sync_playwright
 
+from app.protocol.vocabulary import QUESTIONS
 from app.ui.deliberate import SETTLE_S
-from session_store.models import QUESTIONS
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -38,8 +38,8 @@ SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_tr
 TIMEOUT_MS = 60_000
 
 
-SCREENS = {"unused": "not in use", "pairs": "pairs of handovers", "back": "moving back",
-           "place": "Handover",
+SCREENS = {"unused": "not in use", "pair": "Connect this tablet", "pairs": "pairs of handovers",
+           "back": "moving back", "place": "Handover",
            "wait": "Please wait", "rate": "Compared with", "done": "Thank you", "go": "Go!",
            **{q.id: q.text[:30] for q in QUESTIONS}}
 
@@ -51,7 +51,7 @@ def tablet_screen(page: Page, not_: str | tuple[str, ...] = (), timeout_s: float
     second page, until the server has seen the old one close)."""
     skip = {not_} if isinstance(not_, str) else set(not_)
     if not unused_ok:
-        skip.add("unused")
+        skip.update(("unused", "pair"))
     deadline = time.monotonic() + timeout_s
     while time.monotonic() < deadline:
         text = page.inner_text("body")
@@ -130,7 +130,9 @@ def confirm_placement(tablet: Page) -> float:
 
 
 def open_participant(dashboard: Page, code: str) -> None:
-    unlock_dashboard(dashboard)
+    """Unlock the dashboard if it is locked, then create or resume ``code``."""
+    if "Enter the dashboard token" in dashboard.inner_text("body"):
+        unlock_dashboard(dashboard)
     fill(dashboard, "Code", code)
     click(dashboard, "Create or resume")
     wait_text(dashboard, "handovers completed")
@@ -159,17 +161,18 @@ class Served:
 
 
 @contextmanager
-def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML
-          ) -> Iterator[Served]:
-    """`handover serve` on two free loopback ports with a lab config of the short protocol
-    (``protocol_toml`` is its [protocol] table) at ``rate`` Hz (125 for speed)."""
+def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML,
+          token: str | None = TOKEN, ports: tuple[int, int] | None = None) -> Iterator[Served]:
+    """`handover serve` on two free loopback ports (or ``ports``: tablet, dashboard) with a lab
+    config of the short protocol (``protocol_toml`` is its [protocol] table) at ``rate`` Hz (125
+    for speed); ``token`` None: the study's own dashboard token."""
     config = tmp / "lab.toml"
     config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}")
     study, log = tmp / "study", tmp / "serve.log"
-    tablet, dashboard = free_port(), free_port()
+    tablet, dashboard = ports or (free_port(), free_port())
     command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
-               "--config", str(config), "--token", TOKEN, *extra]
+               "--config", str(config), *(["--token", token] if token else []), *extra]
     with log.open("w") as out:
         process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
                                    env={**os.environ, "PYTHONUNBUFFERED": "1"})
@@ -216,9 +219,29 @@ def open_page(browser: Browser, url: str, touch: bool = False,
 
 
 def open_screens(browser: Browser, served: Served) -> tuple[Page, Page]:
-    """The dashboard on a laptop-sized window (mouse) and the tablet (touch), both ready."""
-    return (open_page(browser, served.dashboard_url, size=(1400, 900)),
-            open_page(browser, served.tablet_url, touch=True))
+    """The dashboard on a laptop-sized window (mouse), unlocked, and the tablet (touch), paired
+    with the code the dashboard shows."""
+    dashboard = open_page(browser, served.dashboard_url, size=(1400, 900))
+    unlock_dashboard(dashboard)
+    tablet = open_page(browser, served.tablet_url, touch=True)
+    pair_tablet(dashboard, tablet)
+    return dashboard, tablet
+
+
+def pairing_code(dashboard: Page) -> str:
+    """The tablet pairing code the (unlocked) dashboard shows."""
+    wait_text(dashboard, "pairing code")
+    return re.search(r"pairing code (\d{4})", dashboard.inner_text("body")).group(1)
+
+
+def pair_tablet(dashboard: Page, tablet: Page) -> None:
+    """Type the dashboard's pairing code on the tablet with the on-screen keyboard and tap Connect;
+    wait until the tablet shows the study's screen."""
+    wait_text(tablet, "Connect this tablet")
+    settle()
+    fill(tablet, "Code", pairing_code(dashboard))
+    tap(tablet, "Connect")
+    tablet_screen(tablet)
 
 
 def wait_ready(page: Page) -> None:
@@ -274,10 +297,10 @@ def fill(page: Page, label: str, value: str) -> None:
     page.locator(f"xpath=//*[normalize-space(text())='{label}']/following::input[1]").fill(value)
 
 
-def unlock_dashboard(page: Page) -> None:
-    fill(page, "Token", TOKEN)
+def unlock_dashboard(page: Page, token: str = TOKEN) -> None:
+    fill(page, "Token", token)
     click(page, "Unlock")
-    wait_text(page, "Participant")
+    button(page, "STOP ARM").wait_for(state="visible")
 
 
 def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:

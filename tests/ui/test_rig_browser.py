@@ -54,7 +54,7 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
             watch_stages(dashboard, "into the gripper, then press", seen)
             assert tablet_screen(tablet) == "wait"  # no cue before Go
             click(dashboard, "Object loaded")
-            watch_stages(dashboard, "rests at the start: press Go", seen)
+            watch_stages(dashboard, "hand is at the start — press Go", seen)
             click(dashboard, "Go")
             assert tablet_screen(tablet, not_="wait") == "go"
             watch_stages(dashboard, "[hold]", seen)

@@ -19,6 +19,7 @@ from support.browser import (
     confirm_placement,
     open_page,
     open_participant,
+    pair_tablet,
     publish,
     run_trial,
     serve,
@@ -72,6 +73,7 @@ def test_kiosk_layouts_with_five_markers_and_the_offline_cover(tmp_path: Path) -
         dashboard = open_page(browser, served.dashboard_url, size=(1400, 900))
         tablet = open_page(browser, served.tablet_url, touch=True, size=SIZES["landscape"])
         open_participant(dashboard, "P01")
+        pair_tablet(dashboard, tablet)
         for label in range(1, 5):  # 1 at 0.3, then 2–4 dropped on it ("equal")
             assert run_trial(dashboard, tablet) == "place"
             touch_drag_to(tablet, 0.3)

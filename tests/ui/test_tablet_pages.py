@@ -1,6 +1,7 @@
-"""One tablet per session: the first page on the tablet port is the study's tablet; a second page
-is told it is not in use and is offered nothing to rate, until the first one closes. And input
-inside the settle window after a screen change does not count.
+"""One tablet per session: a page on the tablet port is offered only the pairing code until the code
+is typed; the paired page is the study's tablet; a second page of that device is told it is not in
+use and is offered nothing to rate, until the first one closes. And input inside the settle window
+after a screen change does not count.
 
 In process: a real :class:`SessionRunner` (real engine, store, rig and learner processes, the
 experimenter's confirmations automatic) behind a real viser server, pages in headless Chromium with
@@ -14,11 +15,20 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-import viser
-from support.browser import button, chromium, free_port, open_page, tablet_screen, touch_drag_to
+from support.browser import (
+    button,
+    chromium,
+    fill,
+    free_port,
+    open_page,
+    tablet_screen,
+    tap,
+    touch_drag_to,
+)
 
 from app.session.config import LabConfig
 from app.session.runner import SessionRunner
+from app.ui.guard import open_server
 from app.ui.tablet import Tablet
 from robot_io.simulated_hand import Scenario
 
@@ -42,22 +52,30 @@ def until(condition: Callable[[], bool], timeout_s: float = 60.0) -> None:
 
 def test_a_second_page_is_not_offered_the_scale(tmp_path: Path) -> None:
     runner = SessionRunner(tmp_path / "study", LAB, auto_experimenter=True)
-    server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    tablet = Tablet(server, runner, settle_s=SETTLE_S)
+    server, guard = open_server("127.0.0.1", free_port(), "tablet")
+    tablet = Tablet(server, runner, guard.source_of, settle_s=SETTLE_S)
     url = f"http://127.0.0.1:{server.get_port()}"
     try:
         with chromium() as browser:
             assert tablet.connected_count() == 0
             first = open_page(browser, url, touch=True, size=(1180, 820))
             until(lambda: tablet.connected_count() == 1)
+            assert tablet_screen(first, unused_ok=True) == "pair"
+            assert runner.view.tablet.blocker().startswith("the tablet is not paired")
+            time.sleep(SETTLE_S)
+            fill(first, "Code", "0000" if tablet.pairing.code != "0000" else "1111")
+            tap(first, "Connect")
+            first.get_by_text("Wrong code").wait_for()
+            fill(first, "Code", tablet.pairing.code)
+            tap(first, "Connect")
             assert tablet_screen(first) == "wait"
-            second = open_page(browser, url, touch=True, size=(820, 1180))
-            until(lambda: tablet.connected_count() == 2)
-            assert tablet_screen(second, unused_ok=True) == "unused"
-
+            assert runner.view.tablet.ready
             runner.open("P01", Scenario.STRAIGHTFORWARD)  # the first trial starts by itself
             assert tablet_screen(first, not_="wait") == "go"
+            second = open_page(browser, url, touch=True, size=(820, 1180))
+            until(lambda: tablet.connected_count() == 2)
             assert tablet_screen(second, unused_ok=True) == "unused"  # not even "Go!"
+            assert runner.view.tablet.blocker().startswith("2 pages are open")
             assert tablet_screen(first, not_=("go", "back")) == "place"
             assert tablet_screen(second, unused_ok=True) == "unused"
             assert second.locator(".mantine-Slider-root, .hl-scale").count() == 0

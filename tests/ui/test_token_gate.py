@@ -15,7 +15,7 @@ def test_an_address_is_refused_unchecked_after_five_failures_until_the_window_sl
         now[0] = float(second)
         assert gate.attempt(1, "guess") == "Wrong token."
     now[0] = 30.0
-    assert gate.attempt(1, "secret").startswith("Too many wrong tokens")  # right, but unchecked
+    assert gate.attempt(1, "secret").startswith("Too many wrong attempts")  # right, but unchecked
     assert gate.attempt(2, "secret") is None  # another address is not locked out
     now[0] = 60.0  # the first failure (t = 0) has left the window: one more try
     assert gate.attempt(1, "secret") is None

@@ -71,7 +71,7 @@ def test_dashboard_token_attempts_are_rate_limited_and_logged(tmp_path):
             _wait_for(served, f"({attempt + 1} of 5 allowed in 60 s)")
         fill(page, "Token", TOKEN)  # the right token, too late: refused unchecked for a minute
         click(page, "Unlock")
-        wait_text(page, "Too many wrong tokens from this address")
+        wait_text(page, "Too many wrong attempts from this address")
         assert "Participant" not in page.inner_text("body")
         output = served.shutdown()
     assert output.count("dashboard: wrong token from 127.0.0.1") == 5

@@ -11,17 +11,17 @@ from pydantic import ValidationError
 from session_helpers import drive_until, new_engine, short_config
 
 from app.protocol.engine import SessionEngine
+from app.protocol.errors import RefusedAction
 from app.protocol.state import Step
+from app.protocol.study import StudyConfig
 from robot_io.simulated_hand import Scenario
 from robot_io.trial import simulate_trial
 from session_store.errors import (
     CorruptStoreError,
-    RefusedAction,
     SchemaVersionError,
     StoreError,
     UnsafeParticipantCode,
 )
-from session_store.models import StudyConfig
 from session_store.store import ParticipantStore
 
 

@@ -17,6 +17,7 @@ import time
 import numpy as np
 import pytest
 from session_helpers import drive_until, new_engine
+from support.store import event_count
 
 from app.learning.config import LearnerConfig
 from app.learning.learner import PreferenceLearner
@@ -69,13 +70,8 @@ def _outcome(path) -> dict[str, list]:
         }
 
 
-def _events(path) -> int:
-    """Events written so far (0 before the session exists); read-only, beside the writer."""
-    try:
-        with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as conn:
-            return conn.execute("SELECT count(*) FROM events").fetchone()[0]
-    except sqlite3.Error:
-        return 0
+#: SIGKILLs of the run-session process itself (its own PID: Popen runs the interpreter, no shell).
+KILLS = 20
 
 
 @pytest.mark.slow
@@ -87,14 +83,14 @@ def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_pat
     database = tmp_path / "killed" / "K1.sqlite"
     rng, kills = random.Random(2026), 0
     while True:
-        before = _events(database)
+        before = event_count(database)
         process = subprocess.Popen([*command, "--study", str(tmp_path / "killed"), "--resume"],
                                    stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-        if kills < 12:
+        if kills < KILLS:
             # Kill inside the session, whatever the machine's load: once this run has written an
             # event (created or resumed the session), after a random further 0–2.5 s of trials,
             # learner updates and writes.
-            while _events(database) <= before and process.poll() is None:
+            while event_count(database) <= before and process.poll() is None:
                 time.sleep(0.02)
             try:
                 process.wait(timeout=rng.uniform(0.0, 2.5))
@@ -106,7 +102,7 @@ def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_pat
         process.wait(timeout=300)
         assert process.returncode == 0, process.stderr.read().decode()[-2000:]
         break
-    assert kills == 12
+    assert kills == KILLS
     whole, killed = _outcome(tmp_path / "whole" / "K1.sqlite"), _outcome(database)
     for table in sorted(whole, key=lambda name: name == "completed trials"):  # θ last
         if table == "completed trials":

@@ -1,0 +1,103 @@
+"""Priors from earlier participants: build a :class:`~app.learning.prior.PopulationPrior` from their
+learner data and evaluate it as the GP prior mean of eq. (12) for a new participant.
+
+For a study folder, the session side collects the :class:`~app.learning.config.LearnerSnapshot` of
+each completed participant of the same scenario (the last ``state`` stored) and calls::
+
+    prior = population_prior({"P01": snapshot_1, "P02": snapshot_2, ...}, weight=1.0)
+    config = LearnerConfig(box=..., prior=prior, ...)   # recorded in every snapshot: prior.sources
+
+The earlier participants' models are rebuilt from their stored hyperparameters (zero prior mean, so
+priors never chain) and their posterior means pooled, see :mod:`app.learning.prior`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import torch
+from botorch.models.pairwise_gp import PairwiseGP
+from gpytorch.means import Mean
+
+from app.learning.config import LearnerSnapshot
+from app.learning.errors import LearningError
+from app.learning.prior import PopulationPrior, PriorComponent
+
+
+class PopulationMean(Mean):
+    """w · m̄(x): the pooled posterior mean of earlier participants, a fixed (not fitted) mean.
+
+    All components are stacked into one set of points with per-point lengthscales and weights
+    (s_p·α_p·w/P), so an evaluation is one kernel matrix, whatever the number of participants.
+    """
+
+    def __init__(self, prior: PopulationPrior) -> None:
+        super().__init__()
+        share = prior.weight / len(prior.components)
+        points, lengthscales, coefficients = [], [], []
+        for c in prior.components:
+            points.extend(c.points)
+            lengthscales.extend([c.lengthscale] * len(c.points))
+            coefficients.extend(share * c.outputscale * a for a in c.coefficients)
+        self.register_buffer("points", torch.tensor(points, dtype=torch.float64))
+        self.register_buffer("lengthscales", torch.tensor(lengthscales, dtype=torch.float64))
+        self.register_buffer("coefficients", torch.tensor(coefficients, dtype=torch.float64))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        diff = (x.unsqueeze(-2) - self.points) / self.lengthscales  # ... × n × N × d
+        return torch.exp(-0.5 * diff.pow(2).sum(-1)) @ self.coefficients
+
+
+class PopulationPairwiseGP(PairwiseGP):
+    """``PairwiseGP`` whose prior mean (eq. (12)) is a :class:`PopulationMean` instead of zero.
+
+    BoTorch's PairwiseGP takes its prior mean from ``_prior_mean`` in the Laplace step and in the
+    posterior; the population mean is added there, so fit, posterior and acquisitions all use it.
+    """
+
+    def __init__(self, datapoints: torch.Tensor, comparisons: torch.Tensor,
+                 population_mean: PopulationMean, **kwargs: object) -> None:
+        super().__init__(None, None, **kwargs)
+        self.population_mean = population_mean
+        self.set_train_data(datapoints, comparisons, update_model=True)
+
+    def _prior_mean(self, X: torch.Tensor) -> torch.Tensor:
+        return super()._prior_mean(X) + self.population_mean(X)
+
+
+def component_of(source: str, model: PairwiseGP) -> PriorComponent:
+    """One participant's posterior mean k(x, X)·α as data (its model has a zero prior mean)."""
+    X = model.datapoints
+    alpha = torch.cholesky_solve(model.utility.detach().unsqueeze(-1), model.covar_chol.detach())
+    kernel = model.covar_module
+    return PriorComponent(
+        source=source, points=X.tolist(), coefficients=alpha.reshape(-1).tolist(),
+        lengthscale=kernel.base_kernel.lengthscale.detach().reshape(-1).tolist(),
+        outputscale=float(kernel.outputscale.detach()))
+
+
+def population_prior(snapshots: Mapping[str, LearnerSnapshot],
+                     weight: float = 1.0) -> PopulationPrior:
+    """The prior mean for a new participant from earlier participants' learner snapshots.
+
+    ``snapshots`` maps a participant id to its final snapshot; participants without a model (no
+    comparison) contribute nothing. Raises :class:`LearningError` when none has a model or the
+    boxes differ (priors only transfer within one parameter box, i.e. one scenario's study).
+    """
+    from app.learning.learner import PreferenceLearner  # the learner imports this module
+
+    boxes = {s.config.box for s in snapshots.values()}
+    if len(boxes) > 1:
+        raise LearningError(f"snapshots = {sorted(snapshots)} come from {len(boxes)} different "
+                            "parameter boxes; a prior needs participants of one box")
+    components = []
+    for source, snapshot in snapshots.items():
+        zero_mean = snapshot.model_copy(update={"config": snapshot.config.model_copy(
+            update={"prior": None})})
+        model = PreferenceLearner.restore(zero_mean).model.model
+        if model is not None:
+            components.append(component_of(source, model))
+    if not components:
+        raise LearningError(f"snapshots = {sorted(snapshots)}: none has a fitted preference "
+                            "model (no comparisons), so there is no prior to pool")
+    return PopulationPrior(weight=weight, components=components)

@@ -1,0 +1,77 @@
+"""``handover doctor STUDY_DIR``: a plain verdict on every participant database of a study.
+
+Per file: SQLite's integrity check, the schema version, the participant's code against the file
+name, the event log replayed through the protocol (every event parsed and checked against the state
+before it: an interaction completed twice, a placement for an unknown trial, …), the derived
+tables' consistency, and who holds the writer's lock. Nothing is written: the files are opened
+read-only and nothing is migrated.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from pydantic import BaseModel, ValidationError
+
+from app.protocol.errors import EventLogError
+from app.protocol.plan import protocol_slots
+from app.protocol.state import Step, replay
+from app.protocol.study import StudyConfig
+from session_store.inspect import inspect_database
+from session_store.lock import holder_of
+from session_store.paths import SUFFIX
+from session_store.schema import SCHEMA_VERSION
+
+
+class Verdict(BaseModel):
+    """One file's verdict: ``problems`` make it bad; ``notes`` are for information."""
+
+    path: Path
+    problems: list[str] = []
+    notes: list[str] = []
+
+    @property
+    def ok(self) -> bool:
+        return not self.problems
+
+    def text(self) -> str:
+        head = f"{self.path.name}: {'OK' if self.ok else 'BAD'}"
+        return "\n".join([head, *(f"  problem: {p}" for p in self.problems),
+                          *(f"  {n}" for n in self.notes)])
+
+
+def examine(path: Path) -> Verdict:
+    """The verdict on one participant database."""
+    found = inspect_database(path)
+    verdict = Verdict(path=path, problems=list(found.problems))
+    holder = holder_of(path)
+    if holder is not None:
+        verdict.notes.append(f"open for writing now: {holder.describe()}")
+    if found.participant is None:
+        return verdict
+    if found.participant.code != path.stem:
+        verdict.problems.append(f"holds participant {found.participant.code!r}, not {path.stem!r} "
+                                "as its file name says (a copy?)")
+    if found.schema_version < SCHEMA_VERSION:
+        verdict.notes.append(f"schema version {found.schema_version}: migrated to "
+                             f"{SCHEMA_VERSION} when next opened for writing")
+    try:
+        config = StudyConfig.model_validate(found.participant.config)
+    except ValidationError as exc:
+        verdict.problems.append(f"stored study configuration is invalid: {exc}")
+        return verdict
+    try:
+        state = replay(protocol_slots(config), found.events)
+    except EventLogError as exc:
+        verdict.problems.append(f"event log breaks the protocol: {exc}")
+        return verdict
+    where = "complete" if state.step is Step.DONE else f"waiting for '{state.step.value}'"
+    verdict.notes.append(f"seed {config.seed}, {config.scenario.value}; {state.completed} of "
+                         f"{config.interactions} interactions completed, {where}; "
+                         f"{len(found.events)} events replayed")
+    return verdict
+
+
+def examine_study(study_dir: Path) -> list[Verdict]:
+    """Verdicts on every ``*.sqlite`` file of ``study_dir``, by name."""
+    return [examine(path) for path in sorted(Path(study_dir).glob(f"*{SUFFIX}"))]

@@ -1,0 +1,61 @@
+"""One participant's session plan (:class:`StudyConfig`): the paper's protocol by default (Sect. V-C),
+the θ box of Table I, the controller, the scenario and the seed."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from app.protocol.seeds import Seed
+from robot_io.config import ControllerConfig
+from robot_io.simulated_hand import Scenario
+from robot_io.theta import THETA_BOUNDS
+
+
+class StudyConfig(BaseModel):
+    """One participant's session plan: the paper's protocol by default (Sect. V-C)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    scenario: Scenario
+    seed: Seed
+    initial_trials: int = Field(5, ge=2, le=50, description="random interactions (paper: 5)")
+    batch_size: int = Field(5, ge=2, le=10, description="q, interactions per learning batch (paper: 5)")
+    learning_batches: int = Field(4, ge=0, le=50, description="learning batches (paper: 4)")
+    best_trials: int = Field(1, ge=0, le=5, description="interactions with θ* after learning (paper: 1)")
+    validation_batches: int = Field(4, ge=0, le=20, description="validation pairs (paper: 4)")
+    acquisition: Literal["qnei", "qlognei", "eubo"] = Field("qnei", description="paper: qNEI")
+    recommendation: Literal["in_sample_mean", "posterior_mean", "in_sample_lcb"] = Field(
+        "posterior_mean", description="how the learned best θ* is recommended (best interaction, "
+        "validation): the posterior-mean maximiser over the box, chosen by the recommendation "
+        "study of docs/learning.md (the paper's is in_sample_mean)")
+    population_prior: bool = Field(
+        False, description="opt-in: the GP's prior mean is the pooled posterior mean of the "
+        "completed participants of the same scenario (and θ box) in the study folder")
+    prior_weight: float = Field(1.0, ge=0.0, le=10.0,
+                                description="w, the weight of that prior mean (population_prior)")
+    prior_sources: list[str] = Field(
+        default_factory=list, description="the participants whose data formed the prior, fixed "
+        "when the session was created (empty: no prior)")
+    theta_bounds: dict[str, tuple[float, float]] = Field(
+        default_factory=lambda: dict(THETA_BOUNDS), description="Θ of Table I")
+    controller: ControllerConfig = ControllerConfig()
+
+    @field_validator("theta_bounds")
+    @classmethod
+    def _bounds_within_table_i(cls, bounds: dict[str, tuple[float, float]]) -> dict:
+        if set(bounds) != set(THETA_BOUNDS):
+            raise ValueError(f"theta_bounds must name {sorted(THETA_BOUNDS)}, not {sorted(bounds)}")
+        for name, (low, high) in bounds.items():
+            safe_low, safe_high = THETA_BOUNDS[name]
+            if not safe_low <= low < high <= safe_high:
+                raise ValueError(f"theta_bounds.{name} = [{low}, {high}] must lie within the safe "
+                                 f"range [{safe_low}, {safe_high}] with low < high")
+        return bounds
+
+    @property
+    def interactions(self) -> int:
+        """Completed interactions of a full session: 5 + 20 + 1 + 8 = 34 with the defaults."""
+        return (self.initial_trials + self.batch_size * self.learning_batches + self.best_trials
+                + 2 * self.validation_batches)

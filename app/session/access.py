@@ -1,0 +1,84 @@
+"""Who may use the screens: the dashboard's token (kept with the study) and rate-limited secrets.
+
+* The dashboard token is stored in the study folder (``.dashboard-token``, readable by its owner
+  only), so restarting ``handover serve`` keeps the experimenter's token; ``--token`` overrides it
+  (and is not stored).
+* :class:`AttemptLimit` checks a secret (the dashboard token, the tablet's pairing code) at most
+  ``max_failures`` times per ``window_s`` from one remote address; every wrong attempt is logged with
+  its address, further attempts are refused unchecked until the window has slid past the oldest
+  failure.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import secrets
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+#: The dashboard token's file in the study folder.
+TOKEN_FILE = ".dashboard-token"
+
+
+def dashboard_token(study: Path, override: str | None = None) -> str:
+    """``override`` if given; else the study's stored token, created (random) on first use."""
+    if override:
+        return override
+    path = Path(study) / TOKEN_FILE
+    if path.exists():
+        token = path.read_text().strip()
+        if token:
+            return token
+    token = secrets.token_urlsafe(9)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".partial")
+    descriptor = os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(descriptor, "w") as out:
+        out.write(token + "\n")
+        out.flush()
+        os.fsync(out.fileno())
+    partial.replace(path)  # atomic: a crash leaves the old file or the new one, never half of one
+    return token
+
+
+class AttemptLimit:
+    """Rate-limited checks of a secret, per remote address (thread-safe)."""
+
+    def __init__(self, max_failures: int = 5, window_s: float = 60.0,
+                 clock: Callable[[], float] = time.monotonic, what: str = "code",
+                 role: str = "tablet") -> None:
+        self.max_failures, self.window_s, self._clock = max_failures, window_s, clock
+        self.what, self.role = what, role
+        self._failures: dict[str, deque[float]] = {}
+        self._lock = threading.Lock()
+        self.refused_unchecked = 0
+
+    def check(self, source: str, given: str, secret: str) -> str | None:
+        """None if ``given`` is ``secret``; otherwise why not, for the screen."""
+        now = self._clock()
+        with self._lock:
+            failures = self._failures.setdefault(source, deque())
+            while failures and now - failures[0] >= self.window_s:
+                failures.popleft()
+            if len(failures) >= self.max_failures:
+                self.refused_unchecked += 1
+                wait = self.window_s - (now - failures[0])
+                if self.refused_unchecked == 1 or self.refused_unchecked % 100 == 0:
+                    log.warning("%s: %s attempts from %s refused unchecked (%d wrong in %g s; "
+                                "%d refused so far)", self.role, self.what, source, len(failures),
+                                self.window_s, self.refused_unchecked)
+                return f"Too many wrong attempts from this address: try again in {wait:.0f} s."
+            if secrets.compare_digest(given.encode(), secret.encode()):
+                failures.clear()
+                log.info("%s: %s accepted from %s", self.role, self.what, source)
+                return None
+            failures.append(now)
+            log.warning("%s: wrong %s from %s (%d of %d allowed in %g s)", self.role, self.what,
+                        source, len(failures), self.max_failures, self.window_s)
+            return f"Wrong {self.what}."

@@ -1,0 +1,30 @@
+"""A stored trial's samples as the columns the live view draws, for a replay on the dashboard.
+
+The store keeps one row per control cycle with vectors flattened to ``name_x`` … ``name_z`` and NaN as
+NULL (:mod:`session_store.schema`); here they become the recorder's own columns again (vectors of
+shape (n, 3), NULL back to NaN), so a replay draws exactly what the loop recorded.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from robot_io.recorder import COLUMNS
+from session_store.schema import AXES
+
+
+def stored_rows(samples: list[dict[str, Any]]) -> dict[str, np.ndarray]:
+    """The recorder's columns of a trial's stored sample rows (in cycle order)."""
+    def column(name: str) -> np.ndarray:
+        return np.array([np.nan if row[name] is None else row[name] for row in samples], dtype=float)
+
+    rows: dict[str, np.ndarray] = {}
+    for name, width, _ in COLUMNS:
+        if width == 1:
+            rows[name] = column(name)
+        else:
+            rows[name] = np.stack([column(f"{name}_{axis}") for axis in AXES[:width]], axis=1) \
+                if samples else np.zeros((0, width))
+    return rows

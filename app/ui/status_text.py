@@ -1,0 +1,194 @@
+"""The dashboard's words: what the session waits for, where the protocol stands, the devices, the
+study overview — in the experimenter's language, every count 1-based. Pure: a view in, Markdown out.
+
+Double-blind validation (``blind``): the θ and the origin of validation trials are not shown, so the
+experimenter cannot tell which trial of a pair is the learned θ*.
+"""
+
+from __future__ import annotations
+
+from datetime import datetime
+
+from app.protocol.state import Step
+from app.protocol.vocabulary import Phase
+from app.session.overview import ParticipantSummary
+from app.session.runner import RunnerView
+from robot_io.stages import Stage
+
+#: The handover cycle as the dashboard draws it.
+CYCLE = (Stage.PREPARE, Stage.LOADED, Stage.READY, Stage.GO, Stage.REACH, Stage.HOLD,
+         Stage.RELEASE, Stage.RETRACT, Stage.DONE)
+#: What a running trial does in each stage, in words.
+STAGE_WORDS = {Stage.PREPARE: "the robot moves to its start", Stage.LOADED: "the object is loaded",
+               Stage.READY: "the participant's hand is at the start",
+               Stage.GO: "Go given", Stage.REACH: "the robot reaches out",
+               Stage.HOLD: "the robot holds the object out", Stage.RELEASE: "the gripper opens",
+               Stage.NOT_TAKEN: "nobody took the object", Stage.RETRACT: "the robot moves back",
+               Stage.DONE: "the robot is back"}
+PHASE_WORDS = {Phase.INITIAL: "Initial handovers", Phase.LEARNING: "Learning batch",
+               Phase.BEST: "Handover with the learned best", Phase.VALIDATION: "Validation pair"}
+
+
+def start_blocker(view: RunnerView) -> str | None:
+    """Why Start trial cannot be pressed now (None: it can)."""
+    state = view.state
+    if state is None:
+        return "no participant is open"
+    if view.stop == "stopping":
+        return "the arm is stopping"
+    if view.stop == "stopped":
+        return "the arm was stopped: make sure the scene is safe, then press Re-arm"
+    if state.paused:
+        return "the session is paused: press Resume session"
+    if view.tablet_required and view.tablet is not None and view.tablet.blocker():
+        return view.tablet.blocker()
+    if view.arm_fault:
+        return "the arm has a fault: inspect it, then press Recover arm"
+    return None  # otherwise the status line says what the session waits for
+
+
+def status_line(view: RunnerView) -> str:
+    """One line: what the session waits for and what to do, e.g. "Paused — press Resume"."""
+    state = view.state
+    if state is None:
+        return "No participant open — create or resume one under **Study**."
+    if view.stop == "stopping":
+        return "**Stopping the arm …**"
+    if view.stop == "stopped":
+        return "**Arm stopped** — make sure the scene is safe, then press **Re-arm**."
+    if state.paused:
+        return "**Paused** — press **Resume session** to continue."
+    step = state.step
+    if step is Step.PLAN or view.preparing:
+        return "**Preparing the next handover** (the learner chooses it) — please wait."
+    if step is Step.READY:
+        blocker = start_blocker(view)
+        return f"**Ready, but** {blocker}." if blocker else "**Ready** — press **Start trial**."
+    if step is Step.RUNNING:
+        if view.waiting_for == "loaded":
+            return "**Load the object** into the gripper, then press **Object loaded**."
+        if view.waiting_for == "go":
+            return "**The participant's hand is at the start** — press **Go**."
+        stage = view.stage
+        return f"**Handover running** — {STAGE_WORDS[stage] if stage else 'starting'}."
+    if step is Step.PLACE:
+        return (f"**Waiting for the participant** to place handover {state.slot.position} on "
+                "the tablet.")
+    if step is Step.RATE:
+        return "**Waiting for the participant** to rate the pair on the tablet."
+    if step is Step.ANSWER:
+        return (f"**Waiting for the participant's questionnaire** ({len(state.answers)} of 3 "
+                "answered).")
+    return "**Session complete** — press **End session**, then open the next participant."
+
+
+def _batches(view: RunnerView, phase: Phase) -> int:
+    return max((s.batch for s in view.state.slots if s.phase is phase), default=0)
+
+
+def progress_markdown(view: RunnerView) -> str:
+    """Where the protocol stands, 1-based: "Learning batch 2 of 4 · handover 3 of 5"."""
+    state = view.state
+    if state is None:
+        return ""
+    lines = [f"**{view.code}** · {view.scenario.value} · {state.completed} of "
+             f"{view.interactions} handovers completed"]
+    slot = state.slot
+    if state.step is Step.ANSWER:
+        lines.append(f"Questionnaire · {len(state.answers)} of 3 answered")
+    elif slot is not None:
+        where = PHASE_WORDS[slot.phase]
+        if slot.phase in (Phase.LEARNING, Phase.VALIDATION):
+            where += f" {slot.batch} of {_batches(view, slot.phase)}"
+        if slot.batch_size > 1:
+            where += f" · handover {slot.position} of {slot.batch_size}"
+        attempt = state.attempts.get(slot.interaction, 0) + (state.step in (Step.PLAN, Step.READY))
+        if attempt > 1:
+            where += f" · attempt {attempt}"
+        lines.append(where)
+    if state.step is Step.RUNNING:
+        lines.append(cycle_markdown(view))
+    return "  \n".join(lines)
+
+
+def cycle_markdown(view: RunnerView) -> str:
+    """The running trial's stage within the cycle, the current one in bold."""
+    stage = view.stage
+    shown = [f"**[{s.value}]**" if s is stage else s.value for s in CYCLE]
+    if stage is Stage.NOT_TAKEN:
+        shown[CYCLE.index(Stage.RELEASE)] = "**[not taken]**"
+    line = "cycle: " + " → ".join(shown)
+    if view.ready_wait and stage in (Stage.LOADED, Stage.PREPARE):
+        line += f"  \nnot ready: {view.ready_wait}"
+    return line
+
+
+def tablet_markdown(view: RunnerView) -> str:
+    """The tablet port: how many pages, paired or not, and the pairing code."""
+    tablet = view.tablet
+    if tablet is None:
+        return ""
+    pages = f"{tablet.pages} page{'s' if tablet.pages != 1 else ''} open"
+    if tablet.ready:
+        return f"Tablet: **connected and paired** ({tablet.address}) · pairing code {tablet.code}"
+    return f"Tablet: ⚠ **{tablet.blocker()}** ({pages}) · pairing code **{tablet.code}**"
+
+
+def safety_markdown(view: RunnerView) -> str:
+    """The arm's stop state, updated the moment the stop completes."""
+    if view.stop == "stopping":
+        return "### Arm: stopping …"
+    if view.stop == "stopped":
+        return "### Arm: STOPPED\nCheck the scene is safe, then **Re-arm**."
+    fault = f" — ⚠ {view.arm_fault}" if view.arm_fault else ""
+    return f"**Arm: armed**{fault}"
+
+
+def devices_markdown(view: RunnerView) -> str:
+    def line(name: str, text: str, fault: str | None) -> str:
+        return f"- **{name}**: {text}" + (f" — ⚠ **{fault}**" if fault else "")
+    rig = ["- rehearsal: stand-in UR controller and simulated hand (no hardware)"] if view.rehearsal \
+        else []
+    arm = {"armed": view.arm, "stopping": f"stopping … ({view.arm})",
+           "stopped": f"stopped, waiting for Re-arm ({view.arm})"}[view.stop]
+    return "\n".join([*rig, line("arm", arm, view.arm_fault), line("hand", view.hand, None),
+                      line("gripper", view.gripper, None),
+                      line("learner", view.learner, view.learner_fault),
+                      "", "Recent events:", *[f"- {m}" for m in view.messages]])
+
+
+def _local_time(at: str | None) -> str:
+    if at is None:
+        return "—"
+    return datetime.fromisoformat(at).astimezone().strftime("%Y-%m-%d %H:%M")
+
+
+def overview_markdown(rows: list[ParticipantSummary]) -> str:
+    """Every participant: scenario, progress, status, last activity."""
+    if not rows:
+        return "No participants yet."
+    table = ["| code | scenario | handovers | status | last activity |", "|---|---|---|---|---|"]
+    table += [f"| {r.code} | {r.scenario.value if r.scenario else '—'} | {r.completed} of "
+              f"{r.interactions} | {r.status.value}{f' ({r.detail})' if r.detail else ''} | "
+              f"{_local_time(r.last_activity)} |" for r in rows]
+    return "\n".join(table)
+
+
+def learner_markdown(view: RunnerView, blind: bool, rows: int = 10) -> str:
+    """θ* after each learner update and the θ of the latest attempts (validation trials' θ and
+    origin hidden when ``blind``)."""
+    star = view.theta_star[-1] if view.theta_star else None
+    head = (f"θ* (best so far): **a {star.a:.2f}, δ {star.delta:.2f}, k {star.k:.2f}** after "
+            f"handover {star.after_interaction}" if star else "θ*: none yet")
+    table = ["| trial | handover | phase | a | δ | k | origin | outcome |",
+             "|---|---|---|---|---|---|---|---|"]
+    for t in view.trials[-rows:]:
+        hidden = blind and t.phase is Phase.VALIDATION
+        theta = ("hidden", "hidden", "hidden") if hidden else \
+            (f"{t.theta_a:.2f}", f"{t.theta_delta:.2f}", f"{t.theta_k:.2f}")
+        table.append(f"| {t.trial_index} | {t.interaction} | {t.phase.value} | {' | '.join(theta)} "
+                     f"| {'hidden' if hidden else t.origin.value} | "
+                     f"{t.outcome.value if t.outcome else 'running'} |")
+    history = ", ".join(f"({s.a:.1f}, {s.delta:.2f}, {s.k:.1f})" for s in view.theta_star[-6:])
+    blinded = ["", "_Double-blind: θ and origin of validation trials are hidden._"] if blind else []
+    return "\n".join([head, "", f"θ* history (latest 6): {history or '—'}", "", *table, *blinded])

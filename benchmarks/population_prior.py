@@ -1,0 +1,132 @@
+"""The gain of a prior from earlier participants (app.learning.population), measured honestly.
+
+Populations of ``--group`` simulated participants share an optimum θ_0 ~ U[0, 1]³; each one's
+optimum is θ_0 + N(0, spread²·I), clipped (``--spread``; ``--spread none``: uniform optima, no
+shared structure). Every participant runs once without a prior (these runs are also the earlier
+participants' data) and once with the prior pooled from the *other* ``group − 1`` participants
+of its population, on the same optimum and the same noise (paired). Reported over participants,
+with a cluster bootstrap over populations for the 95 % CIs:
+
+- ratio = mean u(θ*) with the prior at interaction ``--early`` / mean u(θ*) without it at the
+  final interaction (≤ 1: the prior reaches at ``--early`` what none reaches at the end);
+- final ratio = with / without at the final interaction (the cost where there is no structure).
+
+Usage: ``nice -n 19 .venv/bin/python benchmarks/population_prior.py --spread 0.1 --populations 6``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from app.learning.cluster import dask_client, run_tasks
+from app.learning.config import LearnerSnapshot
+from app.learning.models import RecommendationName
+from app.learning.population import population_prior
+from app.learning.rng import derive_seed
+from app.learning.simulation import StudyCondition, participant_target, simulate_learner
+
+
+def participant(condition: StudyCondition, seed: int, spread: float | None, population: int,
+                index: int, prior_json: str | None) -> dict:
+    """One run; ``prior_json``: the other participants' snapshots, or None for no prior."""
+    from app.learning.prior import PopulationPrior
+
+    target = participant_target(condition.dim, seed, population, index, spread)
+    prior = None if prior_json is None else PopulationPrior.model_validate_json(prior_json)
+    key = (seed, population, index)
+    trial, learner = simulate_learner(condition, target, derive_seed(*key, 1),
+                                      derive_seed(*key, 2), prior=prior)
+    return {"population": population, "index": index, "prior": prior is not None,
+            "distances": trial.distances, "snapshot": learner.snapshot().model_dump_json()}
+
+
+def load(path: Path) -> dict[tuple[int, int, bool], dict]:
+    if not path.exists():
+        return {}
+    rows = [json.loads(line) for line in path.read_text().splitlines() if line.endswith("}")]
+    return {(r["population"], r["index"], r["prior"]): r for r in rows}
+
+
+def cluster_bootstrap(num: np.ndarray, den: np.ndarray, seed: int) -> tuple[float, float]:
+    """95 % CI of mean(num)/mean(den), resampling the rows (populations) with replacement."""
+    rng = np.random.default_rng(seed)
+    ratios = []
+    for _ in range(4000):
+        pick = rng.integers(len(num), size=len(num))
+        ratios.append(num[pick].mean() / den[pick].mean())
+    low, high = np.percentile(ratios, [2.5, 97.5])
+    return float(low), float(high)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--spread", default="0.1", help="optimum spread, or 'none' (uniform)")
+    parser.add_argument("--populations", type=int, default=6)
+    parser.add_argument("--group", type=int, default=9, help="participants per population")
+    parser.add_argument("--noise", type=float, default=0.03)
+    parser.add_argument("--weight", type=float, default=1.0, help="w of the prior mean")
+    parser.add_argument("--early", type=int, default=15, help="interaction compared")
+    parser.add_argument("--seed", type=int, default=7)
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--scheduler", default=None)
+    parser.add_argument("--out", type=Path, default=Path("out/prior"))
+    args = parser.parse_args()
+    spread = None if args.spread == "none" else float(args.spread)
+    condition = StudyCondition(noise=args.noise,
+                               recommendation=RecommendationName.IN_SAMPLE_MEAN)
+    path = args.out / f"spread-{args.spread}-s{args.noise:g}-w{args.weight:g}.jsonl"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    done = load(path)
+
+    def keep(row: dict) -> None:
+        with path.open("a") as handle:
+            handle.write(json.dumps(row) + "\n")
+        done[(row["population"], row["index"], row["prior"])] = row
+
+    keys = [(p, i) for p in range(args.populations) for i in range(args.group)]
+    with dask_client(args.scheduler, args.workers) as client:
+        todo = [(condition, args.seed, spread, p, i, None) for p, i in keys
+                if (p, i, False) not in done]
+        run_tasks(client, participant, todo, keep, total=len(keys), desc="no prior")
+        priors = []
+        for p, i in keys:
+            if (p, i, True) in done:
+                continue
+            others = {f"P{p}-{j}": LearnerSnapshot.model_validate_json(done[(p, j, False)]
+                                                                       ["snapshot"])
+                      for j in range(args.group) if j != i}
+            prior = population_prior(others, weight=args.weight)
+            priors.append((condition, args.seed, spread, p, i, prior.model_dump_json()))
+        run_tasks(client, participant, priors, keep, total=len(keys), desc="with prior")
+
+    early = np.array([[done[(p, i, True)]["distances"][args.early - 1] for i in range(args.group)]
+                      for p in range(args.populations)])
+    with_final = np.array([[done[(p, i, True)]["distances"][-1] for i in range(args.group)]
+                           for p in range(args.populations)])
+    none_final = np.array([[done[(p, i, False)]["distances"][-1] for i in range(args.group)]
+                           for p in range(args.populations)])
+    none_early = np.array([[done[(p, i, False)]["distances"][args.early - 1]
+                            for i in range(args.group)] for p in range(args.populations)])
+    n_final = len(none_final[0]) and len(done[(0, 0, False)]["distances"])
+    print(f"spread {args.spread}, σ = {args.noise:g}, w = {args.weight:g}: {args.populations} "
+          f"populations × {args.group} participants (prior from the other {args.group - 1})")
+    print(f"mean u(θ*): no prior at {args.early}: {none_early.mean():.3f}, at {n_final}: "
+          f"{none_final.mean():.3f}; with prior at {args.early}: {early.mean():.3f}, at "
+          f"{n_final}: {with_final.mean():.3f}")
+    # resample whole populations; with one population, its participants
+    per_population = ((early.mean(1), none_final.mean(1), with_final.mean(1))
+                      if args.populations > 1 else (early[0], none_final[0], with_final[0]))
+    low, high = cluster_bootstrap(per_population[0], per_population[1], args.seed)
+    print(f"ratio prior@{args.early} / none@{n_final}: "
+          f"{early.mean() / none_final.mean():.2f} [{low:.2f}, {high:.2f}]")
+    low, high = cluster_bootstrap(per_population[2], per_population[1], args.seed)
+    print(f"final ratio prior / none at {n_final}: {with_final.mean() / none_final.mean():.2f} "
+          f"[{low:.2f}, {high:.2f}]")
+
+
+if __name__ == "__main__":
+    main()

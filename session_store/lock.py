@@ -1,0 +1,177 @@
+"""One writer per participant: an exclusive OS-level lock beside the database.
+
+``<code>.sqlite.lock`` is locked with ``flock(LOCK_EX)`` by whichever process writes the participant
+(``serve`` with the participant open, ``run-session``, anything that opens the store for writing).
+The kernel drops the lock when the process ends, however it ends (SIGKILL, power cut of the
+process), so a stale lock never blocks: the file may still name the last holder, but nobody holds
+it. The holder (pid, host, command, since) is written into the file, so a refused writer can say
+who holds it. Readers (export, report, Datasette, ``doctor``) never take it.
+
+Within a process a lock can be taken early (:func:`reserve`: the command line, before its slow
+imports, so that a second writer is refused at once) and then claimed by the store that writes
+(:func:`claim`); a second claim in the same process is refused like another process would be.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import socket
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from session_store.errors import ParticipantLocked
+
+#: A writer retries this long before it reports the lock as held: a reader's probe (doctor) holds a
+#: shared lock for microseconds and must never refuse a writer.
+RETRY_S = 0.05
+
+
+class Holder(BaseModel):
+    """Who holds (or last held) a participant's lock."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    pid: int
+    host: str
+    command: str
+    since: str
+
+    def describe(self) -> str:
+        return f"pid {self.pid} on {self.host} since {self.since}: {self.command}"
+
+
+def lock_path(database: Path) -> Path:
+    """The lock file of a participant database: ``P09.sqlite`` → ``P09.sqlite.lock``."""
+    database = Path(database)
+    return database.with_name(database.name + ".lock")
+
+
+def _this_holder(command: str | None) -> Holder:
+    shown = command or " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
+    return Holder(pid=os.getpid(), host=socket.gethostname(), command=shown[:300],
+                  since=datetime.now(UTC).isoformat(timespec="seconds"))
+
+
+def _read_holder(fd: int) -> Holder | None:
+    try:
+        text = os.pread(fd, 4096, 0).decode()
+        return Holder.model_validate_json(text) if text.strip() else None
+    except (OSError, UnicodeDecodeError, ValidationError):
+        return None
+
+
+def _refusal(database: Path, holder: Holder | None) -> ParticipantLocked:
+    who = holder.describe() if holder is not None else "another process (not yet recorded)"
+    return ParticipantLocked(
+        f"participant {Path(database).stem!r} is open for writing by {who}; refused before writing "
+        f"anything. Close it there first (a killed process releases it by itself; {lock_path(database)}"
+        " is only a lock)")
+
+
+class WriterLock:
+    """The held lock of one participant database (see the module's docstring)."""
+
+    def __init__(self, database: Path, fd: int, holder: Holder) -> None:
+        self.database, self._fd, self.holder = Path(database), fd, holder
+        self.reserved = False
+        self.claimed = False
+
+    @classmethod
+    def acquire(cls, database: Path, command: str | None = None) -> WriterLock:
+        """Take the lock (refusing with the holder named if another writer has it) and record
+        this process as its holder."""
+        path = lock_path(database)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        deadline = time.monotonic() + RETRY_S
+        while True:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                if time.monotonic() >= deadline:
+                    holder = _read_holder(fd)
+                    os.close(fd)
+                    raise _refusal(database, holder) from None
+                time.sleep(0.01)
+        holder = _this_holder(command)
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, holder.model_dump_json().encode(), 0)
+        return cls(database, fd, holder)
+
+    def release(self) -> None:
+        """Give the lock up (the file stays: deleting it would race with the next writer)."""
+        if self._fd < 0:
+            return
+        _HELD.pop(self.database.resolve(), None)
+        with contextlib.suppress(OSError):
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+        os.close(self._fd)
+        self._fd = -1
+
+    @property
+    def held(self) -> bool:
+        return self._fd >= 0
+
+
+#: The locks this process holds, by database path.
+_HELD: dict[Path, WriterLock] = {}
+
+
+def reserve(database: Path, command: str | None = None) -> WriterLock:
+    """Take the lock early for a writer this process will open (kept until released or exit)."""
+    key = Path(database).resolve()
+    lock = _HELD.get(key)
+    if lock is None:
+        lock = _HELD[key] = WriterLock.acquire(database, command)
+    lock.reserved = True
+    return lock
+
+
+def claim(database: Path) -> WriterLock:
+    """The lock for a store that writes ``database``: the one this process reserved, else a new
+    one. Refused if another process holds it, or another store of this process claimed it."""
+    key = Path(database).resolve()
+    lock = _HELD.get(key)
+    if lock is None:
+        lock = _HELD[key] = WriterLock.acquire(database)
+    elif lock.claimed:
+        raise _refusal(database, lock.holder)
+    lock.claimed = True
+    return lock
+
+
+def unclaim(lock: WriterLock) -> None:
+    """The store is closed: release the lock unless the process reserved it for later."""
+    lock.claimed = False
+    if not lock.reserved:
+        lock.release()
+
+
+def holder_of(database: Path) -> Holder | None:
+    """Who holds the writer's lock of ``database`` now (None: nobody). Never blocks a writer: a
+    shared lock is tried for an instant and a writer retries for :data:`RETRY_S`."""
+    path = lock_path(database)
+    key = Path(database).resolve()
+    if key in _HELD:
+        return _HELD[key].holder
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    except FileNotFoundError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return _read_holder(fd) or Holder(pid=0, host="?", command="(not yet recorded)",
+                                              since="?")
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)

@@ -1,0 +1,35 @@
+"""Where a study keeps its participants: ``<study>/<code>.sqlite``, the code a safe file name.
+
+Imports nothing heavy: the command line resolves a participant's database (and takes its writer
+lock) through it before loading the rest of the application.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from session_store.errors import UnsafeParticipantCode
+
+SUFFIX = ".sqlite"
+#: A participant code is pseudonymous and becomes a file name: letters, digits, '-' and '_' only.
+CODE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
+
+
+def check_participant_code(code: str) -> str:
+    """Return ``code`` if it is a safe file name, else raise UnsafeParticipantCode saying why."""
+    if not isinstance(code, str) or not CODE_PATTERN.fullmatch(code):
+        shown = code if isinstance(code, str) and len(code) <= 40 else f"{str(code)[:40]}…"
+        raise UnsafeParticipantCode(
+            f"participant code {shown!r} is not allowed: use 1 to 64 letters, digits, '-' or '_', "
+            "starting with a letter or digit (a pseudonym, never a name)")
+    return code
+
+
+def participant_path(study_dir: Path, code: str) -> Path:
+    return Path(study_dir) / f"{check_participant_code(code)}{SUFFIX}"
+
+
+def participant_codes(study_dir: Path) -> list[str]:
+    """Codes of the participant databases in a study folder, sorted."""
+    return sorted(p.stem for p in Path(study_dir).glob(f"*{SUFFIX}"))

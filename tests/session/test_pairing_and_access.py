@@ -1,0 +1,104 @@
+"""One tablet per session and the dashboard's token, without a browser: the pairing's rules, the
+token kept in the study folder, and a real runner that refuses Start without exactly one paired
+tablet and after STOP ARM until Re-arm."""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+import pytest
+from support.runner import SHORT_PROTOCOL, Probe
+
+from app.protocol.errors import RefusedAction
+from app.session.access import TOKEN_FILE, dashboard_token
+from app.session.config import LabConfig
+from app.session.pairing import TabletPairing
+from app.session.runner import SessionRunner
+from robot_io.simulated_hand import Scenario
+
+
+def test_a_page_is_the_tablet_only_once_the_code_is_typed_and_stays_it_across_a_reload():
+    pairing = TabletPairing(code="4711")
+    pairing.connected(1, "10.0.0.5")
+    assert pairing.role(1) == "pair" and not pairing.status().ready
+    assert pairing.pair(1, "1234") == "Wrong code."
+    assert pairing.pair(1, " 4711 ") is None
+    assert pairing.role(1) == "tablet" and pairing.status().ready
+    pairing.connected(2, "10.0.0.5")  # a second tab on the same tablet: not in use
+    assert pairing.role(2) == "unused"
+    assert pairing.status().blocker() == ("2 pages are open on the tablet port: close all but the "
+                                          "participant's tablet")
+    pairing.closed(1)  # the tablet reloads: its new page is the tablet without a code
+    assert pairing.role(2) == "tablet" and pairing.status().ready
+    pairing.connected(3, "10.0.0.9")  # another device must type the code, and then takes over
+    assert pairing.role(3) == "pair"
+    assert pairing.pair(3, "4711") is None
+    assert pairing.role(3) == "tablet" and pairing.role(2) == "pair"
+
+
+def test_wrong_codes_are_rate_limited_per_address():
+    now = [0.0]
+    pairing = TabletPairing(code="4711", clock=lambda: now[0])
+    pairing.connected(1, "10.0.0.5")
+    pairing.connected(2, "10.0.0.6")
+    for _ in range(5):
+        assert pairing.pair(1, "0000") == "Wrong code."
+    assert pairing.pair(1, "4711").startswith("Too many wrong attempts")  # not even checked
+    assert pairing.pair(2, "4711") is None  # another address is not locked out
+    now[0] = 61.0
+    assert pairing.pair(1, "4711") is None
+
+
+def test_the_dashboard_token_is_kept_with_the_study_and_overridden_by_the_option(tmp_path: Path):
+    study = tmp_path / "study"
+    token = dashboard_token(study)
+    assert len(token) >= 12 and dashboard_token(study) == token  # a restart keeps it
+    assert stat.S_IMODE(os.stat(study / TOKEN_FILE).st_mode) == 0o600
+    assert dashboard_token(study, "given") == "given"
+    assert dashboard_token(study) == token  # --token is not stored
+
+
+LAB = LabConfig.model_validate({"loop": {"rate_hz": 125}, "protocol": SHORT_PROTOCOL})
+
+
+@pytest.mark.slow
+def test_start_needs_one_paired_tablet_and_after_a_stop_a_rearm(tmp_path: Path):
+    runner = SessionRunner(tmp_path / "study", LAB)
+    probe = Probe(runner)
+    try:
+        pairing = runner.attach_tablet()
+        runner.open("P01", Scenario.STRAIGHTFORWARD)
+        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ")
+        with pytest.raises(RefusedAction, match="no tablet is connected"):
+            runner.start_trial()
+        runner.tablet_connected(7, "127.0.0.1")
+        with pytest.raises(RefusedAction, match="the tablet is not paired"):
+            runner.start_trial()
+        assert runner.pair_tablet(7, pairing.code) is None
+        assert runner.view.tablet.ready
+        runner.stop()  # no trial runs: stopped at once, and Start is locked until Re-arm
+        assert runner.view.stop == "stopped"
+        with pytest.raises(RefusedAction, match="the arm was stopped"):
+            runner.start_trial()
+        runner.rearm()
+        runner.start_trial()
+        probe.wait(lambda v: v.waiting_for == "loaded", what="the cycle waits for the object")
+        runner.stop()  # during a trial: "stopping" until the trial has ended, then "stopped"
+        view = probe.wait(lambda v: v.stop == "stopped" and v.step.value == "ready",
+                          what="the stop completed")
+        assert view.trials[-1].reason == "stopped by the experimenter (Stop)"
+        assert any(v.stop == "stopping" for v in probe.views)
+        with pytest.raises(RefusedAction, match="the arm was stopped"):
+            runner.start_trial()
+        runner.rearm()
+        with pytest.raises(RefusedAction, match="re-arm refused: the arm was not stopped"):
+            runner.rearm()
+        runner.end_session()
+        assert runner.view.state is None
+        [summary] = runner.view.overview
+        assert (summary.code, summary.status.value, summary.detail) == (
+            "P01", "paused", "ended by the experimenter")
+    finally:
+        runner.close()

@@ -1,0 +1,71 @@
+"""Every placement, answer and validation rating records who made it. A session whose first batch
+the person places on the tablet and whose rest the simulated participant rates (the dashboard's
+switch, through the runner that both screens use): the export tells every row's origin apart, the
+switch is an event, and the report counts only the person's ratings unless told otherwise."""
+
+from __future__ import annotations
+
+import html
+
+import pandas as pd
+import pytest
+from support.runner import SHORT_PROTOCOL, Probe
+
+from app.analysis.report import build_report
+from app.protocol.state import Step
+from app.session.config import LabConfig
+from app.session.runner import SessionRunner
+from robot_io.simulated_hand import Scenario
+from session_store.export import export_study, read_table
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    study = tmp_path_factory.mktemp("study")
+    lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
+    runner = SessionRunner(study, lab, realtime=False, auto_experimenter=True)
+    probe = Probe(runner)
+    try:
+        runner.open("H01", Scenario.PERTURBED, seed=4)
+        for position in (0.2, 0.8, 0.5):  # the person's placements, as the tablet sends them
+            view = probe.wait(lambda v: v.step is Step.PLACE, 300, "a placement")
+            runner.place(view.state.slot.interaction, position=position)
+        runner.set_auto(True)  # "Simulated participant rates" switched on
+        view = probe.wait(lambda v: v.step is Step.DONE or v.failed is not None, 600, "the end")
+        assert view.failed is None and view.state.completed == 9
+    finally:
+        runner.close()
+    return study
+
+
+def test_the_export_tells_every_rows_origin(study, tmp_path):
+    export_study(study, tmp_path)
+    placements = read_table(tmp_path, "placements").set_index("interaction")["actor"]
+    assert placements.to_dict() == {1: "participant", 2: "participant", 3: "participant",
+                                    4: "simulated_participant", 5: "simulated_participant",
+                                    6: "simulated_participant"}
+    for table in ("answers", "validation_ratings"):
+        actors = read_table(tmp_path, table)["actor"]
+        assert len(actors) > 0 and (actors == "simulated_participant").all(), table
+    events = read_table(tmp_path, "events")
+    switches = events[events["kind"] == "simulated_participant_switched"]
+    assert switches["payload"].tolist() == ['{"on": true}']
+    assert switches["actor"].tolist() == ["experimenter"]
+    placed = events[events["kind"] == "placement_made"]
+    before = placed[placed["seq"] < switches["seq"].iloc[0]]
+    assert (before["actor"] == "participant").all() and len(before) == 3
+    assert (placed[placed["seq"] > switches["seq"].iloc[0]]["actor"] == "simulated_participant"
+            ).all()
+    assert not events["actor"].isna().any()
+
+
+def test_the_report_counts_the_persons_ratings_unless_told_otherwise(study, tmp_path):
+    own = build_report(study, tmp_path / "own")
+    assert "4 validation ratings and answers by the simulated participant are left out" in \
+        own.ratings_counted
+    assert html.escape(own.ratings_counted) in own.html.read_text()
+    scores = pd.read_csv(own.tables["table3_perturbed"])
+    assert scores["pairs"].tolist() == [0]
+    everything = build_report(study, tmp_path / "all", include_simulated=True)
+    assert "included by --include-simulated" in everything.ratings_counted
+    assert pd.read_csv(everything.tables["table3_perturbed"])["pairs"].tolist() == [1]

@@ -1,0 +1,16 @@
+"""The store knows the protocol's vocabulary, never the protocol, the simulator or the learner."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+
+def test_session_store_imports_no_simulator_protocol_or_learner():
+    loaded = subprocess.run(
+        [sys.executable, "-c", "import sys, session_store.store, session_store.export, "
+         "session_store.inspect, session_store.catalog, session_store.lock; "
+         "print(' '.join(sorted(m for m in sys.modules if m.startswith(('app', 'robot_io')))))"],
+        capture_output=True, text=True, check=True).stdout.split()
+    assert set(loaded) == {"app", "app.protocol", "app.protocol.vocabulary", "robot_io",
+                           "robot_io.errors", "robot_io.recorder", "robot_io.theta"}

@@ -1,0 +1,102 @@
+"""The schema is frozen per version and later versions are migrations.
+
+``data/main-v2-M01.sqlite`` is a whole short session (9 interactions, placements, a validation rating,
+Q1–Q3) written by main before provenance existed (schema version 2; its samples cut to 20 cycles a
+trial to keep the file small). Version 1 files are made from it as version 1 left them: without the
+cycle's columns, ``user_version`` 1.
+"""
+
+from __future__ import annotations
+
+import shutil
+import sqlite3
+from pathlib import Path
+
+import pytest
+from session_helpers import new_engine
+
+from app.protocol.engine import SessionEngine
+from app.protocol.state import Step
+from session_store.schema import (
+    SCHEMA_VERSION,
+    TABLES,
+    V1_SAMPLE_COLUMNS,
+    V1_TABLES,
+    V2_SAMPLE_COLUMNS,
+    V2_TRIAL_COLUMNS,
+    V3_PROVENANCE_TABLES,
+    columns_of,
+)
+from session_store.store import ParticipantStore
+
+MAIN_FILE = Path(__file__).parent / "data" / "main-v2-M01.sqlite"
+SQL_TYPE = {int: "INTEGER", float: "REAL", str: "TEXT"}
+
+
+def _columns(path: Path) -> dict[str, dict[str, str]]:
+    with sqlite3.connect(path) as conn:
+        tables = [r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")]
+        return {t: {r[1]: r[2] for r in conn.execute(f'PRAGMA table_info("{t}")')} for t in tables}
+
+
+def _counts(path: Path) -> dict[str, int]:
+    with sqlite3.connect(path) as conn:
+        return {t: conn.execute(f'SELECT count(*) FROM "{t}"').fetchone()[0]
+                for t in [*V1_TABLES, "samples"]}
+
+
+def _old_file(tmp_path: Path, version: int) -> Path:
+    path = tmp_path / "M01.sqlite"
+    shutil.copy(MAIN_FILE, path)
+    if version == 1:
+        with sqlite3.connect(path) as conn:
+            for table, columns in (("trials", V2_TRIAL_COLUMNS), ("samples", V2_SAMPLE_COLUMNS)):
+                for column in columns:
+                    conn.execute(f"ALTER TABLE {table} DROP COLUMN {column}")
+            conn.execute("PRAGMA user_version = 1")
+    return path
+
+
+def test_the_frozen_version_1_is_what_main_wrote_without_the_cycle_columns():
+    written = _columns(MAIN_FILE)
+    for table, (columns, _) in V1_TABLES.items():
+        later = V2_TRIAL_COLUMNS if table == "trials" else {}
+        assert {n: t for n, t in written[table].items() if n not in later} == \
+            {n: SQL_TYPE[t] for n, t in columns.items()}, table
+    samples = {n for n in written["samples"] if n not in V2_SAMPLE_COLUMNS}
+    assert samples == {"trial_index", "cycle", *V1_SAMPLE_COLUMNS}
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_an_old_file_migrates_to_the_current_version_and_keeps_every_row(tmp_path, version):
+    path = _old_file(tmp_path, version)
+    before = _counts(path)
+    store = ParticipantStore.open(tmp_path, "M01")
+    try:
+        assert store.db.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
+        assert set(V2_TRIAL_COLUMNS) <= set(store.db["trials"].columns_dict)
+        assert set(V2_SAMPLE_COLUMNS) <= set(store.db["samples"].columns_dict)
+        for table in V3_PROVENANCE_TABLES:
+            assert "actor" in store.db[table].columns_dict
+            rows = store.rows(table)
+            assert rows and all(row.actor is None for row in rows)  # origin not recorded then
+    finally:
+        store.close()
+    assert _counts(path) == before
+    # The migrated file has the columns of a file made today, which are the models' columns.
+    fresh = new_engine(tmp_path / "fresh")
+    fresh.close()
+    migrated, made = _columns(path), _columns(tmp_path / "fresh" / "S01.sqlite")
+    assert {t: set(c) for t, c in migrated.items()} == {t: set(c) for t, c in made.items()}
+    for table, (model, _) in TABLES.items():
+        assert set(made[table]) == set(columns_of(model)), table
+
+
+def test_the_log_of_an_old_session_replays_as_typed_events(tmp_path):
+    _old_file(tmp_path, 1)
+    engine = SessionEngine.resume(tmp_path, "M01")
+    try:
+        assert engine.state.step is Step.DONE and engine.state.completed == 9
+        assert engine.state.answers.keys() == {"Q1", "Q2", "Q3"}
+    finally:
+        engine.close()

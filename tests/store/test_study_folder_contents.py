@@ -1,0 +1,172 @@
+"""A study folder is judged by its contents (issue 15): the code stored in a file must match its
+name, a read-only folder is read as it is, one bad file never stops the export of the others, and
+reading never writes to the study folder."""
+
+from __future__ import annotations
+
+import contextlib
+import shutil
+import sqlite3
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from session_helpers import drive_until, new_engine
+from support.study import as_version_1, checkpointed, fingerprint, read_only
+
+from app.analysis.report import build_report
+from app.cli import main
+from app.protocol.state import Step
+from robot_io.simulated_hand import Scenario
+from session_store.errors import MisnamedStoreError
+from session_store.export import DTYPES, LEFT_OUT_FILE, export_study, load_study, read_table
+from session_store.store import ParticipantStore
+
+
+@pytest.fixture(scope="module")
+def original(tmp_path_factory) -> Path:
+    """P01's whole short session and P02's first placement, cleanly closed (no -wal, no -shm)."""
+    study = tmp_path_factory.mktemp("original")
+    engine = new_engine(study, "P01", seed=3)
+    drive_until(engine, Step.DONE)
+    engine.close()
+    engine = new_engine(study, "P02", seed=4, scenario=Scenario.PERTURBED)
+    drive_until(engine, Step.PLACE)
+    engine.close()
+    for path in study.glob("*.sqlite"):
+        checkpointed(path)
+    return study
+
+
+@pytest.fixture
+def study(original, tmp_path) -> Path:
+    return Path(shutil.copytree(original, tmp_path / "study"))
+
+
+def rows_per_participant(out: Path, table: str) -> dict[str, int]:
+    return read_table(out, table).groupby("participant").size().to_dict()
+
+
+def stored_rows(path: Path, table: str) -> int:
+    with contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True)) as conn:
+        return conn.execute(f'SELECT count(*) FROM "{table}"').fetchone()[0]
+
+
+def test_a_copy_under_another_name_is_reported_not_merged(study, tmp_path, capsys):
+    copy = study / "P03.sqlite"
+    shutil.copy(study / "P01.sqlite", copy)
+    before = fingerprint(copy)
+    out = tmp_path / "out"
+    assert main(["export", str(study), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert f"left out {copy}: {copy} holds participant 'P01''s session, not 'P03''s" in err
+    assert sorted(read_table(out, "participants")["participant"]) == ["P01", "P02"]
+    assert rows_per_participant(out, "trials") == {
+        code: stored_rows(study / f"{code}.sqlite", "trials") for code in ("P01", "P02")}
+    assert not (out / "sqlite" / "P03.sqlite").exists()
+    left_out = pd.read_csv(out / LEFT_OUT_FILE)
+    assert left_out["file"].tolist() == [str(copy)]
+    assert "rename it back to P01.sqlite" in left_out["reason"][0]
+
+    report = build_report(study, tmp_path / "report")
+    assert list(report.unreadable) == [str(copy)]
+    assert "holds participant 'P01''s session" in report.unreadable[str(copy)]
+    assert "P03" not in set(pd.read_csv(report.tables["sessions"])["participant"])
+
+    with pytest.raises(MisnamedStoreError, match="a copy or a renamed file"):
+        ParticipantStore.open(study, "P03")
+    assert main(["run-session", "--study", str(study), "--participant", "P03", "--resume",
+                 "--auto", "--no-progress"]) == 2
+    assert "holds participant 'P01''s session, not 'P03''s" in capsys.readouterr().err
+    assert fingerprint(copy) == before
+
+
+def test_a_read_only_study_folder_is_exported_and_reported_as_it_is(study, tmp_path):
+    assert not list(study.glob("*-wal")) and not list(study.glob("*-shm"))  # closed cleanly
+    writable = export_study(study, tmp_path / "from-writable")
+    with read_only(study) as view:
+        export = export_study(view, tmp_path / "from-read-only")
+        report = build_report(view, tmp_path / "report")
+    assert export.left_out == {} and report.unreadable == {}
+    for table in DTYPES:
+        pd.testing.assert_frame_equal(read_table(tmp_path / "from-read-only", table),
+                                      read_table(tmp_path / "from-writable", table))
+    assert {t: rows for t, (_, rows) in export.written.items()} == \
+        {t: rows for t, (_, rows) in writable.written.items()}
+    assert report.incomplete == ["P02"]
+
+
+def test_a_read_only_folder_reads_the_transactions_still_in_the_wal(study, tmp_path):
+    """A copy taken while a session was open: its last transactions are only in -wal."""
+    live = tmp_path / "live"
+    live.mkdir()
+    with contextlib.closing(sqlite3.connect(study / "P01.sqlite")) as writer:
+        writer.execute("PRAGMA wal_autocheckpoint = 0")
+        writer.execute("INSERT INTO events (at, actor, kind, payload) VALUES "
+                       "('2026-01-01T00:00:00+00:00', 'experimenter', 'paused', '{}')")
+        writer.commit()
+        for suffix in ("", "-wal", "-shm"):
+            shutil.copy(study / f"P01.sqlite{suffix}", live / f"P01.sqlite{suffix}")
+    assert (live / "P01.sqlite-wal").stat().st_size > 0
+    events = stored_rows(live / "P01.sqlite", "events")
+    with read_only(live) as view:
+        loaded = load_study(view, ["events"])
+    assert len(loaded.tables["events"]) == events
+    assert loaded.tables["events"]["kind"].iloc[-1] == "paused"
+
+    (live / "P01.sqlite-shm").unlink()  # SQLite cannot read that -wal in a read-only folder
+    shutil.copy(study / "P02.sqlite", live / "P02.sqlite")
+    with read_only(live) as view:
+        loaded = load_study(view, ["events"], skip_unreadable=True)
+    [(path, reason)] = loaded.unreadable.items()
+    assert path.name == "P01.sqlite"
+    assert "latest transactions are in P01.sqlite-wal" in reason
+    assert "copy the study folder to a writable place" in reason
+    assert set(loaded.tables["events"]["participant"]) == {"P02"}
+
+
+def test_one_bad_file_never_stops_the_export_of_the_others(study, tmp_path, capsys):
+    (study / "P05.sqlite").write_bytes(b"not a database at all " * 200)
+    new_engine(study, "P06").close()
+    with contextlib.closing(sqlite3.connect(study / "P06.sqlite")) as conn:
+        conn.execute("PRAGMA user_version = 99")
+    (study / "P07.sqlite").touch()
+    out = tmp_path / "out"
+    assert main(["export", str(study), "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    reasons = pd.read_csv(out / LEFT_OUT_FILE).set_index("file")["reason"]
+    assert sorted(Path(f).name for f in reasons.index) == ["P05.sqlite", "P06.sqlite", "P07.sqlite"]
+    assert "is not a readable SQLite database" in reasons[str(study / "P05.sqlite")]
+    assert "schema version 99" in reasons[str(study / "P06.sqlite")]
+    assert "holds no session (0 bytes" in reasons[str(study / "P07.sqlite")]
+    assert "3 database(s) left out" in err and err.count("warning: left out") == 3
+    assert sorted(read_table(out, "participants")["participant"]) == ["P01", "P02"]
+    assert sorted(p.name for p in (out / "sqlite").iterdir()) == ["P01.sqlite", "P02.sqlite"]
+    assert (study / "P07.sqlite").stat().st_size == 0
+
+
+def test_an_export_of_nothing_readable_writes_nothing(tmp_path, capsys):
+    study = tmp_path / "study"
+    study.mkdir()
+    (study / "P05.sqlite").write_bytes(b"not a database at all " * 200)
+    (study / "P07.sqlite").touch()
+    out = tmp_path / "out"
+    assert main(["export", str(study), "--out", str(out)]) == 2
+    assert "holds no readable participant database" in capsys.readouterr().err
+    assert not out.exists()
+
+
+def test_export_and_report_never_write_to_the_study_folder(study, tmp_path):
+    """An older file is read through a migrated copy in memory; the file stays as it was."""
+    path = study / "P01.sqlite"
+    as_version_1(path)
+    before = fingerprint(path)
+    export = export_study(study, tmp_path / "out")
+    build_report(study, tmp_path / "report")
+    assert export.left_out == {}
+    assert fingerprint(path) == before
+    with contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True)) as conn:
+        assert conn.execute("PRAGMA user_version").fetchone()[0] == 1
+    trials = read_table(tmp_path / "out", "trials")
+    assert trials.loc[trials["participant"] == "P01", "go_at"].isna().all()  # v2 columns, empty
+    assert len(trials[trials["participant"] == "P01"]) == stored_rows(path, "trials")

@@ -1,0 +1,75 @@
+"""One writer per participant: a second writer — in this process or another — is refused before it
+writes, with the holder named; readers keep working; a killed holder never blocks."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+from session_helpers import new_engine
+
+from app.protocol.engine import SessionEngine
+from session_store.errors import ParticipantLocked
+from session_store.export import load_study
+from session_store.lock import holder_of, lock_path
+from session_store.store import ParticipantStore
+
+HOLD = ("import sys, time; from session_store.store import ParticipantStore; "
+        "store = ParticipantStore.open_for_writing(sys.argv[1], 'S01'); print('held', flush=True); "
+        "time.sleep(600)")
+
+
+@pytest.fixture
+def study(tmp_path):
+    new_engine(tmp_path).close()
+    return tmp_path
+
+
+def _hold_in_child(study) -> subprocess.Popen:
+    child = subprocess.Popen([sys.executable, "-c", HOLD, str(study)], stdout=subprocess.PIPE,
+                             text=True)
+    assert child.stdout.readline().strip() == "held"
+    return child
+
+
+def test_a_second_writer_in_this_process_is_refused_and_writes_nothing(study):
+    engine = SessionEngine.resume(study, "S01")
+    try:
+        before = engine.store.counts()
+        with pytest.raises(ParticipantLocked, match=rf"open for writing by pid {os.getpid()} "):
+            SessionEngine.resume(study, "S01")
+        assert engine.store.counts() == before
+        reader = ParticipantStore.open(study, "S01")  # readers need no lock
+        assert reader.counts() == before
+        reader.close()
+    finally:
+        engine.close()
+    SessionEngine.resume(study, "S01").close()  # released on close
+
+
+def test_another_process_is_named_readers_work_and_its_kill_frees_the_participant(study):
+    child = _hold_in_child(study)
+    try:
+        holder = holder_of(study / "S01.sqlite")
+        assert holder is not None and holder.pid == child.pid
+        events = ParticipantStore.open(study, "S01").counts()["events"]
+        with pytest.raises(ParticipantLocked) as refused:
+            SessionEngine.resume(study, "S01")
+        assert f"pid {child.pid} on " in str(refused.value) and "-c" in str(refused.value)
+        tables = load_study(study, ("participants", "events")).tables  # export reads meanwhile
+        assert len(tables["events"]) == events
+        with pytest.raises(ParticipantLocked):
+            ParticipantStore.open_for_writing(study, "S01")
+    finally:
+        child.send_signal(signal.SIGKILL)
+        child.wait()
+    # The lock file still names the killed process, but nobody holds the lock.
+    assert json.loads(lock_path(study / "S01.sqlite").read_text())["pid"] == child.pid
+    assert holder_of(study / "S01.sqlite") is None
+    engine = SessionEngine.resume(study, "S01")
+    assert engine.store.counts()["events"] == events + 1  # its own session_resumed
+    engine.close()

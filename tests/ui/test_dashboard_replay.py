@@ -1,0 +1,115 @@
+"""Replaying a stored trial in the dashboard's 3-D view, checked against the stored samples.
+
+In process: a real :class:`SessionRunner` (engine, store, rig and learner processes) behind the real
+servers of ``handover serve``; the dashboard in headless Chromium. One trial runs (the simulated
+participant places it), then the experimenter picks it under "Replay a stored trial" and presses
+Replay: every position the server sends for the robot's TCP and the hand must be a stored sample's,
+in recorded order, ending at the trial's last sample; the coupling plots end as the stored τ. A trial
+that starts ends a replay, and the store refuses a replay while a trial runs.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from support.browser import TOKEN, chromium, click, free_port, open_page, unlock_dashboard, wait_text
+from support.runner import SHORT_PROTOCOL, Probe
+
+from app.protocol.errors import RefusedAction
+from app.session.config import LabConfig
+from app.session.replay import stored_rows
+from app.session.runner import SessionRunner
+from app.ui.server import HandoverServers, ServeOptions
+from robot_io.simulated_hand import Scenario
+from session_store.store import ParticipantStore
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+LAB = LabConfig.model_validate({"loop": {"rate_hz": 125}, "protocol": SHORT_PROTOCOL})
+
+
+def matches(point: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The indices of the stored rows equal to ``point`` (float32 on the wire)."""
+    return np.flatnonzero(np.all(np.abs(rows - point) < 1e-5, axis=1))
+
+
+class InOrder:
+    """Positions shown one after another must be stored samples in recorded order: each frame's
+    position matches a row at or after the previous frame's (a held-still position matches
+    several rows; the earliest one that keeps the order is taken)."""
+
+    def __init__(self, rows: np.ndarray, what: str) -> None:
+        self.rows, self.what, self.index, self.indices = rows, what, 0, []
+
+    def see(self, point: np.ndarray) -> None:
+        found = matches(point, self.rows)
+        later = found[found >= self.index]
+        assert len(found), f"the {self.what} at {point} is not a stored sample"
+        assert len(later), f"the {self.what} went back in time (stored at {found})"
+        self.index = int(later[0])
+        self.indices.append(self.index)
+
+
+def test_a_stored_trial_replays_its_samples(tmp_path: Path) -> None:
+    runner = SessionRunner(tmp_path / "study", LAB)
+    servers = HandoverServers(runner, ServeOptions(tablet_port=free_port(),
+                                                   dashboard_port=free_port(), token=TOKEN))
+    probe = Probe(runner)
+    try:
+        runner.set_auto(True)  # the simulated participant places it (no tablet needed: mock arm)
+        runner.open("P01", Scenario.PERTURBED)
+        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ")
+        runner.start_trial()
+        view = probe.wait(lambda v: v.step is not None and v.step.value == "ready" and v.trials,
+                          timeout=120, what="the first trial placed and the next θ")
+        [trial] = view.trials
+        assert trial.outcome.value == "completed"
+        store = ParticipantStore.open(runner.study, "P01")
+        try:
+            stored = stored_rows(store.samples(trial.trial_index))
+        finally:
+            store.close()
+        keep = np.isfinite(stored["t"])
+        measured, hand, tau = stored["measured"][keep], stored["hand"][keep], stored["tau"][keep]
+        duration = float(stored["t"][keep][-1] - stored["t"][keep][0])
+
+        with chromium() as browser:
+            dashboard = open_page(browser, f"http://127.0.0.1:{servers.dashboard_server.get_port()}",
+                                  size=(1366, 768))
+            unlock_dashboard(dashboard)
+            [client] = servers.dashboard.clients.values()
+            dashboard.get_by_text("Replay a stored trial", exact=True).first.click()
+            deadline = time.monotonic() + 60
+            while not client.replay_trial.value.startswith(f"trial {trial.trial_index} "):
+                assert time.monotonic() < deadline, "the trial is not offered for replay"
+                time.sleep(0.1)
+            began = time.monotonic()
+            click(dashboard, "Replay")
+            tcp, held = InOrder(measured, "TCP"), InOrder(hand, "hand")
+            while client.replay is None or client.replay.frames == 0:  # its first frame drawn
+                time.sleep(0.005)
+            while client.replay.running:
+                tcp.see(np.asarray(client.live.tcp.position))
+                held.see(np.asarray(client.live.hand.position))
+                time.sleep(0.02)
+            elapsed = time.monotonic() - began
+            wait_text(dashboard, "replay finished")
+            assert len(set(tcp.indices)) >= 10, "the replay did not move"
+            assert len(measured) - 1 in matches(np.asarray(client.live.tcp.position), measured)
+            assert np.allclose(client.live.plots["tau"].data[1], tau[np.isfinite(tau)])
+            assert elapsed >= 0.9 * duration  # 1×: never faster than the trial itself
+
+            # A slower replay ends when a trial starts; the store refuses a replay during a trial.
+            dashboard.locator("xpath=//*[normalize-space(text())='Speed']/following::input[1]").click()
+            dashboard.get_by_role("option", name="0.25×").click()
+            click(dashboard, "Replay")
+            wait_text(dashboard, "replaying trial 1 at 0.25×")
+            runner.start_trial()  # the simulated participant is on: no tablet needed (mock arm)
+            wait_text(dashboard, "replay ended: a trial started")
+            with pytest.raises(RefusedAction, match="replay refused while a trial runs"):
+                runner.trial_rows(trial.trial_index)
+    finally:
+        servers.close()

@@ -1,0 +1,191 @@
+"""The experimenter's dashboard, safety first, in headless Chromium against `handover serve`.
+
+* Start is refused while no tablet is paired; the reason stands beside it; the tablet pairs with the
+  code the dashboard shows (typed with touch), and Start is allowed.
+* STOP ARM is in the viewport after the panel is scrolled to its end at 1366×768, and Esc stops
+  the arm; after the stop, Start stays refused until Re-arm (the stop's state is shown).
+* Two participants run one after the other in one server process (End session, then create the
+  next), and the study overview lists both.
+* A restart keeps the dashboard token (stored with the study); while the server is down the page
+  shows the unreachable banner.
+
+Screenshots are written to the test's tmp folder.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import time
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import Page
+from support.browser import (
+    button,
+    chromium,
+    click,
+    open_page,
+    open_participant,
+    pair_tablet,
+    serve,
+    shot,
+    tablet_screen,
+    unlock_dashboard,
+    wait_ready,
+    wait_text,
+)
+
+from session_store.store import ParticipantStore
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+LAPTOP = (1366, 768)
+
+
+def in_viewport(page: Page, name: str) -> bool:
+    """Whether button ``name`` lies wholly inside the window and is the element at its centre
+    (nothing covers it)."""
+    return page.evaluate(
+        """name => { const b = [...document.querySelectorAll('button')].find(
+               e => e.innerText.trim() === name);
+           if (!b) return false;
+           const r = b.getBoundingClientRect();
+           const inside = r.top >= 0 && r.left >= 0 && r.bottom <= innerHeight &&
+                          r.right <= innerWidth && r.height > 0;
+           const hit = document.elementFromPoint(r.left + r.width / 2, r.top + r.height / 2);
+           return inside && b.contains(hit); }""", name)
+
+
+def scroll_panel_to_end(page: Page) -> None:
+    """Scroll every scrollable container of the page (the main panel) to its end."""
+    page.evaluate("""() => { for (const e of document.querySelectorAll('*')) {
+        if (e.scrollHeight > e.clientHeight + 4 &&
+            ['auto', 'scroll'].includes(getComputedStyle(e).overflowY)) e.scrollTop = e.scrollHeight;
+        } }""")
+    page.wait_for_timeout(300)
+
+
+def start_refused_because(dashboard: Page, reason: str) -> None:
+    wait_text(dashboard, f"Start is locked: {reason}")
+    assert button(dashboard, "Start trial").is_disabled()
+
+
+def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
+    screens = tmp_path / "screens"
+    with serve(tmp_path) as served, chromium() as browser:
+        dashboard = open_page(browser, served.dashboard_url, size=LAPTOP)
+        open_participant(dashboard, "P01")
+        start_refused_because(dashboard, "no tablet is connected")
+        wait_text(dashboard, "Ready, but no tablet is connected")
+        shot(dashboard, screens, "dashboard-no-tablet")
+
+        # The panel scrolled to its end: STOP ARM is still fully in view, on top of everything.
+        dashboard.get_by_text("Learner", exact=True).first.click()
+        scroll_panel_to_end(dashboard)
+        assert in_viewport(dashboard, "STOP ARM")
+        shot(dashboard, screens, "dashboard-scrolled-to-end")
+
+        # A page on the tablet port is offered only the pairing code until it types it.
+        tablet = open_page(browser, served.tablet_url, touch=True, size=(1180, 820))
+        assert tablet_screen(tablet, unused_ok=True) == "pair"
+        assert tablet.locator(".mantine-Slider-root, .hl-scale").count() == 0
+        start_refused_because(dashboard, "the tablet is not paired")
+        shot(tablet, screens, "tablet-pair")
+        pair_tablet(dashboard, tablet)
+        wait_text(dashboard, "Tablet: connected and paired")
+        assert tablet_screen(tablet) == "wait"
+        dashboard.wait_for_function("() => [...document.querySelectorAll('button')].some("
+                                    "b => b.innerText.trim() === 'Start trial' && !b.disabled)")
+        assert "Start is locked" not in dashboard.inner_text("body")
+
+        # STOP by its key during the reach: the trial is stopped, Start locked until Re-arm.
+        click(dashboard, "Start trial")
+        click(dashboard, "Object loaded")
+        click(dashboard, "Go")
+        wait_text(dashboard, "[reach]")
+        dashboard.locator("body").click(position={"x": 200, "y": 300})  # focus on the page
+        dashboard.keyboard.press("Escape")
+        wait_text(dashboard, "Arm: STOPPED")
+        wait_text(dashboard, "stopped by the experimenter (Stop)")
+        assert tablet_screen(tablet, not_="go") == "wait"
+        start_refused_because(dashboard, "the arm was stopped")
+        wait_text(dashboard, "make sure the scene is safe, then press Re-arm")
+        shot(dashboard, screens, "dashboard-stopped")
+        dashboard.wait_for_timeout(1000)
+        assert button(dashboard, "Start trial").is_disabled()  # still locked: nobody re-armed
+        click(dashboard, "Re-arm (scene is safe)")
+        wait_text(dashboard, "Arm: armed")
+        dashboard.wait_for_function("() => [...document.querySelectorAll('button')].some("
+                                    "b => b.innerText.trim() === 'Start trial' && !b.disabled)")
+
+        # A second page on the paired tablet is not offered the scale.
+        second = open_page(browser, served.tablet_url, touch=True, size=(820, 1180))
+        assert tablet_screen(second, unused_ok=True) == "unused"
+        start_refused_because(dashboard, "2 pages are open on the tablet port")
+        second.close()
+        dashboard.wait_for_function("() => [...document.querySelectorAll('button')].some("
+                                    "b => b.innerText.trim() === 'Start trial' && !b.disabled)")
+        served.shutdown()
+    store = ParticipantStore.open(served.study, "P01")
+    try:
+        [trial] = store.rows("trials")
+    finally:
+        store.close()
+    assert trial.outcome.value == "aborted" and trial.reason == "stopped by the experimenter (Stop)"
+
+
+def run_participant(dashboard: Page, code: str) -> None:
+    """Create ``code`` and run the whole short protocol with the simulated participant rating;
+    the experimenter presses Start for every trial."""
+    open_participant(dashboard, code)
+    dashboard.locator("xpath=//*[normalize-space(text())='Simulated participant rates']"
+                      "/following::input[1]").check()
+    wait_text(dashboard, "simulated participant on")
+    while "Session complete" not in dashboard.inner_text("body"):
+        start = button(dashboard, "Start trial")
+        if start.is_enabled():
+            start.click()
+        time.sleep(0.2)
+
+
+def test_two_participants_in_one_server_and_the_token_kept(tmp_path: Path) -> None:
+    screens = tmp_path / "screens"
+    with serve(tmp_path, token=None) as served, chromium() as browser:
+        token = re.search(r"dashboard token:\s+(\S+)", served.log.read_text()).group(1)
+        dashboard = open_page(browser, served.dashboard_url, size=LAPTOP)
+        unlock_dashboard(dashboard, token)
+        tablet = open_page(browser, served.tablet_url, touch=True, size=(1180, 820))
+        pair_tablet(dashboard, tablet)
+        run_participant(dashboard, "P01")
+        click(dashboard, "End session")
+        wait_text(dashboard, "No participant open")
+        run_participant(dashboard, "P02")
+        click(dashboard, "End session")
+        wait_text(dashboard, "No participant open")
+        rows = dashboard.locator("table").first.inner_text()
+        assert re.search(r"P01\s+perturbed\s+9 of 9\s+complete", rows), rows
+        assert re.search(r"P02\s+perturbed\s+9 of 9\s+complete", rows), rows
+        shot(dashboard, screens, "dashboard-overview")
+        ports = (int(served.tablet_url.rsplit(":", 1)[1]), int(served.dashboard_url.rsplit(":", 1)[1]))
+        served.process.send_signal(signal.SIGKILL)  # the server dies: the page says so
+        served.process.wait(10)
+        dashboard.wait_for_function(
+            "() => getComputedStyle(document.body, '::after').content.includes('SERVER UNREACHABLE')")
+        shot(dashboard, screens, "dashboard-unreachable")
+        with serve(tmp_path, token=None, ports=ports) as again:
+            assert re.search(r"dashboard token:\s+(\S+)", again.log.read_text()).group(1) == token
+            wait_ready(dashboard)  # the same page reconnects by itself
+            dashboard.wait_for_function(
+                "() => !getComputedStyle(document.body, '::after').content.includes('UNREACHABLE')")
+            unlock_dashboard(dashboard, token)
+            wait_text(dashboard, "P02")
+            again.shutdown()
+    for code in ("P01", "P02"):
+        store = ParticipantStore.open(served.study, code)
+        try:
+            trials = store.rows("trials")
+        finally:
+            store.close()
+        assert sum(t.outcome.value == "completed" for t in trials) == 9
+    assert (served.study / ".dashboard-token").read_text().strip() == token

@@ -1,0 +1,54 @@
+"""The dashboard's words for a session state: 1-based counts, what to press, and blinding."""
+
+from __future__ import annotations
+
+from app.protocol.plan import protocol_slots
+from app.protocol.state import SessionState
+from app.protocol.vocabulary import Phase, ThetaOrigin
+from app.session.config import LabConfig
+from app.session.runner import RunnerView
+from app.ui.status_text import learner_markdown, progress_markdown, start_blocker, status_line
+from robot_io.simulated_hand import Scenario
+from session_store.models import Trial
+
+CONFIG = LabConfig().study_config(Scenario.PERTURBED, 0)  # the paper's protocol: 5 + 4×5 + 1 + 4×2
+SLOTS = protocol_slots(CONFIG)
+
+
+def view_at(interaction: int, **state) -> RunnerView:
+    return RunnerView(code="P07", scenario=Scenario.PERTURBED, interactions=len(SLOTS),
+                      state=SessionState(slots=SLOTS, cursor=interaction - 1, **state))
+
+
+def test_counts_are_one_based_and_name_the_phase():
+    assert progress_markdown(view_at(1)).endswith("Initial handovers · handover 1 of 5")
+    assert progress_markdown(view_at(13)).endswith("Learning batch 2 of 4 · handover 3 of 5")
+    assert progress_markdown(view_at(26)).endswith("Handover with the learned best")
+    assert progress_markdown(view_at(27)).endswith("Questionnaire · 0 of 3 answered")
+    answered = {"Q1": "4", "Q2": "Yes", "Q3": "5"}
+    assert progress_markdown(view_at(29, answers=answered)).endswith(
+        "Validation pair 2 of 4 · handover 1 of 2")
+
+
+def test_status_lines_say_what_to_press():
+    assert status_line(view_at(3, paused=True)) == \
+        "**Paused** — press **Resume session** to continue."
+    assert start_blocker(view_at(3, paused=True)) == "the session is paused: press Resume session"
+    stopped = view_at(3).model_copy(update={"stop": "stopped"})
+    assert "press **Re-arm**" in status_line(stopped)
+    assert "Stopping" in status_line(view_at(3).model_copy(update={"stop": "stopping"}))
+
+
+def test_blinding_hides_theta_and_origin_of_validation_trials_only():
+    def trial(index: int, phase: Phase, origin: ThetaOrigin) -> Trial:
+        return Trial(trial_index=index, interaction=index, attempt=1, phase=phase, batch=1,
+                     position=1, theta_a=3.21, theta_delta=0.12, theta_k=4.56, origin=origin,
+                     hand_seed=1, started_at="2026-01-01T00:00:00+00:00")
+    trials = [trial(26, Phase.LEARNING, ThetaOrigin.LEARNED),
+              trial(29, Phase.VALIDATION, ThetaOrigin.BEST)]
+    view = view_at(30, answers={"Q1": "4"}).model_copy(update={"trials": trials})
+    blind, open_ = learner_markdown(view, blind=True), learner_markdown(view, blind=False)
+    validation_row = next(line for line in blind.splitlines() if line.startswith("| 29 |"))
+    assert "3.21" not in validation_row and "best" not in validation_row
+    assert "3.21" in next(line for line in blind.splitlines() if line.startswith("| 26 |"))
+    assert "| 29 | 29 | validation | 3.21 |" in open_ and "| best |" in open_
