@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from session_helpers import drive_until, short_config
+from support.engine import drive_until, short_config
 
 from app.analysis.report import build_report
 from app.analysis.trajectories import validation_distances

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from session_helpers import drive_until, short_config
+from support.engine import drive_until, short_config
 
 from app.cli import main
 from app.protocol.engine import SessionEngine

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from session_helpers import drive_until
+from support.engine import drive_until
 
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant

@@ -8,7 +8,6 @@ from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.vocabulary import QUESTIONS, Phase, Rater
-from robot_io.trial import simulate_trial
 from session_store.models import Trial
 
 
@@ -39,19 +38,3 @@ def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
     else:
         raise RefusedAction(f"the simulated participant has nothing to do at {step.value!r}")
 
-
-def step_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
-    """Do whatever the session waits for, once, in this process: a trial is one reach of the mock
-    arm on simulated time (the protocol engine's own tests; sessions run trials on the rig)."""
-    state = engine.state
-    if state.paused:
-        engine.resume_session()
-    elif state.step is Step.PLAN:
-        engine.plan_next()
-    elif state.step is Step.READY:
-        plan = engine.start_trial()
-        record = simulate_trial(engine.config.controller, plan.theta, engine.config.scenario,
-                                plan.trial.hand_seed)
-        engine.end_trial(plan.trial.trial_index, record)
-    else:
-        rate_once(engine, participant)

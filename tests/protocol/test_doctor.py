@@ -10,7 +10,7 @@ from contextlib import closing
 from pathlib import Path
 
 import pytest
-from session_helpers import drive_until, new_engine
+from support.engine import drive_until, new_engine
 
 from app.cli import main
 from app.protocol.engine import SessionEngine

@@ -24,10 +24,9 @@ from hypothesis import event, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, precondition, rule
 from pydantic import ValidationError
-from session_helpers import short_config
+from support.engine import short_config, step_once
 
 from app.learning.worker import LearnerClient
-from app.protocol.auto import step_once
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant

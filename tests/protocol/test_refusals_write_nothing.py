@@ -8,7 +8,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
-from session_helpers import drive_until, new_engine
+from support.engine import drive_until, new_engine
 from support.study import as_version_1, fingerprint
 
 from app.cli import main

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 import pytest
-from session_helpers import drive_until, new_engine
+from support.engine import drive_until, new_engine
 from support.store import event_count
 
 from app.learning.config import LearnerConfig

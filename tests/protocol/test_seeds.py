@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 from pydantic import ValidationError
-from session_helpers import new_engine, short_config
+from support.engine import new_engine, short_config
 
 from app.cli import main
 from app.protocol.errors import RefusedAction

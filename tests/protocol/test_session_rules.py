@@ -8,7 +8,7 @@ import sqlite3
 import numpy as np
 import pytest
 from pydantic import ValidationError
-from session_helpers import drive_until, new_engine, short_config
+from support.engine import drive_until, new_engine, short_config
 
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction

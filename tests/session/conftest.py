@@ -1,7 +1,8 @@
 from __future__ import annotations
 
 import pytest
-from support.runner import SHORT_PROTOCOL, Probe
+from support.engine import SHORT_PROTOCOL
+from support.runner import Probe
 
 from app.session.config import LabConfig
 from app.session.rehearsal import Rehearsal

@@ -9,7 +9,8 @@ import stat
 from pathlib import Path
 
 import pytest
-from support.runner import SHORT_PROTOCOL, Probe
+from support.engine import SHORT_PROTOCOL
+from support.runner import Probe
 
 from app.protocol.errors import RefusedAction
 from app.session.access import TOKEN_FILE, dashboard_token

@@ -9,7 +9,8 @@ import html
 
 import pandas as pd
 import pytest
-from support.runner import SHORT_PROTOCOL, Probe
+from support.engine import SHORT_PROTOCOL
+from support.runner import Probe
 
 from app.analysis.report import build_report
 from app.protocol.state import Step

@@ -14,7 +14,8 @@ import time
 
 import numpy as np
 import pytest
-from support.runner import SHORT_PROTOCOL, Probe
+from support.engine import SHORT_PROTOCOL
+from support.runner import Probe
 
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from support.runner import SHORT_PROTOCOL
+from support.engine import SHORT_PROTOCOL
 from support.study import grow, small_disk
 
 from app.cli import main
@@ -80,7 +80,7 @@ def test_a_full_disk_stops_the_session_with_a_message_and_loses_nothing(tmp_path
 
 @pytest.mark.parametrize("target", ["file", "full"])
 def test_an_export_that_cannot_write_is_a_message(tmp_path, capsys, target):
-    from session_helpers import new_engine
+    from support.engine import new_engine
 
     study = tmp_path / "study"
     new_engine(study, "P01").close()

@@ -13,7 +13,7 @@ import sqlite3
 from pathlib import Path
 
 import pytest
-from session_helpers import new_engine
+from support.engine import new_engine
 
 from app.protocol.engine import SessionEngine
 from app.protocol.state import Step

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from session_helpers import drive_until, new_engine
+from support.engine import drive_until, new_engine
 from support.study import as_version_1, checkpointed, fingerprint, read_only
 
 from app.analysis.report import build_report

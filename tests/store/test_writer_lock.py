@@ -10,7 +10,7 @@ import subprocess
 import sys
 
 import pytest
-from session_helpers import new_engine
+from support.engine import new_engine
 
 from app.protocol.engine import SessionEngine
 from session_store.errors import ParticipantLocked

@@ -32,7 +32,7 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
                  "--autoplay-policy=no-user-gesture-required"]
 TOKEN = "test-token"
-#: The short protocol of tests/session_helpers.SHORT, as the [protocol] table of a lab config.
+#: The short protocol of tests/support/engine.SHORT_PROTOCOL, as the [protocol] table of a lab config.
 SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
               "validation_batches = 1\n")
 TIMEOUT_MS = 60_000

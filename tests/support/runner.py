@@ -8,10 +8,6 @@ from collections.abc import Callable
 
 from app.session.runner import RunnerView, SessionRunner
 
-#: 3 initial + 1 learning batch of 3 + 1 best + 1 validation pair = 9 interactions
-SHORT_PROTOCOL = {"initial_trials": 3, "batch_size": 3, "learning_batches": 1, "best_trials": 1,
-                  "validation_batches": 1}
-
 
 class Probe:
     """Subscribes to a runner; :meth:`wait` blocks until a view satisfies a condition."""

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from support.browser import TOKEN, chromium, click, free_port, open_page, unlock_dashboard, wait_text
-from support.runner import SHORT_PROTOCOL, Probe
+from support.engine import SHORT_PROTOCOL
+from support.runner import Probe
 
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig

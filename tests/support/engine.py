@@ -1,23 +1,41 @@
-"""Shared set-up for the session tests: short protocols, driving an engine to a given step."""
+"""Driving a protocol engine in a test: short protocols, one simulated step, up to a given step."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from app.protocol.auto import step_once
+from app.protocol.auto import rate_once
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
 from robot_io.simulated_hand import Scenario
+from robot_io.trial import simulate_trial
 
 #: 3 initial + 1 learning batch of 3 + 1 best + 1 validation pair = 9 interactions
-SHORT = {"initial_trials": 3, "batch_size": 3, "learning_batches": 1, "best_trials": 1,
+SHORT_PROTOCOL = {"initial_trials": 3, "batch_size": 3, "learning_batches": 1, "best_trials": 1,
          "validation_batches": 1}
 
 
 def short_config(seed: int = 1, scenario: Scenario = Scenario.STRAIGHTFORWARD) -> StudyConfig:
-    return StudyConfig(scenario=scenario, seed=seed, **SHORT)
+    return StudyConfig(scenario=scenario, seed=seed, **SHORT_PROTOCOL)
+
+
+def step_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
+    """Do whatever the session waits for, once, in this process: a trial is one reach of the mock
+    arm on simulated time (sessions run their trials on the rig; this is the engine's own tests)."""
+    state = engine.state
+    if state.paused:
+        engine.resume_session()
+    elif state.step is Step.PLAN:
+        engine.plan_next()
+    elif state.step is Step.READY:
+        plan = engine.start_trial()
+        record = simulate_trial(engine.config.controller, plan.theta, engine.config.scenario,
+                                plan.trial.hand_seed)
+        engine.end_trial(plan.trial.trial_index, record)
+    else:
+        rate_once(engine, participant)
 
 
 def drive_until(engine: SessionEngine, step: Step, participant: SimulatedParticipant | None = None,
