@@ -91,12 +91,7 @@ class Rehearsal:
                 hand_source=source,
                 gripper=lab.gripper.model_copy(update={"kind": "tool_output"}))
             self.control = ControlClient(self.host)
-            scene = self.lab.scene
-            self.control("configure_pull", direction=list(scene.point("hand_start")
-                                                          - scene.point("handover_point")),
-                         pull_n=self.lab.hand.pull_n, grasp_delay_s=self.lab.hand.grasp_delay_s,
-                         tool_output=self.lab.gripper.tool_output,
-                         open_level=self.lab.gripper.open_level)
+            self.configure_pull(taken=True)
             self.publisher = HandPublisher(PublisherSpec(
                 config=self.lab.controller, standin_host=self.host,
                 lsl_name=stream if hand == "lsl" else None,
@@ -106,6 +101,18 @@ class Rehearsal:
             self.close()
             raise
         log.info("rehearsal: stand-in UR at %s, simulated hand on %s", self.host, hand)
+
+    def configure_pull(self, taken: bool) -> None:
+        """The stand-in's pull once the simulated hand holds the object at H: the lab's
+        ``[hand] pull_n`` away from H towards the hand's start, or none (``taken=False``: the
+        participant never takes the object, so the hold ends ``not_taken``)."""
+        scene = self.lab.scene
+        self.control("configure_pull", direction=list(scene.point("hand_start")
+                                                      - scene.point("handover_point")),
+                     pull_n=self.lab.hand.pull_n if taken else 0.0,
+                     grasp_delay_s=self.lab.hand.grasp_delay_s,
+                     tool_output=self.lab.gripper.tool_output,
+                     open_level=self.lab.gripper.open_level)
 
     def play(self, scenario: Scenario, seed: int, go_monotonic: float) -> None:
         self.publisher.play(scenario, seed, go_monotonic)

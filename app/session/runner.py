@@ -40,7 +40,9 @@ from app.protocol.state import SessionState, Step
 from app.protocol.stored import stored_session
 from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Actor
+from app.session import faults
 from app.session.config import LabConfig
+from app.session.faults import StagedFault
 from app.session.overview import ParticipantSummary, study_overview
 from app.session.pairing import TabletPairing, TabletStatus
 from app.session.rehearsal import Rehearsal, rehearsal_rig
@@ -111,6 +113,7 @@ class RunnerView(BaseModel):
     preparing: bool = False
     auto: bool = False
     rehearsal: bool = False
+    refusing_object: bool = False  # a rehearsal's simulated participant does not take the object
     arm: str = "no rig open"
     arm_fault: str | None = None
     hand: str = ""
@@ -171,6 +174,7 @@ class SessionRunner:
         self._lock: writer_lock.WriterLock | None = None
         self._ready_wait: str | None = None
         self._auto = False
+        self._refusing_object = False
         self._preparing = False
         self._failed_in_a_row = 0
         self._failed: str | None = None
@@ -353,6 +357,16 @@ class SessionRunner:
         self._auto = on
         self._executor.submit(self._record_switch, on)
         self._changed_now(f"simulated participant {'on' if on else 'off'}")
+
+    def stage_fault(self, fault: StagedFault) -> None:
+        """A rehearsal stages ``fault`` now (see :mod:`app.session.faults`); refused on the rig."""
+        self._changed_now(faults.stage(fault, self.rehearsal, self._rig))
+
+    def refuse_object(self, refuse: bool) -> None:
+        """A rehearsal's simulated participant stops (or starts again) taking the object."""
+        message = faults.refuse_object(self.rehearsal, refuse)
+        self._refusing_object = refuse
+        self._changed_now(message)
 
     # -- the participant's actions (each names the interaction its screen showed) -----------------
     def place(self, interaction: int, position: float | None = None,
@@ -589,6 +603,7 @@ class SessionRunner:
                 "hand": "" if devices is None else devices.hand_detail,
                 "gripper": "" if devices is None else devices.gripper_detail,
                 "arm_fault": self._rig_fault, "rehearsal": self.rehearsal is not None,
+                "refusing_object": self._refusing_object,
                 "learner": "fitting the next θ" if self._preparing else "idle",
                 "learner_fault": self._learner_fault, "failed": self._failed,
                 "ready_wait": self._ready_wait, "stop": self._stop,

@@ -32,6 +32,7 @@ import viser.uplot
 from app.learning.models import PosteriorSlice
 from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
+from app.session.faults import StagedFault
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.guard import TokenGate
 from app.ui.live_view import STRIDE, LiveView
@@ -213,6 +214,9 @@ class DashboardClient:
                 self.devices = gui.add_markdown("")
             with gui.add_folder("Coupling signals (live)"):
                 self.live = LiveView(self.client, self.runner.scene_config())
+            if view.rehearsal:
+                with gui.add_folder("Rehearse a fault", expand_by_default=False):
+                    self._fault_controls(gui, view)
             if view.state is not None:
                 with gui.add_folder("Replay a stored trial", expand_by_default=False):
                     self._replay_controls(gui)
@@ -301,6 +305,17 @@ class DashboardClient:
         controls.auto.on_update(lambda event: None if event.client is None else self._act(
             lambda: self.runner.set_auto(controls.auto.value)))  # not when refresh sets it
         return controls
+
+    def _fault_controls(self, gui: viser.GuiApi, view: RunnerView) -> None:
+        """A rehearsal's staged faults: one button each, and the participant who does not take
+        the object (the rig's reaction is what is rehearsed)."""
+        gui.add_markdown("Stage a fault during a trial to see the rig handle it.")
+        for fault in StagedFault:
+            button = gui.add_button(fault.value, color="orange")
+            button.on_click(lambda _, fault=fault: self._act(lambda: self.runner.stage_fault(fault)))
+        refuse = gui.add_checkbox("The participant does not take the object", view.refusing_object)
+        refuse.on_update(lambda event: None if event.client is None else self._act(
+            lambda: self.runner.refuse_object(refuse.value)))
 
     # -- replay -----------------------------------------------------------------------------------
     def _replay_controls(self, gui: viser.GuiApi) -> None:

@@ -5,8 +5,6 @@ The paper's whole session through ``handover run-session --rehearse``, then one 
 from __future__ import annotations
 
 import json
-import os
-import signal
 import sqlite3
 import subprocess
 import sys
@@ -19,6 +17,7 @@ from support.runner import Probe
 
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
+from app.session.faults import StagedFault
 from app.session.rehearsal import Rehearsal
 from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
@@ -79,7 +78,7 @@ def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(re
     runner, probe = rehearsed
     runner.open("F01", Scenario.STRAIGHTFORWARD, seed=1)
     start_until(runner, probe, Stage.REACH)
-    runner.rehearsal.publisher.occlude(1.5)
+    runner.stage_fault(StagedFault.TRACKER_LOST)  # the dashboard's button
     view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
     first = ended(view, 1)
     state = runner.rehearsal.control("state")
@@ -98,7 +97,7 @@ def test_a_protective_stop_during_hold_aborts_and_the_trial_completes_after_reco
     runner, probe = rehearsed
     runner.open("F02", Scenario.STRAIGHTFORWARD, seed=2)
     start_until(runner, probe, Stage.HOLD)
-    runner.rehearsal.control("protective_stop")
+    runner.stage_fault(StagedFault.PROTECTIVE_STOP)
     view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
     assert ended(view, 1).outcome.value == "aborted" and "protective stop" in ended(view, 1).reason
     assert "protective stop" in view.arm_fault
@@ -114,10 +113,7 @@ def test_a_protective_stop_during_hold_aborts_and_the_trial_completes_after_reco
 
 def test_no_pull_ends_the_trial_not_taken_and_it_is_repeated_not_rated(rehearsed):
     runner, probe = rehearsed
-    control, lab = runner.rehearsal.control, runner.lab
-    pull = {"direction": list(lab.scene.point("hand_start") - lab.scene.point("handover_point")),
-            "grasp_delay_s": 0.5, "tool_output": 0, "open_level": True}
-    control("configure_pull", pull_n=0.0, **pull)  # this participant never takes the object
+    runner.refuse_object(True)  # this participant never takes the object
     runner.open("F03", Scenario.STRAIGHTFORWARD, seed=3)
     start_until(runner, probe, Stage.HOLD)
     view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended", timeout=30)
@@ -125,7 +121,7 @@ def test_no_pull_ends_the_trial_not_taken_and_it_is_repeated_not_rated(rehearsed
     assert first.outcome.value == "not_taken" and first.release_s is None
     assert first.hold_s is not None and first.retract_end_s is not None
     assert view.step.value == "ready"  # repeated, never rated
-    control("configure_pull", pull_n=15.0, **pull)
+    runner.refuse_object(False)
     runner.start_trial()
     view = probe.wait(lambda v: ended(v, 2) is not None, what="trial 2 ended", timeout=30)
     assert (ended(view, 2).interaction, ended(view, 2).outcome.value) == (1, "completed")
@@ -137,7 +133,7 @@ def test_the_rig_process_killed_mid_reach_stops_the_arm_and_the_next_trial_compl
     start_until(runner, probe, Stage.REACH)
     killed = runner.rig.pid
     time.sleep(0.2)
-    os.kill(killed, signal.SIGKILL)
+    runner.stage_fault(StagedFault.RIG_KILLED)
     view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
     assert "killed by signal 9" in view.arm_fault and "during reach" in view.arm_fault
     assert ended(view, 1).outcome.value == "aborted"

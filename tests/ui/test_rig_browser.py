@@ -1,6 +1,7 @@
 """`handover serve --rehearse` in headless Chromium: the initial batch driven from the dashboard (Start
 trial, Object loaded, Go) and placed on the tablet with touch, through the stand-in UR controller and
-the simulated hand on LSL; the dashboard shows each trial's stage of the handover cycle."""
+the simulated hand on LSL; the dashboard shows each trial's stage of the handover cycle. Then a fault
+staged from the dashboard's "Rehearse a fault" panel: a participant who does not take the object."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from support.browser import (
     confirm_placement,
     open_participant,
     open_screens,
+    publish,
     serve,
     shot,
     tablet_screen,
@@ -59,13 +61,26 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
             assert tablet_screen(tablet, not_="wait") == "go"
             watch_stages(dashboard, "[hold]", seen)
             if position == 0.3:
-                shot(dashboard, screens, "dashboard-rehearsal-hold")
+                hold = shot(dashboard, screens, "dashboard-rehearsal-hold")
             assert tablet_screen(tablet, not_=("go", "back")) == "place"
             touch_drag_to(tablet, position)
             confirm_placement(tablet)
             assert tablet_screen(tablet, not_="place") == "wait"
         wait_text(dashboard, "3 of 9 handovers completed")
+        dashboard.get_by_text("Rehearse a fault", exact=True).first.click()
+        dashboard.locator("xpath=//*[normalize-space(text())='The participant does not take the "
+                          "object']/following::input[1]").check()
+        wait_text(dashboard, "the simulated participant will not take the object")
+        faults = shot(dashboard, screens, "dashboard-rehearse-a-fault")
+        click(dashboard, "Start trial")
+        wait_text(dashboard, "into the gripper, then press")
+        click(dashboard, "Object loaded")
+        wait_text(dashboard, "hand is at the start — press Go")
+        click(dashboard, "Go")
+        wait_text(dashboard, "trial 4 not_taken")
+        assert tablet_screen(tablet) == "wait"  # a handover not taken is never rated
         served.shutdown()
+    publish([hold, faults])
     assert seen == set(SEEN_STAGES)
     store = ParticipantStore.open(served.study, "P01")
     try:
@@ -75,9 +90,11 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
         placements = [p.position for p in store.rows("placements")]
     finally:
         store.close()
-    assert [t.outcome.value for t in trials] == ["completed"] * 3
-    assert all(t.release_s > t.hold_s and t.peak_pull_n >= 10.0 for t in trials)
-    assert stages == ["prepare", "loaded", "ready", "go", "reach", "hold", "release", "retract",
-                      "done"] * 3
+    assert [t.outcome.value for t in trials] == ["completed"] * 3 + ["not_taken"]
+    assert all(t.release_s > t.hold_s and t.peak_pull_n >= 10.0 for t in trials[:3])
+    assert trials[3].release_s is None and trials[3].interaction == 4  # repeated, not rated
+    assert stages[:27] == ["prepare", "loaded", "ready", "go", "reach", "hold", "release",
+                           "retract", "done"] * 3
+    assert "release" not in stages[27:] and stages[-1] == "done"
     assert devices[0]["arm"] == "ur" and devices[0]["hand_source"] == "lsl"
     assert placements == pytest.approx([0.3, 0.8, 0.55], abs=0.01)
