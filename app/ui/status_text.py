@@ -29,17 +29,28 @@ PHASE_WORDS = {Phase.INITIAL: "Initial handovers", Phase.LEARNING: "Learning bat
                Phase.BEST: "Handover with the learned best", Phase.VALIDATION: "Validation pair"}
 
 
-def start_blocker(view: RunnerView) -> str | None:
-    """Why Start trial cannot be pressed now (None: it can)."""
+def _halted(view: RunnerView) -> tuple[str, str] | None:
+    """The states in which nothing goes on, in two phrasings: why Start trial is locked, and the
+    status line (None: none of them)."""
     state = view.state
     if state is None:
-        return "no participant is open"
+        return ("no participant is open",
+                "No participant open — create or resume one under **Study**.")
     if view.stop == "stopping":
-        return "the arm is stopping"
+        return "the arm is stopping", "**Stopping the arm …**"
     if view.stop == "stopped":
-        return "the arm was stopped: make sure the scene is safe, then press Re-arm"
+        return ("the arm was stopped: make sure the scene is safe, then press Re-arm",
+                "**Arm stopped** — make sure the scene is safe, then press **Re-arm**.")
     if state.paused:
-        return "the session is paused: press Resume session"
+        return ("the session is paused: press Resume session",
+                "**Paused** — press **Resume session** to continue.")
+    return None
+
+
+def start_blocker(view: RunnerView) -> str | None:
+    """Why Start trial cannot be pressed now (None: it can)."""
+    if (halted := _halted(view)) is not None:
+        return halted[0]
     if view.tablet_required and view.tablet is not None and view.tablet.blocker():
         return view.tablet.blocker()
     if view.arm_fault:
@@ -49,15 +60,9 @@ def start_blocker(view: RunnerView) -> str | None:
 
 def status_line(view: RunnerView) -> str:
     """One line: what the session waits for and what to do, e.g. "Paused — press Resume"."""
+    if (halted := _halted(view)) is not None:
+        return halted[1]
     state = view.state
-    if state is None:
-        return "No participant open — create or resume one under **Study**."
-    if view.stop == "stopping":
-        return "**Stopping the arm …**"
-    if view.stop == "stopped":
-        return "**Arm stopped** — make sure the scene is safe, then press **Re-arm**."
-    if state.paused:
-        return "**Paused** — press **Resume session** to continue."
     step = state.step
     if step is Step.PLAN or view.preparing:
         return "**Preparing the next handover** (the learner chooses it) — please wait."
