@@ -39,7 +39,7 @@ from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import SessionState, Step
 from app.protocol.stored import stored_session
 from app.protocol.study import StudyConfig
-from app.protocol.vocabulary import Actor
+from app.protocol.vocabulary import Actor, Rater
 from app.session import faults
 from app.session.config import LabConfig
 from app.session.faults import StagedFault
@@ -369,18 +369,20 @@ class SessionRunner:
         self._changed_now(message)
 
     # -- the participant's actions (each names the interaction its screen showed) -----------------
+    # ``by``: the participant on the tablet, or the experimenter entering it for them (dashboard)
     def place(self, interaction: int, position: float | None = None,
-              equal_to: int | None = None) -> None:
+              equal_to: int | None = None, by: Rater = Rater.PARTICIPANT) -> None:
         self._call(lambda: self._require_current(interaction, Step.PLACE).place(
-            position=position, equal_to=equal_to))
+            position=position, equal_to=equal_to, by=by))
         self._changed(None)
 
-    def rate(self, interaction: int, rating: str) -> None:
-        self._call(lambda: self._require_current(interaction, Step.RATE).rate_validation(rating))
+    def rate(self, interaction: int, rating: str, by: Rater = Rater.PARTICIPANT) -> None:
+        self._call(lambda: self._require_current(interaction, Step.RATE).rate_validation(
+            rating, by=by))
         self._changed(None)
 
-    def answer(self, question: str, value: str) -> None:
-        self._call(lambda: self._require_engine().answer(question, value))
+    def answer(self, question: str, value: str, by: Rater = Rater.PARTICIPANT) -> None:
+        self._call(lambda: self._require_engine().answer(question, value, by=by))
         self._changed(None)
 
     # -- shutdown ---------------------------------------------------------------------------------

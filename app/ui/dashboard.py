@@ -1,5 +1,6 @@
-"""The experimenter's dashboard: safety, study overview, participant, session control, devices, live
-view and replay, learner.
+"""The experimenter's dashboard: safety, study overview, participant, session control, entries for
+the participant (:mod:`app.ui.on_behalf`), devices, live view and replay, a rehearsal's staged
+faults, learner.
 
 A client sees only a token field until it enters the dashboard token (kept with the study). After
 that its panels are rendered from the runner's published :class:`RunnerView` (a reload rebuilds them
@@ -36,6 +37,7 @@ from app.session.faults import StagedFault
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.guard import TokenGate
 from app.ui.live_view import STRIDE, LiveView
+from app.ui.on_behalf import OnBehalf
 from app.ui.replay import SPEEDS, Replay
 from app.ui.status_text import (
     devices_markdown,
@@ -181,6 +183,7 @@ class DashboardClient:
                 self.progress.content = progress_markdown(view)
                 self.learner.content = learner_markdown(view, self.blind)
                 self.controls.enable_for(view)
+                self.on_behalf.show(view)
                 self._trials_for_replay(view)
                 if view.posterior:
                     self.posterior.data = posterior_data(view.posterior)
@@ -214,6 +217,9 @@ class DashboardClient:
                 self.devices = gui.add_markdown("")
             with gui.add_folder("Coupling signals (live)"):
                 self.live = LiveView(self.client, self.runner.scene_config())
+            if view.state is not None:
+                with gui.add_folder("Enter for the participant", expand_by_default=False):
+                    self.on_behalf = OnBehalf.build(gui, self.runner, self._act)
             if view.rehearsal:
                 with gui.add_folder("Rehearse a fault", expand_by_default=False):
                     self._fault_controls(gui, view)

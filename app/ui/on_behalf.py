@@ -1,0 +1,113 @@
+"""The dashboard's "Enter for the participant": when the tablet cannot be used (it died, the
+participant cannot hold it), the experimenter enters what the participant says — the placement on
+the scale, the validation rating, an answer — and the store records it as entered by the
+experimenter on the participant's behalf (``Rater.EXPERIMENTER``), so the export tells it apart.
+
+Each entry is its own deliberate button and is enabled only while the session waits for that kind
+of entry; it names the handover (or question) it is for, and the runner refuses it if the session
+has moved on meanwhile (e.g. the tablet answered first)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import viser
+
+from app.protocol.state import Step
+from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Rater
+from app.session.runner import RunnerView, SessionRunner
+from app.ui.tablet import RATINGS, answer_options
+
+#: The "same as" choice that means: a position on the scale, not an earlier marker.
+NOT_EQUAL = "— (use the position)"
+
+
+@dataclass
+class OnBehalf:
+    """The folder's widgets; :meth:`show` follows the session, the buttons act through ``act``."""
+
+    what: viser.GuiMarkdownHandle
+    position: viser.GuiSliderHandle
+    same_as: viser.GuiDropdownHandle
+    place: viser.GuiButtonHandle
+    ratings: list[viser.GuiButtonHandle]
+    answer: viser.GuiDropdownHandle
+    store_answer: viser.GuiButtonHandle
+
+    @classmethod
+    def build(cls, gui: viser.GuiApi, runner: SessionRunner,
+              act: Callable[[Callable[[], None]], None]) -> OnBehalf:
+        gui.add_markdown("Only when the tablet cannot be used: enter what the participant tells "
+                         "you. It is stored as entered by the experimenter for the participant.")
+        entry = cls(
+            what=gui.add_markdown(""),
+            position=gui.add_slider("Scale: 0 Strongly Worse … 1 Strongly Better", min=0.0,
+                                    max=1.0, step=0.01, initial_value=0.5),
+            same_as=gui.add_dropdown("Or the same as", [NOT_EQUAL]),
+            place=gui.add_button("Store the placement for the participant"),
+            ratings=[gui.add_button(f"Second felt: {text}") for text, _ in RATINGS],
+            answer=gui.add_dropdown("Answer", ["—"]),
+            store_answer=gui.add_button("Store the answer for the participant"),
+        )
+        by = Rater.EXPERIMENTER
+
+        def place() -> None:
+            state = runner.view.state
+            if entry.same_as.value == NOT_EQUAL:
+                runner.place(state.slot.interaction, position=entry.position.value, by=by)
+                return
+            label = int(entry.same_as.value.split()[-1])  # as the tablet numbers the batch
+            same = next((m.interaction for m in state.markers if m.label == label), None)
+            if same is None:
+                raise ValueError(f"handover {label} is not on the scale any more")
+            runner.place(state.slot.interaction, equal_to=same, by=by)
+
+        def rate(value: str) -> None:
+            runner.rate(runner.view.state.slot.interaction, value, by=by)
+
+        def answer() -> None:
+            question = _question(runner.view)
+            labels = dict(answer_options(question))
+            if entry.answer.value not in labels:
+                raise ValueError("choose the participant's answer first")
+            runner.answer(question, labels[entry.answer.value], by=by)
+
+        entry.place.on_click(lambda _: act(place))
+        for button, (_, value) in zip(entry.ratings, RATINGS, strict=True):
+            button.on_click(lambda _, value=value: act(lambda: rate(value)))
+        entry.store_answer.on_click(lambda _: act(answer))
+        return entry
+
+    def show(self, view: RunnerView) -> None:
+        """Enable the entry the session waits for, and say which handover or question it is."""
+        state = view.state
+        step = None if state is None or state.paused else state.step
+        self.place.disabled = self.position.disabled = self.same_as.disabled = step is not Step.PLACE
+        for button in self.ratings:
+            button.disabled = step is not Step.RATE
+        self.answer.disabled = self.store_answer.disabled = step is not Step.ANSWER
+        markers = [] if step is not Step.PLACE else [f"handover {m.label}" for m in state.markers]
+        options = (NOT_EQUAL, *markers)
+        if tuple(self.same_as.options) != options:
+            self.same_as.options = options
+            self.same_as.value = NOT_EQUAL
+        if step is Step.PLACE:
+            self.what.content = f"The participant places **handover {state.slot.position}**."
+        elif step is Step.RATE:
+            self.what.content = ("The participant compares the **second handover of the pair** "
+                                 "with the first.")
+        elif step is Step.ANSWER:
+            question = QUESTION_BY_ID[_question(view)]
+            self.what.content = f"**{question.id}**: {question.text}"
+        else:
+            self.what.content = "Nothing to enter now."
+        labels = tuple(text for text, _ in answer_options(_question(view))) \
+            if step is Step.ANSWER else ("—",)
+        if tuple(self.answer.options) != labels:
+            self.answer.options = labels
+
+
+def _question(view: RunnerView) -> str:
+    """The first question not answered yet (the order the tablet asks them in)."""
+    return next(q.id for q in QUESTIONS if q.id not in view.state.answers)

@@ -1,0 +1,69 @@
+"""The dashboard's "Enter for the participant", in headless Chromium against `handover serve`: the
+experimenter enters a placement at a scale position and one "the same as" an earlier handover; the
+tablet moves on as if the participant had confirmed; the third is placed on the tablet by touch. The
+store and its export tell the experimenter's entries from the participant's own."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from support.browser import (
+    button,
+    chromium,
+    click,
+    confirm_placement,
+    open_participant,
+    open_screens,
+    run_trial,
+    serve,
+    shot,
+    tablet_screen,
+    touch_drag_to,
+    wait_text,
+)
+
+from session_store.export import export_study, read_table
+
+pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+STORE = "Store the placement for the participant"
+
+
+def test_the_experimenter_enters_placements_for_the_participant(tmp_path: Path) -> None:
+    with serve(tmp_path) as served, chromium() as browser:
+        dashboard, tablet = open_screens(browser, served)
+        open_participant(dashboard, "P01")
+        dashboard.get_by_text("Enter for the participant", exact=True).first.click()
+        wait_text(dashboard, "Nothing to enter now.")
+        assert button(dashboard, STORE).is_disabled()  # nothing waits for a placement yet
+
+        assert run_trial(dashboard, tablet) == "place"
+        wait_text(dashboard, "The participant places handover 1")
+        click(dashboard, STORE)  # the slider's middle: 0.5
+        assert tablet_screen(tablet, not_="place") == "wait"  # the tablet moves on
+
+        assert run_trial(dashboard, tablet) == "place"
+        wait_text(dashboard, "The participant places handover 2")
+        dashboard.locator("xpath=//*[normalize-space(text())='Or the same as']"
+                          "/following::input[1]").click()
+        dashboard.get_by_role("option", name="handover 1").click()
+        shot(dashboard, tmp_path / "screens", "dashboard-on-behalf")
+        click(dashboard, STORE)
+        assert tablet_screen(tablet, not_="place") == "wait"
+
+        assert run_trial(dashboard, tablet) == "place"
+        touch_drag_to(tablet, 0.8)
+        confirm_placement(tablet)  # the participant's own, on the tablet
+        wait_text(dashboard, "3 of 9 handovers completed")
+        served.shutdown()
+    export_study(served.study, tmp_path / "export")
+    placements = read_table(tmp_path / "export", "placements").set_index("interaction")
+    assert placements["actor"].to_dict() == {1: "experimenter", 2: "experimenter",
+                                             3: "participant"}
+    assert placements.loc[1, "position"] == pytest.approx(0.5)
+    assert placements.loc[2, "equal_to"] == 1
+    assert placements.loc[3, "position"] == pytest.approx(0.8, abs=0.01)
+    events = read_table(tmp_path / "export", "events")
+    placed = events[events["kind"] == "placement_made"]["actor"].tolist()
+    assert placed == ["experimenter", "experimenter", "participant"]
