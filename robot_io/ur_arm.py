@@ -13,7 +13,8 @@ that implies more than the speed or acceleration cap, is refused — never sent 
   becomes ``ArmState.FAULT`` with a plain-words ``fault``; the loop then aborts the trial.
 * Every value read from the controller is checked finite before it is used: a NaN or infinite
   pose, speed, force or time stamp is an arm fault (nothing more is sent), never a number to compute
-  a motion from.
+  a motion from. The joint angles (``actual_q``) are only recorded and drawn, never used for a motion:
+  they are passed on as read, and a non-finite one shows as missing.
 * :meth:`recover` is the documented way back: reconnect what dropped, unlock a protective stop once
   the controller's 5 s have passed, re-upload the control script. The experimenter calls it (a
   protective stop is to be inspected before unlocking); it moves nothing.
@@ -35,8 +36,8 @@ from robot_io.ur_worker import ControlWorker
 log = logging.getLogger(__name__)
 
 #: What the backend subscribes to on the receive interface.
-VARIABLES = ["timestamp", "actual_TCP_pose", "actual_TCP_speed", "actual_TCP_force", "robot_mode",
-             "safety_mode", "runtime_state", "robot_status_bits", "safety_status_bits"]
+VARIABLES = ["timestamp", "actual_TCP_pose", "actual_q", "actual_TCP_speed", "actual_TCP_force",
+             "robot_mode", "safety_mode", "runtime_state", "robot_status_bits", "safety_status_bits"]
 PROTECTIVE_STOPPED_BIT = 2
 EMERGENCY_STOPPED_BITS = (5, 6, 7)  # system, robot, any emergency stop
 PROGRAM_RUNNING_BIT = 1
@@ -145,6 +146,10 @@ class URArm:
     def read_pose(self) -> np.ndarray:
         """TCP position [m], base frame; a non-finite reading faults the arm (ArmFault)."""
         return self._finite(self._receive.getActualTCPPose()[:3], "TCP position")
+
+    def read_joints(self) -> np.ndarray:
+        """The six joint angles [rad] (``getActualQ``: base, shoulder, elbow, wrist 1–3), as read."""
+        return np.asarray(self._receive.getActualQ(), dtype=float)
 
     def read_force(self) -> np.ndarray:
         """Force at the TCP [N], base frame (CB-series: estimated from joint currents, ±10 N); a
