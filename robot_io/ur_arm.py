@@ -49,6 +49,8 @@ ARRIVED_M = 5e-4
 REST_SPEED = 1e-3
 #: Relative slack on the speed and acceleration caps (floating point of the limiter upstream).
 CAP_SLACK = 1e-6
+#: Reads of the TCP pose and joint angles until both come from one state package.
+SAME_STATE_TRIES = 3
 #: While streaming, the controller's state time stamp must advance at least this often [s].
 STATE_SILENCE_S = 0.1
 
@@ -67,6 +69,7 @@ class URArm:
         self.period = 1.0 / 125
         self._last = np.zeros(3)
         self._last_velocity = np.zeros(3)
+        self._joints = np.full(6, np.nan)
         self.connect()
 
     # -- connection ----------------------------------------------------------------------------
@@ -144,12 +147,23 @@ class URArm:
         return speed > REST_SPEED and self._receive.isConnected()
 
     def read_pose(self) -> np.ndarray:
-        """TCP position [m], base frame; a non-finite reading faults the arm (ArmFault)."""
-        return self._finite(self._receive.getActualTCPPose()[:3], "TCP position")
+        """TCP position [m], base frame; a non-finite reading faults the arm (ArmFault). The joint
+        angles of the same controller state are kept for :meth:`read_joints`: ur_rtde updates its
+        state a whole package at a time, so a time stamp unchanged across both reads means one
+        package (a new one in between is read again)."""
+        receive = self._receive
+        for _ in range(SAME_STATE_TRIES):
+            stamp = receive.getTimestamp()
+            pose, joints = receive.getActualTCPPose(), receive.getActualQ()
+            if receive.getTimestamp() == stamp:
+                break
+        self._joints = np.asarray(joints, dtype=float)
+        return self._finite(pose[:3], "TCP position")
 
     def read_joints(self) -> np.ndarray:
-        """The six joint angles [rad] (``getActualQ``: base, shoulder, elbow, wrist 1–3), as read."""
-        return np.asarray(self._receive.getActualQ(), dtype=float)
+        """The six joint angles [rad] (``actual_q``: base, shoulder, elbow, wrist 1–3) of the state
+        the last :meth:`read_pose` read, as read."""
+        return self._joints
 
     def read_force(self) -> np.ndarray:
         """Force at the TCP [N], base frame (CB-series: estimated from joint currents, ±10 N); a
