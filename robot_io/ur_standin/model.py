@@ -71,9 +71,9 @@ EMERGENCY_STOPPED_BIT = 7
 POWER_ON_BIT, PROGRAM_RUNNING_BIT = 0, 1
 #: The dashboard refuses to unlock a protective stop within this many seconds of it.
 UNLOCK_DELAY_S = 5.0
-#: The joint angles the stand-in's first inverse kinematics starts from [rad]: UR's upright "home"
-#: (0, −π/2, π/2, −π/2, −π/2, 0) turned to face +x, where the table-top scene is: shoulder up,
-#: elbow up, tool pointing down.
+#: The joint angles the stand-in's first inverse kinematics starts from [rad]: the usual UR "ready"
+#: pose (0, −π/2, π/2, −π/2, −π/2, 0) turned to face +x, where the table-top scene is: elbow up,
+#: tool pointing down (the TCP at (0.487, 0.109, 0.432) m).
 READY_Q = (np.pi, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0)
 
 
@@ -86,7 +86,7 @@ class Arm:
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
     max_speed: float = 1.5
     q: np.ndarray = field(default_factory=lambda: np.array(READY_Q))
-    _q_pose: np.ndarray | None = None
+    _q_pose: np.ndarray | None = field(default=None, init=False, repr=False)  # the pose of q
 
     def joints(self) -> np.ndarray:
         """The joint angles of the current pose [rad]: the inverse-kinematics solution nearest the
