@@ -40,6 +40,10 @@ class Arm(Protocol):
     def read_pose(self) -> np.ndarray:
         """The measured TCP position."""
 
+    def read_joints(self) -> np.ndarray | None:
+        """The measured joint angles [rad] of the state the last :meth:`read_pose` read, or None
+        for an arm that does not report them."""
+
     def read_force(self) -> np.ndarray:
         """The force at the TCP [N], base frame (the participant's pull while holding)."""
 

@@ -189,6 +189,9 @@ class HandoverLoop:
                 row = recorder.next_row()
                 row[SLICES["t"]] = t
                 row[SLICES["measured"]] = measured
+                joints = self.arm.read_joints()
+                if joints is not None:
+                    row[SLICES["q"]] = joints
                 row[SLICES["lateness_s"]] = lateness
                 if last is not None:
                     if not started:

@@ -97,6 +97,10 @@ class MockArm:
         self._advance()
         return self.position.copy()
 
+    def read_joints(self) -> None:
+        """The mock models the TCP only: it has no joint angles."""
+        return None
+
     def read_force(self) -> np.ndarray:
         """The force on the TCP [N]: what ``force(position, speed)`` says (the simulated
         participant's pull), zero without it."""

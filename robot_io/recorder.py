@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Column groups of a trial sample row, in order: name, width (vectors are x, y, z), meaning.
+#: Column groups of a trial sample row, in order: name, width (3-vectors are x, y, z), meaning.
 COLUMNS: tuple[tuple[str, int, str], ...] = (
     ("t", 1, "trial time since Go [s]"),
     ("s", 1, "DMP phase s, eq. (3)"),
@@ -22,6 +22,8 @@ COLUMNS: tuple[tuple[str, int, str], ...] = (
     ("c_s", 3, "spatial coupling C_s, eq. (9)"),
     ("commanded", 3, "target sent to the arm after the safety limiter [m]"),
     ("measured", 3, "TCP position read from the arm [m]"),
+    ("q", 6, "joint angle read from the arm [rad] (joints 0 base, 1 shoulder, 2 elbow, 3–5 wrist 1–3; "
+             "empty for an arm that does not report them: the mock)"),
     ("limited", 1, "safety limiter flags: 1 acceleration, 2 speed, 4 workspace"),
     ("stage", 1, "stage of the handover cycle: 1 reach, 2 hold, 3 released (robot_io.stages)"),
     ("force", 3, "force at the TCP while holding [N] (empty during the reach)"),
@@ -54,7 +56,7 @@ class TrialRecorder:
         return row
 
     def columns(self) -> dict[str, np.ndarray]:
-        """Named columns of the rows written so far; vectors have shape (n, 3)."""
+        """Named columns of the rows written so far; a group of width w > 1 has shape (n, w)."""
         return self._named(self._rows[: self.count])
 
     def view(self, stride: int = 1) -> dict[str, np.ndarray]:

@@ -13,7 +13,8 @@ that implies more than the speed or acceleration cap, is refused — never sent 
   becomes ``ArmState.FAULT`` with a plain-words ``fault``; the loop then aborts the trial.
 * Every value read from the controller is checked finite before it is used: a NaN or infinite
   pose, speed, force or time stamp is an arm fault (nothing more is sent), never a number to compute
-  a motion from.
+  a motion from. The joint angles (``actual_q``) are only recorded and drawn, never used for a motion:
+  they are passed on as read, and a non-finite one shows as missing.
 * :meth:`recover` is the documented way back: reconnect what dropped, unlock a protective stop once
   the controller's 5 s have passed, re-upload the control script. The experimenter calls it (a
   protective stop is to be inspected before unlocking); it moves nothing.
@@ -35,8 +36,8 @@ from robot_io.ur_worker import ControlWorker
 log = logging.getLogger(__name__)
 
 #: What the backend subscribes to on the receive interface.
-VARIABLES = ["timestamp", "actual_TCP_pose", "actual_TCP_speed", "actual_TCP_force", "robot_mode",
-             "safety_mode", "runtime_state", "robot_status_bits", "safety_status_bits"]
+VARIABLES = ["timestamp", "actual_TCP_pose", "actual_q", "actual_TCP_speed", "actual_TCP_force",
+             "robot_mode", "safety_mode", "runtime_state", "robot_status_bits", "safety_status_bits"]
 PROTECTIVE_STOPPED_BIT = 2
 EMERGENCY_STOPPED_BITS = (5, 6, 7)  # system, robot, any emergency stop
 PROGRAM_RUNNING_BIT = 1
@@ -48,6 +49,8 @@ ARRIVED_M = 5e-4
 REST_SPEED = 1e-3
 #: Relative slack on the speed and acceleration caps (floating point of the limiter upstream).
 CAP_SLACK = 1e-6
+#: Reads of the TCP pose and joint angles until both come from one state package.
+SAME_STATE_TRIES = 3
 #: While streaming, the controller's state time stamp must advance at least this often [s].
 STATE_SILENCE_S = 0.1
 
@@ -66,6 +69,7 @@ class URArm:
         self.period = 1.0 / 125
         self._last = np.zeros(3)
         self._last_velocity = np.zeros(3)
+        self._joints = np.full(6, np.nan)
         self.connect()
 
     # -- connection ----------------------------------------------------------------------------
@@ -143,8 +147,23 @@ class URArm:
         return speed > REST_SPEED and self._receive.isConnected()
 
     def read_pose(self) -> np.ndarray:
-        """TCP position [m], base frame; a non-finite reading faults the arm (ArmFault)."""
-        return self._finite(self._receive.getActualTCPPose()[:3], "TCP position")
+        """TCP position [m], base frame; a non-finite reading faults the arm (ArmFault). The joint
+        angles of the same controller state are kept for :meth:`read_joints`: ur_rtde updates its
+        state a whole package at a time, so a time stamp unchanged across both reads means one
+        package (a new one in between is read again)."""
+        receive = self._receive
+        for _ in range(SAME_STATE_TRIES):
+            stamp = receive.getTimestamp()
+            pose, joints = receive.getActualTCPPose(), receive.getActualQ()
+            if receive.getTimestamp() == stamp:
+                break
+        self._joints = np.asarray(joints, dtype=float)
+        return self._finite(pose[:3], "TCP position")
+
+    def read_joints(self) -> np.ndarray:
+        """The six joint angles [rad] (``actual_q``: base, shoulder, elbow, wrist 1–3) of the state
+        the last :meth:`read_pose` read, as read."""
+        return self._joints
 
     def read_force(self) -> np.ndarray:
         """Force at the TCP [N], base frame (CB-series: estimated from joint currents, ±10 N); a

@@ -31,14 +31,23 @@ from session_store.models import (
 AXES = ("x", "y", "z")
 
 
+def column_suffixes(width: int) -> tuple[str, ...]:
+    """How a sample column group of ``width`` is flattened: none for a scalar, ``x``, ``y``, ``z``
+    for a 3-vector, ``0`` … ``width − 1`` otherwise (the joint angles q_0 … q_5)."""
+    if width == 1:
+        return ()
+    return AXES if width == len(AXES) else tuple(str(i) for i in range(width))
+
+
 def sample_columns() -> dict[str, str]:
-    """Flat columns of a trial sample row and their meaning: vectors become ``name_x`` … ``name_z``."""
+    """Flat columns of a trial sample row and their meaning: vectors become ``name_x`` … ``name_z``,
+    other groups ``name_0`` … (:func:`column_suffixes`)."""
     columns = {}
     for name, width, meaning in SAMPLE_COLUMNS:
         if width == 1:
             columns[name] = meaning
-        for axis in AXES[:width] if width > 1 else ():
-            columns[f"{name}_{axis}"] = f"{meaning}, {axis}"
+        for suffix in column_suffixes(width):
+            columns[f"{name}_{suffix}"] = f"{meaning}, {suffix}"
     return columns
 
 
@@ -147,6 +156,15 @@ def _add_provenance(db: Database) -> None:
         _add_columns(db, table, {"actor": str})
 
 
+#: Version 4 (the arm's joints): each sample's joint angles as read from the arm [rad], base …
+#: wrist 3. Empty (NULL) for an arm that does not report them and in rows stored before it.
+V4_SAMPLE_COLUMNS = {f"q_{i}": float for i in range(6)}
+
+
+def _add_joint_columns(db: Database) -> None:
+    _add_columns(db, "samples", V4_SAMPLE_COLUMNS)
+
+
 MIGRATIONS: dict[int, Callable[[Database], None]] = {1: _create_v1, 2: _add_cycle_columns,
-                                                     3: _add_provenance}
+                                                     3: _add_provenance, 4: _add_joint_columns}
 SCHEMA_VERSION = max(MIGRATIONS)

@@ -1,8 +1,9 @@
 """A stored trial's samples as the columns the live view draws, for a replay on the dashboard.
 
-The store keeps one row per control cycle with vectors flattened to ``name_x`` … ``name_z`` and NaN as
-NULL (:mod:`session_store.schema`); here they become the recorder's own columns again (vectors of
-shape (n, 3), NULL back to NaN), so a replay draws exactly what the loop recorded.
+The store keeps one row per control cycle with vectors flattened to ``name_x`` … ``name_z`` (the joint
+angles to ``q_0`` … ``q_5``) and NaN as NULL (:mod:`session_store.schema`); here they become the
+recorder's own columns again (groups of shape (n, width), NULL back to NaN), so a replay draws exactly
+what the loop recorded.
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from robot_io.recorder import COLUMNS
-from session_store.schema import AXES
+from session_store.schema import column_suffixes
 
 
 def stored_rows(samples: list[dict[str, Any]]) -> dict[str, np.ndarray]:
@@ -25,6 +26,6 @@ def stored_rows(samples: list[dict[str, Any]]) -> dict[str, np.ndarray]:
         if width == 1:
             rows[name] = column(name)
         else:
-            rows[name] = np.stack([column(f"{name}_{axis}") for axis in AXES[:width]], axis=1) \
-                if samples else np.zeros((0, width))
+            rows[name] = np.stack([column(f"{name}_{suffix}") for suffix in column_suffixes(width)],
+                                  axis=1) if samples else np.zeros((0, width))
     return rows

@@ -42,6 +42,7 @@ from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Actor, Rater
 from app.session import faults
 from app.session.config import LabConfig
+from app.session.drawing import with_links
 from app.session.faults import StagedFault
 from app.session.overview import ParticipantSummary, study_overview
 from app.session.pairing import TabletPairing, TabletStatus
@@ -203,11 +204,12 @@ class SessionRunner:
         self._listeners.append(listener)
 
     def live(self, stride: int = 1) -> tuple[TrialPlan | None, dict[str, np.ndarray] | None]:
-        """The running (or last) trial and its rows so far, for live displays (never blocks)."""
+        """The running (or last) trial and its rows so far with the arm's links
+        (:func:`~app.session.drawing.with_links`), for live displays (never blocks)."""
         rig = self._rig
         if rig is None or self._plan is None or rig.stream.trial_index != self._plan.trial.trial_index:
             return self._plan, None
-        return self._plan, rig.stream.view(stride)
+        return self._plan, with_links(rig.stream.view(stride))
 
     def scene_config(self) -> SceneConfig:
         """The geometry of the open session (the lab's before one is open)."""
@@ -223,8 +225,8 @@ class SessionRunner:
         return self._rig
 
     def trial_rows(self, trial_index: int) -> dict[str, np.ndarray]:
-        """A stored trial of the open participant, as the live view's columns (for a replay);
-        refused while a trial runs."""
+        """A stored trial of the open participant, as the live view's columns with the arm's links
+        (for a replay); refused while a trial runs."""
         def read() -> dict[str, np.ndarray]:
             engine = self._require_engine()
             if engine.state.running_trial is not None:
@@ -235,7 +237,7 @@ class SessionRunner:
             rows = stored_rows(engine.store.samples(trial_index))
             if len(rows["t"]) < 2:
                 raise RefusedAction(f"trial {trial_index} has no recorded samples to replay")
-            return rows
+            return with_links(rows)
         return self._call(read)
 
     # -- the tablet (one per session) -------------------------------------------------------------

@@ -1,9 +1,11 @@
 """The dashboard's live view of a handover: a 3-D scene and the coupling signals, from the loop's rows.
 
-Scene (robot base frame, metres, z up): a stand-in arm (base column and two links to the TCP — the
-UR5 meshes are not installed by default), the TCP and its path (blue), the tracked hand and its path
-(red), the handover point H (green), the robot start R. Plots: τ = τ0(1 + C_t) (eq. 5), σ_j(d̃̇)
-(eq. 10) and the filtered distance d̃ (eq. 7) against trial time.
+Scene (robot base frame, metres, z up): the arm — where the rows carry the joint angles the arm
+reported, the UR5 as kinematic links through its joint positions (``links``, computed by forward
+kinematics below this package: :mod:`app.session.drawing`), otherwise (the mock arm, samples stored
+without them) a stand-in arm (base column and two links to the TCP) — the TCP and its path (blue), the
+tracked hand and its path (red), the handover point H (green), the robot start R. Plots:
+τ = τ0(1 + C_t) (eq. 5), σ_j(d̃̇) (eq. 10) and the filtered distance d̃ (eq. 7) against trial time.
 """
 
 from __future__ import annotations
@@ -20,6 +22,8 @@ SIGNALS: tuple[tuple[str, str, str], ...] = (("tau", "τ [s]", "#1c7ed6"),
                                              ("sigma_j", "σ_j", "#e8590c"),
                                              ("d_filtered", "d̃ [m]", "#2b8a3e"))
 BASE_TOP = np.array([0.0, 0.0, 0.35])
+#: Thickness of the UR5's drawn links [m] (its tubes are 0.09–0.12 m across).
+UR5_THICKNESS = 0.06
 
 
 def _segments(path: np.ndarray) -> np.ndarray:
@@ -45,14 +49,16 @@ class LiveView:
         scene.add_grid("/floor", width=2.0, height=2.0, cell_size=0.1, position=(0.5, 0.0, 0.0))
         start = scene_config.point("robot_start")
         goal = scene_config.point("handover_point")
-        scene.add_cylinder("/arm/base", radius=0.07, height=0.35, color=(90, 90, 90),
-                           position=(0.0, 0.0, 0.175))
+        self.base = scene.add_cylinder("/arm/base", radius=0.07, height=0.35, color=(90, 90, 90),
+                                       position=(0.0, 0.0, 0.175))
         scene.add_icosphere("/H", radius=0.025, color=(47, 158, 68), opacity=0.6,
                             position=tuple(goal))
         scene.add_label("/H/label", "H", position=(0.0, 0.0, 0.05))
         scene.add_label("/R", "R", position=tuple(start + np.array([0.0, 0.0, 0.05])))
         self.links = scene.add_line_segments("/arm/links", self._arm(start), colors=(70, 70, 70),
                                              thickness=0.03)
+        self.ur5 = scene.add_line_segments("/arm/ur5", _segments(np.zeros((0, 3))),
+                                           colors=(70, 70, 70), thickness=UR5_THICKNESS, visible=False)
         self.tcp = scene.add_icosphere("/tcp", radius=0.03, color=(28, 126, 214),
                                        position=tuple(start))
         self.tcp_path = scene.add_line_segments("/tcp_path", _segments(start[None]),
@@ -90,11 +96,17 @@ class LiveView:
 
     def draw(self, rows: dict[str, np.ndarray]) -> None:
         """The robot and the hand where the last row has them, their paths and the signals so
-        far (a live trial's rows, or a replay's)."""
+        far (a live trial's rows, or a replay's, with their ``links``)."""
         measured, hand = rows["measured"], rows["hand"]
-        tcp = measured[-1]
+        tcp, links = measured[-1], rows["links"][-1]
         self.tcp.position = tuple(tcp)
-        self.links.points = self._arm(tcp)
+        ur5 = bool(np.all(np.isfinite(links)))
+        if ur5:
+            self.ur5.points = _segments(links)
+        else:
+            self.links.points = self._arm(tcp)
+        if ur5 != self.ur5.visible:
+            self.ur5.visible, self.links.visible, self.base.visible = ur5, not ur5, not ur5
         self.tcp_path.points = _segments(measured)
         valid_hand = hand[np.all(np.isfinite(hand), axis=1)]
         if len(valid_hand):

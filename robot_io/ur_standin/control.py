@@ -3,8 +3,8 @@
 Each request is one JSON object with ``"op"``; each reply one JSON object (``{"ok": true, ...}``, or
 ``{"ok": false, "error": ...}``). Operations:
 
-``ping``; ``state`` (pose, force, safety, program, tool outputs, the last 50 events); ``events``
-(all of them); ``received`` (every command
+``ping``; ``state`` (pose, joint angles q, force, safety, program, tool outputs, the last 50 events);
+``events`` (all of them); ``received`` (every command
 data package: ``[t, command id, doubles]``, ``t`` in the stand-in's ``time.monotonic``);
 ``protective_stop``; ``emergency_stop``; ``release_emergency_stop``; ``drop_sockets`` (close every
 client connection on every port); ``stall`` with ``seconds`` (no cycles, no output packages);
@@ -36,9 +36,10 @@ def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int
             return {"ok": True, "series": int(controller.series)}
         if op == "state":
             program = controller.program
-            return {"ok": True, "pose": list(controller.arm.pose), "force": list(controller.force),
-                    "safety": controller.safety.name, "program": program and program.name,
-                    "tool_outputs": controller.tool_outputs, "events": controller.events[-50:],
+            return {"ok": True, "pose": list(controller.arm.pose), "q": list(controller.arm.joints()),
+                    "force": list(controller.force), "safety": controller.safety.name,
+                    "program": program and program.name, "tool_outputs": controller.tool_outputs,
+                    "events": controller.events[-50:],
                     "speed": float(np.linalg.norm(controller.arm.velocity))}
         if op == "events":
             return {"ok": True, "events": list(controller.events)}

@@ -6,10 +6,19 @@ write registers and by the tick thread while it advances the model one controlle
 The arm is a bounded first-order follower: each cycle the TCP moves towards the current servo target
 with time constant ``lookahead_time`` of the last ``servoL``, its speed capped at ``max_speed``. A
 ``moveL`` goes in a straight line at its speed and acceleration; a stop decelerates at the given rate.
-Orientation is carried, not modelled. The measured force is what the test sets (``set_force``) —
-no contact model — unless a rehearsal configured the simulated participant's pull
-(``configure_pull``, :mod:`robot_io.simulated_pull`): then each cycle it is the pull of the hand
-last reported with ``set_hand`` on the object the TCP holds.
+Orientation is carried, not modelled.
+
+The TCP pose is in the robot base frame with no tool offset (TCP = flange), as the controller reports
+it (there is no base or world offset: the lab configuration's positions are in the base frame too).
+The joint angles ``actual_q`` follow it through the UR5's analytic inverse kinematics
+(:mod:`robot_io.ur_kinematics`), each time the solution nearest the previous one (from
+:data:`READY_Q` at start), so they move continuously and FK(q) is the reported pose. A pose no UR5
+can take (out of reach, or not finite after ``set_pose``) has no joint angles: NaN.
+
+The measured force is what the test sets (``set_force``) — no contact model — unless a rehearsal
+configured the simulated participant's pull (``configure_pull``, :mod:`robot_io.simulated_pull`):
+then each cycle it is the pull of the hand last reported with ``set_hand`` on the object the TCP
+holds.
 """
 
 from __future__ import annotations
@@ -23,6 +32,7 @@ from enum import IntEnum
 import numpy as np
 
 from robot_io.simulated_pull import SimulatedPull
+from robot_io.ur_kinematics import nearest_inverse
 from robot_io.ur_standin.rtde_protocol import FORMATS, OUTPUT_TYPES
 
 log = logging.getLogger(__name__)
@@ -61,15 +71,32 @@ EMERGENCY_STOPPED_BIT = 7
 POWER_ON_BIT, PROGRAM_RUNNING_BIT = 0, 1
 #: The dashboard refuses to unlock a protective stop within this many seconds of it.
 UNLOCK_DELAY_S = 5.0
+#: The joint angles the stand-in's first inverse kinematics starts from [rad]: the usual UR "ready"
+#: pose (0, −π/2, π/2, −π/2, −π/2, 0) turned to face +x, where the table-top scene is: elbow up,
+#: tool pointing down (the TCP at (0.487, 0.109, 0.432) m).
+READY_Q = (np.pi, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0)
 
 
 @dataclass
 class Arm:
-    """TCP pose [x, y, z, rx, ry, rz] and linear velocity of the modelled arm."""
+    """TCP pose [x, y, z, rx, ry, rz] and linear velocity of the modelled arm, and the UR5 joint
+    angles of that pose (:meth:`joints`)."""
 
     pose: np.ndarray
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
     max_speed: float = 1.5
+    q: np.ndarray = field(default_factory=lambda: np.array(READY_Q))
+    _q_pose: np.ndarray | None = field(default=None, init=False, repr=False)  # the pose of q
+
+    def joints(self) -> np.ndarray:
+        """The joint angles of the current pose [rad]: the inverse-kinematics solution nearest the
+        last one (computed once per pose); NaN for a pose no UR5 can take."""
+        if self._q_pose is None or not np.array_equal(self._q_pose, self.pose):
+            previous = self.q if np.all(np.isfinite(self.q)) else np.array(READY_Q)
+            q = nearest_inverse(self.pose, previous) if np.all(np.isfinite(self.pose)) else None
+            self.q = np.full(6, np.nan) if q is None else q
+            self._q_pose = self.pose.copy()
+        return self.q
 
     def follow(self, target: np.ndarray, time_constant: float, dt: float) -> None:
         """First-order step towards ``target`` (time constant ≥ dt), speed-capped."""
@@ -158,6 +185,7 @@ class Controller:
     def _state_value(self, name: str) -> object:
         fixed = {
             "timestamp": self.time, "actual_TCP_pose": list(self.arm.pose),
+            "actual_q": list(self.arm.joints()),
             "target_TCP_pose": list(self.arm.pose), "actual_TCP_force": list(self.force),
             "actual_TCP_speed": [*self.arm.velocity, 0.0, 0.0, 0.0],
             "target_TCP_speed": [*self.arm.velocity, 0.0, 0.0, 0.0],

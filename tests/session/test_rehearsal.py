@@ -19,9 +19,12 @@ from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
 from app.session.faults import StagedFault
 from app.session.rehearsal import Rehearsal
+from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
+from robot_io.ur_kinematics import forward
+from session_store.store import ParticipantStore
 
 pytestmark = pytest.mark.slow
 
@@ -72,6 +75,28 @@ def start_until(runner: SessionRunner, probe: Probe, stage: Stage) -> None:
     probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start")
     runner.start_trial()
     probe.wait(lambda v: v.stage is stage, what=f"stage {stage.value}")
+
+
+def test_every_rehearsed_sample_carries_joint_angles_whose_fk_is_the_recorded_tcp(rehearsed):
+    """The stand-in UR reports actual_q; the rig records it with the TCP of the same state package,
+    and the store keeps it: the UR5's FK of every stored q is the stored TCP position within 1 mm."""
+    runner, probe = rehearsed
+    runner.open("J01", Scenario.PERTURBED, seed=7)
+    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start")
+    runner.start_trial()
+    view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
+    assert ended(view, 1).outcome.value == "completed"
+    store = ParticipantStore.open(runner.study, "J01")
+    try:
+        rows = stored_rows(store.samples(1))
+    finally:
+        store.close()
+    keep = np.isfinite(rows["t"])
+    q, measured = rows["q"][keep], rows["measured"][keep]
+    assert len(q) > 100 and np.all(np.isfinite(q))
+    assert np.ptp(q, axis=0).max() > 0.1  # the arm moved its joints
+    error = np.linalg.norm(forward(q)[:, :3, 3] - measured, axis=1)
+    assert error.max() < 1e-3, f"FK(q) is {error.max() * 1e3:.3f} mm from the recorded TCP"
 
 
 def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(rehearsed):

@@ -3,7 +3,9 @@
 ``data/main-v2-M01.sqlite`` is a whole short session (9 interactions, placements, a validation rating,
 Q1–Q3) written by main before provenance existed (schema version 2; its samples cut to 20 cycles a
 trial to keep the file small). Version 1 files are made from it as version 1 left them: without the
-cycle's columns, ``user_version`` 1.
+cycle's columns, ``user_version`` 1. ``data/main-v3-M03.sqlite`` is the same kind of session written
+by main at schema version 3 (commit 9fc03e6, before the joint angles; the simulated participant
+placed and rated, so its rows carry that ``actor``).
 """
 
 from __future__ import annotations
@@ -25,11 +27,13 @@ from session_store.schema import (
     V2_SAMPLE_COLUMNS,
     V2_TRIAL_COLUMNS,
     V3_PROVENANCE_TABLES,
+    V4_SAMPLE_COLUMNS,
     columns_of,
 )
 from session_store.store import ParticipantStore
 
 MAIN_FILE = Path(__file__).parent / "data" / "main-v2-M01.sqlite"
+MAIN_V3_FILE = Path(__file__).parent / "data" / "main-v3-M03.sqlite"
 SQL_TYPE = {int: "INTEGER", float: "REAL", str: "TEXT"}
 
 
@@ -46,6 +50,11 @@ def _counts(path: Path) -> dict[str, int]:
 
 
 def _old_file(tmp_path: Path, version: int) -> Path:
+    """A copy of a file main wrote at ``version`` (1: the version-2 file without version 2's columns)."""
+    if version == 3:
+        path = tmp_path / "M03.sqlite"
+        shutil.copy(MAIN_V3_FILE, path)
+        return path
     path = tmp_path / "M01.sqlite"
     shutil.copy(MAIN_FILE, path)
     if version == 1:
@@ -67,19 +76,40 @@ def test_the_frozen_version_1_is_what_main_wrote_without_the_cycle_columns():
     assert samples == {"trial_index", "cycle", *V1_SAMPLE_COLUMNS}
 
 
-@pytest.mark.parametrize("version", [1, 2])
+def test_the_version_3_file_main_wrote_has_exactly_the_columns_of_versions_1_to_3():
+    written = _columns(MAIN_V3_FILE)
+    added = {"trials": V2_TRIAL_COLUMNS} | {table: {"actor": str} for table in V3_PROVENANCE_TABLES}
+    for table, (columns, _) in V1_TABLES.items():
+        assert written[table] == {n: SQL_TYPE[t] for n, t in (columns | added.get(table, {})).items()}
+    assert set(written["samples"]) == {"trial_index", "cycle", *V1_SAMPLE_COLUMNS, *V2_SAMPLE_COLUMNS}
+
+
+@pytest.mark.parametrize("version", [1, 2, 3])
 def test_an_old_file_migrates_to_the_current_version_and_keeps_every_row(tmp_path, version):
     path = _old_file(tmp_path, version)
+    code = path.stem
     before = _counts(path)
-    store = ParticipantStore.open(tmp_path, "M01")
+    kept = ", ".join(_columns(path)["samples"])
+    with sqlite3.connect(path) as conn:
+        old_samples = conn.execute(f"SELECT {kept} FROM samples ORDER BY trial_index, cycle").fetchall()
+    store = ParticipantStore.open(tmp_path, code)
     try:
-        assert store.db.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 3
+        assert store.db.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
         assert set(V2_TRIAL_COLUMNS) <= set(store.db["trials"].columns_dict)
         assert set(V2_SAMPLE_COLUMNS) <= set(store.db["samples"].columns_dict)
         for table in V3_PROVENANCE_TABLES:
             assert "actor" in store.db[table].columns_dict
             rows = store.rows(table)
-            assert rows and all(row.actor is None for row in rows)  # origin not recorded then
+            # the origin was not recorded before version 3; the simulated participant's after it
+            assert rows and {row.actor for row in rows} == \
+                ({None} if version < 3 else {"simulated_participant"})
+        # the joint angles were not recorded before version 4: every sample keeps them empty and
+        # every value it had as it was
+        joints = ", ".join(V4_SAMPLE_COLUMNS)
+        assert store.db.execute(f"SELECT count(*) FROM samples WHERE coalesce({joints}) IS NOT NULL"
+                                ).fetchone()[0] == 0
+        assert store.db.execute(f"SELECT {kept} FROM samples ORDER BY trial_index, cycle"
+                                ).fetchall() == old_samples
     finally:
         store.close()
     assert _counts(path) == before

@@ -4,8 +4,11 @@ In process: a real :class:`SessionRunner` (engine, store, rig and learner proces
 servers of ``handover serve``; the dashboard in headless Chromium. One trial runs (the simulated
 participant places it), then the experimenter picks it under "Replay a stored trial" and presses
 Replay: every position the server sends for the robot's TCP and the hand must be a stored sample's,
-in recorded order, ending at the trial's last sample; the coupling plots end as the stored τ. A trial
-that starts ends a replay, and the store refuses a replay while a trial runs.
+in recorded order, ending at the trial's last sample; the coupling plots end as the stored τ. The arm
+is drawn as the UR5's kinematic links on the rehearsal rig (the stand-in UR reports joint angles):
+every set of link points sent is the forward kinematics of a stored sample's joint angles, in order,
+ending at the last; on the mock arm (no joint angles) as the stand-in arm. A trial that starts ends a
+replay, and the store refuses a replay while a trial runs.
 """
 
 from __future__ import annotations
@@ -21,15 +24,18 @@ from support.runner import Probe
 
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
+from app.session.rehearsal import Rehearsal
 from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from app.ui.server import HandoverServers, ServeOptions
 from robot_io.simulated_hand import Scenario
+from robot_io.ur_kinematics import link_points
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-LAB = LabConfig.model_validate({"loop": {"rate_hz": 125}, "protocol": SHORT_PROTOCOL})
+LAB = LabConfig.model_validate({"loop": {"rate_hz": 125}, "protocol": SHORT_PROTOCOL,
+                                "release": {"timeout_s": 2.0}})
 
 
 def matches(point: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -54,13 +60,22 @@ class InOrder:
         self.indices.append(self.index)
 
 
-def test_a_stored_trial_replays_its_samples(tmp_path: Path) -> None:
-    runner = SessionRunner(tmp_path / "study", LAB)
+def drawn_joints(segments: np.ndarray) -> np.ndarray:
+    """The joint positions (7 × 3, flattened) of the UR5's drawn links: each link's start, then the
+    last link's end."""
+    return np.concatenate([segments[:, 0], segments[-1:, 1]]).reshape(-1)
+
+
+@pytest.mark.parametrize("rig", ["mock", "rehearsal"])
+def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
+    rehearsal = Rehearsal(LAB) if rig == "rehearsal" else None
+    runner = SessionRunner(tmp_path / "study", LAB, rehearsal=rehearsal,
+                           realtime_priority=rehearsal is not None)
     servers = HandoverServers(runner, ServeOptions(tablet_port=free_port(),
                                                    dashboard_port=free_port(), token=TOKEN))
     probe = Probe(runner)
     try:
-        runner.set_auto(True)  # the simulated participant places it (no tablet needed: mock arm)
+        runner.set_auto(True)  # the simulated participant places it (no tablet needed: simulated rig)
         runner.open("P01", Scenario.PERTURBED)
         probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ")
         runner.start_trial()
@@ -75,6 +90,9 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path) -> None:
             store.close()
         keep = np.isfinite(stored["t"])
         measured, hand, tau = stored["measured"][keep], stored["hand"][keep], stored["tau"][keep]
+        q = stored["q"][keep]
+        assert np.all(np.isfinite(q)) if rig == "rehearsal" else np.all(np.isnan(q))
+        joints = link_points(q).reshape(len(q), -1)  # FK of the stored joint angles, (n, 21)
         duration = float(stored["t"][keep][-1] - stored["t"][keep][0])
 
         with chromium() as browser:
@@ -90,17 +108,27 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path) -> None:
             began = time.monotonic()
             click(dashboard, "Replay")
             tcp, held = InOrder(measured, "TCP"), InOrder(hand, "hand")
+            arm = InOrder(joints, "UR5's joints")
+            live = client.live
             while client.replay is None or client.replay.frames == 0:  # its first frame drawn
                 time.sleep(0.005)
             while client.replay.running:
-                tcp.see(np.asarray(client.live.tcp.position))
-                held.see(np.asarray(client.live.hand.position))
+                tcp.see(np.asarray(live.tcp.position))
+                held.see(np.asarray(live.hand.position))
+                if rig == "rehearsal":
+                    arm.see(drawn_joints(np.asarray(live.ur5.points)))
                 time.sleep(0.02)
             elapsed = time.monotonic() - began
             wait_text(dashboard, "replay finished")
             assert len(set(tcp.indices)) >= 10, "the replay did not move"
-            assert len(measured) - 1 in matches(np.asarray(client.live.tcp.position), measured)
-            assert np.allclose(client.live.plots["tau"].data[1], tau[np.isfinite(tau)])
+            assert len(measured) - 1 in matches(np.asarray(live.tcp.position), measured)
+            assert np.allclose(live.plots["tau"].data[1], tau[np.isfinite(tau)])
+            # the UR5 drawn from the joint angles where they were stored, the stand-in arm where not
+            ur5 = rig == "rehearsal"
+            assert (live.ur5.visible, live.links.visible, live.base.visible) == (ur5, not ur5, not ur5)
+            if ur5:
+                assert len(set(arm.indices)) >= 10, "the UR5 did not move"
+                assert len(q) - 1 in matches(drawn_joints(np.asarray(live.ur5.points)), joints)
             assert elapsed >= 0.9 * duration  # 1×: never faster than the trial itself
 
             # A slower replay ends when a trial starts; the store refuses a replay during a trial.
