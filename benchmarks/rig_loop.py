@@ -38,6 +38,7 @@ from support.browser import (
     click,
     free_port,
     open_page,
+    pair_tablet,
     unlock_dashboard,
 )
 from ui_latency import busy_learner
@@ -47,6 +48,7 @@ from app.session.rehearsal import Rehearsal
 from app.session.runner import SessionRunner
 from app.ui.server import HandoverServers, ServeOptions
 from robot_io.cycle import Gates, run_cycle
+from robot_io.loop import Outcome
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import RigSpec
 from robot_io.simulated_hand import Scenario
@@ -93,7 +95,8 @@ class Figures:
         return (f"{label:38s} misses {self.misses:4d} of {self.cycles:6d} = "
                 f"{100 * self.misses / max(self.cycles, 1):6.3f} %   lateness p50 "
                 f"{np.percentile(late, 50):.3f} ms, p99 {np.percentile(late, 99):.3f} ms   "
-                f"Go → first servoL median {statistics.median(go):.1f} ms (max {go[-1]:.1f})"
+                (f"Go → first servoL median {statistics.median(go):.1f} ms (max {go[-1]:.1f})"
+                 if go else "Go → first servoL: no trial reached Go")
                 + (f" (click → rig's Go stage {statistics.median(self.click_to_go):.1f} ms)"
                    if self.click_to_go else "")
                 + (f"   trials aborted by a fault: {self.faults}" if self.faults else ""))
@@ -109,9 +112,10 @@ def both_variants(study: Path, browser, priority: bool, trials: int) -> tuple[Fi
                                                    dashboard_port=free_port(), token=TOKEN))
     try:
         tablet_url, dashboard_url = servers.urls()
-        open_page(browser, tablet_url, touch=True)
+        tablet = open_page(browser, tablet_url, touch=True)
         dashboard = open_page(browser, dashboard_url, size=(1400, 900))
         unlock_dashboard(dashboard)
+        pair_tablet(dashboard, tablet)  # Start needs exactly one paired tablet
         runner.open(f"B{int(priority)}", Scenario.PERTURBED, seed=1)
         return rig_process(runner, dashboard, trials), in_process_thread(priority, trials)
     finally:
@@ -156,8 +160,10 @@ def rig_process(runner: SessionRunner, dashboard, trials: int) -> Figures:
 
 
 def thread_trial(devices: RigDevices, rehearsal: Rehearsal, seed: int
-                 ) -> tuple[int, dict[str, np.ndarray], float | None]:
-    """One cycle in a thread of this process; the hand publisher plays from its Go."""
+                 ) -> tuple[int, dict[str, np.ndarray], float | None, bool]:
+    """One cycle in a thread of this process; the hand publisher plays from its Go. Also
+    whether it completed (a fault, e.g. the controller's watchdog under load, ends it early;
+    the arm is then recovered)."""
     go: dict[str, float] = {}
     result: dict = {}
 
@@ -175,9 +181,12 @@ def thread_trial(devices: RigDevices, rehearsal: Rehearsal, seed: int
     thread.join()
     rehearsal.rest()
     record = result["record"]
-    servo = first_servo_after(rehearsal, go["at"])
+    servo = first_servo_after(rehearsal, go["at"]) if "at" in go else None
+    completed = record.summary.outcome is Outcome.COMPLETED
+    if not completed:
+        devices.recover(inspected=True)
     return (record.summary.deadline_misses, record.samples,
-            None if servo is None else servo - go["at"])
+            None if servo is None else servo - go["at"], completed)
 
 
 def in_process_thread(priority: bool, trials: int) -> Figures:
@@ -190,7 +199,9 @@ def in_process_thread(priority: bool, trials: int) -> Figures:
     figures = Figures()
     try:
         for n in range(trials):
-            figures.add(*thread_trial(devices, rehearsal, seed=n))
+            misses, samples, go_to_servo, completed = thread_trial(devices, rehearsal, seed=n)
+            figures.add(misses, samples, go_to_servo)
+            figures.faults += not completed
             time.sleep(0.5)
     finally:
         devices.close()
