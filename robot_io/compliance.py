@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from robot_io.coupling import Coupling
+from robot_io.coupling import Coupling, HandCoupling
 from robot_io.dmp import CouplingTerms
 
 
@@ -25,6 +25,12 @@ class CompliantCoupling:
         self.inner, self.read_force, self.k_ext = inner, read_force, k_ext
         self.grasped, self.baseline = grasped, baseline
 
+    @property
+    def hand_coupling(self) -> HandCoupling | None:
+        """The coupling to the hand (eqs. 5–10) under the compliance term, whose signals the loop
+        records (None if ``inner`` is another kind of coupling)."""
+        return signals_source(self.inner)
+
     def reset(self, hand: np.ndarray) -> None:
         self.inner.reset(hand)
 
@@ -34,3 +40,11 @@ class CompliantCoupling:
         if not self.grasped() or baseline is None:
             return terms
         return terms._replace(external=self.k_ext * (self.read_force() - baseline))
+
+
+def signals_source(coupling: Coupling) -> HandCoupling | None:
+    """The :class:`HandCoupling` whose d, d̃, d̃̇, σ_d, σ_j and C_t (eqs. 5–10) a trial records:
+    ``coupling`` itself, or the one a :class:`CompliantCoupling` wraps; None for any other."""
+    if isinstance(coupling, CompliantCoupling):
+        return coupling.hand_coupling
+    return coupling if isinstance(coupling, HandCoupling) else None

@@ -21,8 +21,9 @@ from pydantic import BaseModel
 
 from robot_io.arm import Arm, ArmState
 from robot_io.clock import Clock
+from robot_io.compliance import signals_source
 from robot_io.config import LoopConfig
-from robot_io.coupling import Coupling, HandCoupling
+from robot_io.coupling import Coupling
 from robot_io.dmp import DMP
 from robot_io.errors import ArmFault
 from robot_io.gripper import Gripper
@@ -118,6 +119,7 @@ class HandoverLoop:
                  recorder: TrialRecorder | None = None,
                  stop: threading.Event | None = None) -> None:
         self.dmp, self.coupling, self.hand, self.arm = dmp, coupling, hand, arm
+        self._signals = signals_source(coupling)  # recorded every cycle, through the compliance
         self.clock, self.limiter, self.config = clock, limiter, config
         self.hold, self.on_stage = hold, on_stage or (lambda stage, t: None)
         self._stop_requested = stop or threading.Event()
@@ -282,8 +284,8 @@ class HandoverLoop:
         row[SLICES["hand"]], row[SLICES["hand_t"]] = hand.position, hand.t
         row[SLICES["commanded"]] = commanded
         row[SLICES["limited"]] = flags.acceleration + 2 * flags.speed + 4 * flags.workspace
-        coupling = self.coupling
-        if isinstance(coupling, HandCoupling):
+        coupling = self._signals
+        if coupling is not None:
             row[SLICES["d"]], row[SLICES["d_filtered"]] = coupling.d, coupling.d_filtered
             row[SLICES["d_rate"]], row[SLICES["c_t"]] = coupling.d_rate, coupling.c_t
             row[SLICES["sigma_d"]], row[SLICES["sigma_j"]] = coupling.sigma_d, coupling.sigma_j

@@ -22,7 +22,7 @@ from app.session.rehearsal import Rehearsal
 from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
-from robot_io.stages import Stage
+from robot_io.stages import SAMPLE_CODE, Stage
 from robot_io.ur_kinematics import forward
 from session_store.store import ParticipantStore
 
@@ -77,9 +77,11 @@ def start_until(runner: SessionRunner, probe: Probe, stage: Stage) -> None:
     probe.wait(lambda v: v.stage is stage, what=f"stage {stage.value}")
 
 
-def test_every_rehearsed_sample_carries_joint_angles_whose_fk_is_the_recorded_tcp(rehearsed):
+def test_every_rehearsed_sample_carries_joint_angles_and_coupling_signals(rehearsed):
     """The stand-in UR reports actual_q; the rig records it with the TCP of the same state package,
-    and the store keeps it: the UR5's FK of every stored q is the stored TCP position within 1 mm."""
+    and the store keeps it: the UR5's FK of every stored q is the stored TCP position within 1 mm.
+    The coupling signals of the reach are stored through the hold's compliance wrapper, and obey
+    eqs. (5) and (8): τ = τ0 (1 + C_t), C_t = k σ_d σ_j."""
     runner, probe = rehearsed
     runner.open("J01", Scenario.PERTURBED, seed=7)
     probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start")
@@ -97,6 +99,14 @@ def test_every_rehearsed_sample_carries_joint_angles_whose_fk_is_the_recorded_tc
     assert np.ptp(q, axis=0).max() > 0.1  # the arm moved its joints
     error = np.linalg.norm(forward(q)[:, :3, 3] - measured, axis=1)
     assert error.max() < 1e-3, f"FK(q) is {error.max() * 1e3:.3f} mm from the recorded TCP"
+    reach = keep & (rows["stage"] == SAMPLE_CODE[Stage.REACH])
+    c_t = rows["c_t"][reach]
+    assert reach.sum() > 100 and np.isfinite(c_t).mean() > 0.95, "coupling signals not recorded"
+    ok = np.isfinite(c_t)
+    np.testing.assert_allclose(rows["tau"][reach][ok],
+                               runner.lab.controller.dmp.tau0 * (1 + c_t[ok]))
+    np.testing.assert_allclose(c_t[ok], ended(view, 1).theta_k * rows["sigma_d"][reach][ok]
+                               * rows["sigma_j"][reach][ok])
 
 
 def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(rehearsed):
