@@ -95,7 +95,7 @@ class Figures:
         return (f"{label:38s} misses {self.misses:4d} of {self.cycles:6d} = "
                 f"{100 * self.misses / max(self.cycles, 1):6.3f} %   lateness p50 "
                 f"{np.percentile(late, 50):.3f} ms, p99 {np.percentile(late, 99):.3f} ms   "
-                (f"Go → first servoL median {statistics.median(go):.1f} ms (max {go[-1]:.1f})"
+                + (f"Go → first servoL median {statistics.median(go):.1f} ms (max {go[-1]:.1f})"
                  if go else "Go → first servoL: no trial reached Go")
                 + (f" (click → rig's Go stage {statistics.median(self.click_to_go):.1f} ms)"
                    if self.click_to_go else "")

@@ -95,10 +95,15 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
         time.sleep(max(0.0, next_at - time.monotonic()))
 
 
+#: How long the publisher may take to start (a fresh interpreter importing numpy and pylsl): on a
+#: busy 2-core machine this took over 10 s, which ended rehearsals before they began.
+START_TIMEOUT_S = 30.0
+
+
 class HandPublisher:
     """Runs :func:`_serve` in a process of its own; it exits when this object's process ends."""
 
-    def __init__(self, spec: PublisherSpec, timeout: float = 10.0) -> None:
+    def __init__(self, spec: PublisherSpec, timeout: float = START_TIMEOUT_S) -> None:
         context = multiprocessing.get_context("spawn")
         self._conn, child = context.Pipe()
         self.process = context.Process(target=_serve, args=(child, spec), name="hand-publisher",
@@ -107,7 +112,7 @@ class HandPublisher:
         child.close()
         if not self._conn.poll(timeout) or self._conn.recv() != "ready":
             self.close()
-            raise RuntimeError("the hand publisher did not start")
+            raise RuntimeError(f"the hand publisher did not start within {timeout:g} s")
 
     def play(self, scenario: Scenario, seed: int, go_monotonic: float) -> None:
         """Play a trial's hand from the Go instant ``go_monotonic`` (``time.monotonic()``)."""
