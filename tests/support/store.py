@@ -3,8 +3,10 @@ what two sessions came to."""
 
 from __future__ import annotations
 
+import json
 import sqlite3
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -20,6 +22,28 @@ def event_count(path: Path) -> int:
             return conn.execute("SELECT count(*) FROM events").fetchone()[0]
     except sqlite3.Error:
         return 0
+
+
+class Progress(NamedTuple):
+    """Where a session stands as its writer has committed it: interactions completed, and its
+    latest event (kind and payload; None before the session exists)."""
+
+    completed: int
+    kind: str | None
+    payload: dict
+
+
+def progress(path: Path) -> Progress:
+    """The session's :class:`Progress`, read-only beside the writer (a few rows, cheap to poll)."""
+    try:
+        with _read_only(path) as conn:
+            completed = conn.execute("SELECT count(*) FROM trials WHERE outcome = 'completed'"
+                                     ).fetchone()[0]
+            last = conn.execute("SELECT kind, payload FROM events ORDER BY seq DESC LIMIT 1"
+                                ).fetchone()
+    except sqlite3.Error:
+        return Progress(0, None, {})
+    return Progress(completed, *(last[0], json.loads(last[1])) if last else (None, {}))
 
 
 def session_outcome(path: Path) -> dict[str, list]:
