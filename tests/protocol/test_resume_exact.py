@@ -17,7 +17,7 @@ import time
 import numpy as np
 import pytest
 from support.engine import drive_until, new_engine
-from support.store import event_count
+from support.store import assert_same_outcome, event_count, session_outcome
 
 from app.learning.config import LearnerConfig
 from app.learning.learner import PreferenceLearner
@@ -53,23 +53,6 @@ def test_a_restored_learner_is_the_stored_learner():
         seen.append((iid, utility))
 
 
-def _outcome(path) -> dict[str, list]:
-    with sqlite3.connect(path) as conn:
-        def rows(sql: str) -> list:
-            return conn.execute(sql).fetchall()
-        return {
-            "completed trials": rows("SELECT interaction, theta_a, theta_delta, theta_k FROM trials "
-                                     "WHERE outcome = 'completed' ORDER BY interaction"),
-            "placements": rows("SELECT interaction, position, equal_to FROM placements "
-                               "ORDER BY interaction"),
-            "comparisons": rows("SELECT source, winner, loser FROM comparisons "
-                                "ORDER BY source, winner, loser"),
-            "answers": rows("SELECT question, value FROM answers ORDER BY question"),
-            "validation": rows("SELECT interaction, rating FROM validation_ratings "
-                               "ORDER BY interaction"),
-        }
-
-
 #: SIGKILLs of the run-session process itself (its own PID: Popen runs the interpreter, no shell).
 KILLS = 20
 
@@ -103,19 +86,8 @@ def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_pat
         assert process.returncode == 0, process.stderr.read().decode()[-2000:]
         break
     assert kills == KILLS
-    whole, killed = _outcome(tmp_path / "whole" / "K1.sqlite"), _outcome(database)
-    for table in sorted(whole, key=lambda name: name == "completed trials"):  # θ last
-        if table == "completed trials":
-            # The same interactions with the same θ. Across processes θ may differ in its last
-            # bits (SIMD reductions depend on memory alignment), which the acquisition optimiser
-            # can carry up to its own tolerance (seen: 2e-9 relative), far below any physical
-            # meaning for a ∈ [1, 10], δ ∈ [-1, 1], k ∈ [0.01, 15].
-            assert [row[0] for row in killed[table]] == [row[0] for row in whole[table]]
-            np.testing.assert_allclose(np.array(killed[table])[:, 1:],
-                                       np.array(whole[table])[:, 1:], rtol=1e-6)
-        else:
-            assert killed[table] == whole[table], table
-    assert len(whole["completed trials"]) == 34
+    assert_same_outcome(database, tmp_path / "whole" / "K1.sqlite")
+    assert len(session_outcome(database)["completed trials"]) == 34
     with sqlite3.connect(database) as conn:
         resumes = conn.execute("SELECT count(*) FROM events WHERE kind = 'session_resumed'"
                                ).fetchone()[0]

@@ -17,10 +17,11 @@ import socket
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 from playwright.sync_api import Browser, Page, sync_playwright
 
@@ -36,6 +37,7 @@ TOKEN = "test-token"
 SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
               "validation_batches = 1\n")
 TIMEOUT_MS = 60_000
+T = TypeVar("T")
 
 
 SCREENS = {"unused": "not in use", "pair": "Connect this tablet", "pairs": "pairs of handovers",
@@ -162,13 +164,14 @@ class Served:
 
 @contextmanager
 def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML,
-          token: str | None = TOKEN, ports: tuple[int, int] | None = None) -> Iterator[Served]:
+          token: str | None = TOKEN, ports: tuple[int, int] | None = None,
+          log_name: str = "serve.log") -> Iterator[Served]:
     """`handover serve` on two free loopback ports (or ``ports``: tablet, dashboard) with a lab
     config of the short protocol (``protocol_toml`` is its [protocol] table) at ``rate`` Hz (125
-    for speed); ``token`` None: the study's own dashboard token."""
+    for speed); ``token`` None: the study's own dashboard token; its output in ``tmp/log_name``."""
     config = tmp / "lab.toml"
     config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}")
-    study, log = tmp / "study", tmp / "serve.log"
+    study, log = tmp / "study", tmp / log_name
     tablet, dashboard = ports or (free_port(), free_port())
     command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
@@ -359,3 +362,23 @@ def publish(paths: list[Path]) -> None:
         DOC_FIGURES.mkdir(exist_ok=True)
         for path in paths:
             shutil.copy(path, DOC_FIGURES / f"ui-{path.name}")
+
+
+#: The dashboard's status line when the session waits for the experimenter's Start.
+READY_TO_START = "Ready — press Start trial"
+
+
+def keep_starting(dashboard: Page, done: Callable[[], T | None], timeout_s: float = 600.0) -> T:
+    """The experimenter's part while the simulated participant rates: press Start trial each time
+    the dashboard says the session is ready for it (once per time it says so), until ``done()``
+    returns something, which is returned."""
+    deadline = time.monotonic() + timeout_s
+    pressed = False
+    while (result := done()) is None:
+        assert time.monotonic() < deadline, dashboard.inner_text("body")[:1000]
+        ready = READY_TO_START in dashboard.inner_text("body")
+        if ready and not pressed:
+            click(dashboard, "Start trial")
+        pressed = ready
+        time.sleep(0.02)
+    return result
