@@ -35,10 +35,10 @@ sys.path.insert(0, str(Path(__file__).parent))
 from support.browser import (
     TOKEN,
     chromium,
-    click,
     free_port,
     open_page,
     pair_tablet,
+    tap_point,
     unlock_dashboard,
 )
 from ui_latency import busy_learner
@@ -140,9 +140,12 @@ def rig_process(runner: SessionRunner, dashboard, trials: int) -> Figures:
         runner.object_loaded()
         wait(lambda: runner.view.waiting_for == "go")
         index = runner.view.trials[-1].trial_index
+        point = tap_point(dashboard, "Go")  # once the dashboard shows it enabled
+        before = len(go_stage)
         clicked = time.monotonic()
-        click(dashboard, "Go")
+        dashboard.mouse.click(*point)
         wait(lambda: runner.view.trials[-1].outcome is not None)
+        wait(lambda before=before: len(go_stage) > before)  # the runner has seen this Go
         trial = runner.view.trials[-1]
         assert trial.trial_index == index
         servo = first_servo_after(runner.rehearsal, clicked)
