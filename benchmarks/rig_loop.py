@@ -97,7 +97,7 @@ class Figures:
                 f"{np.percentile(late, 50):.3f} ms, p99 {np.percentile(late, 99):.3f} ms   "
                 + (f"Go → first servoL median {statistics.median(go):.1f} ms (max {go[-1]:.1f})"
                  if go else "Go → first servoL: no trial reached Go")
-                + (f" (click → rig's Go stage {statistics.median(self.click_to_go):.1f} ms)"
+                + (f" (click → rig's Go stage {1e3 * statistics.median(self.click_to_go):.1f} ms)"
                    if self.click_to_go else "")
                 + (f"   trials aborted by a fault: {self.faults}" if self.faults else ""))
 
