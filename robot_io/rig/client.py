@@ -49,6 +49,8 @@ OPEN_TIMEOUT_S = 30.0
 STOP_ACK_S = 0.3
 #: While streaming, no new sample row for this long means the rig hangs [s].
 HANG_S = 0.5
+#: How long the report of a dead rig waits for its exit code [s] (1 s was too short under load).
+REAP_S = 5.0
 #: Stages during which the rig writes one sample row per cycle.
 STREAMING = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
 
@@ -171,7 +173,11 @@ class RigClient:
     def kill(self) -> None:
         if self.process.is_alive():
             self.process.kill()
-        self.process.join(2.0)
+        # the report reader may reap the process at the same moment (join in two threads): wait
+        # until this thread sees it gone too
+        deadline = time.monotonic() + REAP_S
+        while self.process.is_alive() and time.monotonic() < deadline:
+            self.process.join(0.05)
 
     def close(self) -> None:
         """Shut the rig down (it stops the arm and releases its devices); kill it if it hangs."""
@@ -203,7 +209,7 @@ class RigClient:
             elif isinstance(report, TrialDone):
                 self.running, self.stage = None, None
             self._notify(report)
-        self.process.join(1.0)
+        self.process.join(REAP_S)  # a killed rig is reaped (its exit code known) before it is reported
         if not self._closing:
             code = self.process.exitcode
             how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
