@@ -7,7 +7,7 @@ from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
-from app.protocol.vocabulary import QUESTIONS, Phase, Rater
+from app.protocol.vocabulary import Phase, Rater
 from session_store.models import Trial
 
 
@@ -33,7 +33,7 @@ def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
     elif step is Step.ANSWER:
         best = [s.interaction for s in engine.slots if s.phase is Phase.BEST]
         best_trial = _trial(engine, best[-1]) if best else None
-        question = next(q.id for q in QUESTIONS if q.id not in state.answers)
+        question = state.unanswered[0]
         engine.answer(question, participant.answer(question, best_trial), by=by)
     else:
         raise RefusedAction(f"the simulated participant has nothing to do at {step.value!r}")

@@ -84,6 +84,11 @@ class SessionState(BaseModel):
         return at_validation and len(self.answers) < len(QUESTIONS)
 
     @property
+    def unanswered(self) -> tuple[str, ...]:
+        """The questions (Q1–Q3) not answered yet, in the order they are asked."""
+        return tuple(q.id for q in QUESTIONS if q.id not in self.answers)
+
+    @property
     def step(self) -> Step:
         if self.running_trial is not None:
             return Step.RUNNING

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import viser
 
 from app.protocol.state import Step
-from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Rater
+from app.protocol.vocabulary import QUESTION_BY_ID, Rater
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.tablet import RATINGS, answer_options
 
@@ -110,4 +110,4 @@ class OnBehalf:
 
 def _question(view: RunnerView) -> str:
     """The first question not answered yet (the order the tablet asks them in)."""
-    return next(q.id for q in QUESTIONS if q.id not in view.state.answers)
+    return view.state.unanswered[0]

@@ -113,7 +113,7 @@ def screen_for(view: RunnerView) -> Screen:
         return Screen(kind="rate", interaction=slot.interaction)
     if step is Step.ANSWER:
         return Screen(kind="question",
-                      questions=tuple(q.id for q in QUESTIONS if q.id not in state.answers))
+                      questions=state.unanswered)
     if step is Step.DONE:
         return Screen(kind="done")
     return _next_up(view)
