@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import logging
 import multiprocessing
+import signal
 import socket
 import time
 from multiprocessing.connection import Connection
@@ -39,6 +40,9 @@ class PublisherSpec(BaseModel):
 
 
 def _serve(conn: Connection, spec: PublisherSpec) -> None:
+    # Ctrl-C in the terminal reaches the whole process group: the application closes the publisher
+    # (its pipe), so the publisher itself ignores it rather than print a traceback at every exit
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     import pylsl
 
     from robot_io.ur_standin.control import ControlClient
@@ -90,7 +94,10 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
                         for axis, v in zip("xyz", tracker, strict=True)}
             udp.sendto(json.dumps(datagram | {"t": now}).encode(), spec.udp_target)
         if standin is not None:
-            standin("set_hand", position=exact.tolist())
+            try:
+                standin("set_hand", position=exact.tolist())
+            except (OSError, ValueError):  # the stand-in has ended (e.g. Ctrl-C): so has the rehearsal
+                return
         next_at += 1.0 / rate
         time.sleep(max(0.0, next_at - time.monotonic()))
 
