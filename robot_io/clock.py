@@ -34,6 +34,10 @@ class Clock(Protocol):
     def now(self) -> float:
         """Seconds since start()."""
 
+    def align(self) -> None:
+        """Start the cycle grid now: the first cycle begins here, after the set-up that follows
+        start() (Go), so that set-up is not counted as the first cycles' lateness."""
+
     def wait_next_cycle(self) -> CycleStart:
         """Block until the next cycle starts."""
 
@@ -79,6 +83,9 @@ class SimClock:
 
     def now(self) -> float:
         return self._cycle * self.period
+
+    def align(self) -> None:
+        pass  # set-up takes no simulated time
 
     def wait_next_cycle(self) -> CycleStart:
         self._cycle += 1
@@ -145,6 +152,9 @@ class RealClock:
 
     def now(self) -> float:
         return time.monotonic() - self._origin
+
+    def align(self) -> None:
+        self._next = self.now()
 
     def wait_next_cycle(self) -> CycleStart:
         self._next += self.period

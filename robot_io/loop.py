@@ -171,6 +171,9 @@ class HandoverLoop:
             measured = self.arm.read_pose()
             self.limiter.reset(measured)
             self.dmp.reset()
+            # starting the stream waits for the controller (a few ms on a UR): the 500 Hz grid
+            # begins with the first cycle, so that wait does not make the first cycles late
+            clock.align()
             while True:
                 t = clock.now()
                 began = time.perf_counter()

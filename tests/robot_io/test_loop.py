@@ -290,3 +290,27 @@ def test_the_real_clock_gives_the_thread_back_its_scheduling_policy(config):
         realtime=True)
     assert record.summary.outcome == Outcome.COMPLETED
     assert (os.sched_getscheduler(0), sys.getswitchinterval()) == (before[0], before[2])
+
+
+class WaitsForTheController(MockArm):
+    """A mock arm whose stream starts after a wait, as a UR's does (setWatchdog's round trip)."""
+
+    START_S = 0.03
+
+    def begin_stream(self) -> None:
+        time.sleep(self.START_S)
+        super().begin_stream()
+
+
+def test_the_cycle_grid_starts_after_the_streams_set_up(config):
+    """Go is t = 0, but the 500 Hz grid begins with the first cycle: a controller that takes 30 ms
+    to accept the stream would otherwise make the first cycles 30, 28, 26 … ms late, a burst of
+    deadline misses at the start of every trial (measured on the rehearsal rig before the fix)."""
+    config = config.model_copy(update={"loop": LoopConfig(rate_hz=125)})
+    clock = RealClock(125)
+    arm = WaitsForTheController(clock, config.scene.point("robot_start"))
+    hand = SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, seed=6)
+    record = make_loop(config, REACTIVE, hand, arm, clock).run()
+    t, lateness = record.samples["t"], record.samples["lateness_s"]
+    assert t[0] >= WaitsForTheController.START_S  # the set-up counts from Go
+    assert np.all(lateness[:4] < clock.period / 2)  # 30 ms is 3.75 periods at 125 Hz
