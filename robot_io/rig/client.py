@@ -11,8 +11,10 @@ itself when the rig stops writing samples for ``HANG_S`` while it streams.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
+import os
 import threading
 import time
 from collections.abc import Callable
@@ -51,6 +53,8 @@ STOP_ACK_S = 0.3
 HANG_S = 0.5
 #: How long the report of a dead rig waits for its exit code [s] (1 s was too short under load).
 REAP_S = 5.0
+#: How long a hung rig gets to print its threads' stacks before it is killed [s].
+STACKS_S = 0.2
 #: Stages during which the rig writes one sample row per cycle.
 STREAMING = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
 
@@ -168,7 +172,18 @@ class RigClient:
         log.error("backstop: %s", why)
         if self._stopper is not None:
             self._stopper.stop()
+        self._dump_stacks()
         self.kill()
+
+    def _dump_stacks(self) -> None:
+        """Have a hung rig print where each of its threads is (faulthandler, to its stderr: the
+        application's log) before it is killed, so the hang can be found afterwards."""
+        pid = self.process.pid
+        if pid is None or not self.process.is_alive():
+            return
+        with contextlib.suppress(OSError):
+            os.kill(pid, process.STACKS_SIGNAL)
+            self.process.join(STACKS_S)
 
     def kill(self) -> None:
         if self.process.is_alive():

@@ -12,11 +12,13 @@ process exits; when this process dies, the UR's control worker sees its pipe clo
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import gc
 import logging
 import math
 import os
 import queue
+import signal
 import threading
 import time
 from multiprocessing.connection import Connection
@@ -46,6 +48,9 @@ from robot_io.rig.stream import SampleStream, StreamRecorder
 from robot_io.stages import Stage
 
 log = logging.getLogger(__name__)
+
+#: The application sends it to a rig it is about to kill: every thread's stack goes to stderr.
+STACKS_SIGNAL = signal.SIGUSR1
 
 
 class Outbox:
@@ -112,6 +117,7 @@ class Inbox:
 def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_level: int) -> None:
     """Entry point of the rig process (``multiprocessing`` spawn); logs at the application's level."""
     logging.basicConfig(level=log_level, format=f"rig[{os.getpid()}] %(levelname)s %(name)s: %(message)s")
+    faulthandler.register(STACKS_SIGNAL, all_threads=True)
     outbox = Outbox(conn)
     if spec.realtime_priority:
         # every thread of the rig inherits it (the hand receiver, ur_rtde's, the inbox); the loop's own

@@ -17,6 +17,7 @@ import pytest
 from robot_io.config import ControllerConfig
 from robot_io.rig.client import RigClient
 from robot_io.rig.messages import RigDied, RigSpec, RunTrial, StageReached, TrialDone
+from robot_io.rig.process import STACKS_SIGNAL
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
 from robot_io.theta import Theta
@@ -68,6 +69,25 @@ def test_a_trial_through_the_rig_process_streams_its_samples_through_shared_memo
     np.testing.assert_allclose(np.diff(samples["t"]), 1 / 500)
     assert samples["stage"][-1] == 3 and np.nanmax(samples["pull"]) == pytest.approx(
         done.summary.peak_pull_n)
+
+
+def test_a_rig_asked_for_its_stacks_prints_them_and_runs_on(capfd):
+    """What the backstop sends a hung rig before killing it: each thread's stack on stderr (the
+    application's log), to find the hang afterwards. The default action would end the rig."""
+    reports = Reports()
+    client = rig(realtime=False, reports=reports)
+    try:
+        os.kill(client.pid, STACKS_SIGNAL)
+        err, deadline = "", time.monotonic() + 10.0
+        while "robot_io/rig/process.py" not in err and time.monotonic() < deadline:
+            time.sleep(0.05)
+            err += capfd.readouterr().err
+        assert 'File "' in err and "robot_io/rig/process.py" in err and "in main" in err
+        assert client.alive
+        client.run_trial(trial())
+        assert reports.until(lambda r: isinstance(r, TrialDone)).summary.outcome == "completed"
+    finally:
+        client.close()
 
 
 @contextlib.contextmanager
