@@ -162,7 +162,7 @@ class PreferenceLearner:
         if slot.kind is SlotKind.BEST:
             theta = self.incumbent()  # the initial batch precedes: points exist
             return Suggestion(theta=theta, slot=slot, fit=self.last_fit)
-        unit = self._query(slot) if slot.kind is SlotKind.QUERY else self._sobol(slot)
+        unit = self._query(slot) if slot.kind is SlotKind.QUERY else self._initial(slot)
         return Suggestion(theta=self.config.box.from_unit(unit.tolist()), slot=slot,
                           fit=self.last_fit)  # after _query, which may have refitted
 
@@ -205,6 +205,15 @@ class PreferenceLearner:
         learner.last_fit = snapshot.last_fit or FitReport(
             n_points=len(learner.data.points), n_comparisons=len(learner.data.comparisons))
         return learner
+
+    def _initial(self, slot: Slot) -> torch.Tensor:
+        """A point of the initial batch: with a prior from earlier participants the first is
+        their best (where the pooled mean peaks), so θ* can be good from the first batch on;
+        otherwise, and for the others, the Sobol sequence."""
+        prior_mean = self.model.prior_mean
+        if slot.index == 0 and prior_mean is not None:
+            return prior_mean.best_point().clone()
+        return self._sobol(slot)
 
     def _sobol(self, slot: Slot) -> torch.Tensor:
         """Point ``slot.index`` of the learner's Sobol sequence (initial batch, baseline)."""

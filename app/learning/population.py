@@ -47,6 +47,11 @@ class PopulationMean(Mean):
         diff = (x.unsqueeze(-2) - self.points) / self.lengthscales  # ... × n × N × d
         return torch.exp(-0.5 * diff.pow(2).sum(-1)) @ self.coefficients
 
+    def best_point(self) -> torch.Tensor:
+        """The earlier participants' point (unit cube) where w · m̄ is largest: the population's
+        best handover as far as it was felt, shown first to a new participant."""
+        return self.points[int(torch.argmax(self.forward(self.points)))]
+
 
 class PopulationPairwiseGP(PairwiseGP):
     """``PairwiseGP`` whose prior mean (eq. (12)) is a :class:`PopulationMean` instead of zero.

@@ -77,6 +77,29 @@ def test_comparisons_override_a_wrong_prior():
     assert learner.best().theta["x1"] < 0.35  # the participant's own best region, not the prior's
 
 
+def test_with_a_prior_the_first_handover_is_the_earlier_participants_best():
+    """Interaction 1 is the earlier point where the pooled mean peaks (computed here from the
+    pooled mean, not taken from the learner); the rest of the initial batch stays Sobol."""
+    box = ParameterBox.unit_cube(2)
+    earlier = PreferenceLearner(LearnerConfig(box=box, seed=0))
+    corners = [(1.0, 1.0), (0.0, 0.0), (0.7, 0.6), (0.2, 0.1)]
+    earlier.observe_many([Interaction(interaction_id=str(k), theta={"x1": a, "x2": b})
+                          for k, (a, b) in enumerate(corners)],
+                         [_beats("0", "1"), _beats("0", "3"), _beats("2", "1"), _beats("0", "2")])
+    prior = population_prior({"P01": earlier.snapshot()})
+    pooled = PopulationMean(prior)(torch.tensor(corners, dtype=torch.float64))
+    expected = corners[int(torch.argmax(pooled))]
+    assert expected == (1.0, 1.0)  # the point that won every comparison
+    with_prior = PreferenceLearner(LearnerConfig(box=box, seed=3, prior=prior))
+    without = PreferenceLearner(LearnerConfig(box=box, seed=3))
+    first = with_prior.suggest().theta
+    assert (first["x1"], first["x2"]) == pytest.approx(expected)
+    assert without.suggest().theta != first
+    for learner in (with_prior, without):
+        learner.observe(Interaction(interaction_id="1", theta=learner.suggest().theta))
+    assert with_prior.suggest().theta == without.suggest().theta  # Sobol point 2 for both
+
+
 def _beats(winner, loser):
     from app.learning.models import Comparison
 
