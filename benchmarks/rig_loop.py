@@ -102,7 +102,11 @@ class Figures:
                 + (f"   trials aborted by a fault: {self.faults}" if self.faults else ""))
 
 
-def both_variants(study: Path, browser, priority: bool, trials: int) -> tuple[Figures, Figures]:
+def show(figures: Figures, label: str) -> None:
+    print(f"{figures.line(label)}   (load average {os.getloadavg()[0]:.1f})", flush=True)
+
+
+def both_variants(study: Path, browser, priority: bool, trials: int) -> None:
     """Both screens open on a session runner; first its rig process runs trials driven from the
     dashboard page, then, with the screens still open, the in-process thread runs as many."""
     lab = LabConfig.model_validate({"protocol": PROTOCOL})
@@ -117,7 +121,10 @@ def both_variants(study: Path, browser, priority: bool, trials: int) -> tuple[Fi
         unlock_dashboard(dashboard)
         pair_tablet(dashboard, tablet)  # Start needs exactly one paired tablet
         runner.open(f"B{int(priority)}", Scenario.PERTURBED, seed=1)
-        return rig_process(runner, dashboard, trials), in_process_thread(priority, trials)
+        policy = "SCHED_FIFO" if priority else "normal policy"
+        # each figure is printed as measured, so a later variant that fails does not lose it
+        show(rig_process(runner, dashboard, trials), f"rig process, {policy}")
+        show(in_process_thread(priority, trials), f"in-process thread, {policy}")
     finally:
         servers.close()
 
@@ -219,17 +226,10 @@ def main() -> None:
     stop = threading.Event()
     learner = threading.Thread(target=busy_learner, args=(stop,), daemon=True)
     learner.start()
-    results: dict[str, Figures] = {}
     with tempfile.TemporaryDirectory() as tmp, chromium() as browser:
         for priority in (False, True):
-            policy = "SCHED_FIFO" if priority else "normal policy"
-            rig, thread = both_variants(Path(tmp) / f"s{priority}", browser, priority, args.trials)
-            results[f"rig process, {policy}"] = rig
-            results[f"in-process thread, {policy}"] = thread
+            both_variants(Path(tmp) / f"s{priority}", browser, priority, args.trials)
     stop.set()
-    print(f"load average before/after: {os.getloadavg()}")
-    for label, figures in results.items():
-        print(figures.line(label))
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ over ur_rtde, connected once). ``[hand_source] kind``: ``simulated`` (a seeded
 from __future__ import annotations
 
 import logging
+import time
 
 import numpy as np
 
@@ -28,6 +29,9 @@ from robot_io.trial import make_clock
 from robot_io.ur_arm import URArm
 
 log = logging.getLogger(__name__)
+
+#: A device whose close takes longer is named in the log [s].
+SLOW_CLOSE_S = 1.0
 
 
 def check_spec(spec: RigSpec) -> None:
@@ -137,7 +141,12 @@ class RigDevices:
                              ("gripper", lambda: self.gripper.disconnect()),
                              ("hand source", lambda: self.tracked and self.tracked.close()),
                              ("UR", lambda: self.ur and self.ur.close())):
+            began = time.monotonic()
             try:
                 action()
             except Exception:
                 log.exception("closing the rig's %s failed", name)
+            if (took := time.monotonic() - began) > SLOW_CLOSE_S:
+                # the application kills a rig that has not exited 5 s after Shutdown: say where
+                # the time went
+                log.warning("closing the rig's %s took %.1f s", name, took)
