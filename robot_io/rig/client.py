@@ -188,10 +188,14 @@ class RigClient:
     def kill(self) -> None:
         if self.process.is_alive():
             self.process.kill()
-        # the report reader may reap the process at the same moment (join in two threads): wait
-        # until this thread sees it gone too
+        self._wait_reaped()
+
+    def _wait_reaped(self) -> None:
+        """Wait (at most REAP_S) until this thread sees the rig's exit code. The report reader and
+        kill() may reap it at the same moment: the thread that loses sees "no such child" and, for
+        a moment, no exit code, until the other has stored it."""
         deadline = time.monotonic() + REAP_S
-        while self.process.is_alive() and time.monotonic() < deadline:
+        while self.process.exitcode is None and time.monotonic() < deadline:
             self.process.join(0.05)
 
     def close(self) -> None:
@@ -224,7 +228,7 @@ class RigClient:
             elif isinstance(report, TrialDone):
                 self.running, self.stage = None, None
             self._notify(report)
-        self.process.join(REAP_S)  # a killed rig is reaped (its exit code known) before it is reported
+        self._wait_reaped()  # a killed rig is reported with its exit code
         if not self._closing:
             code = self.process.exitcode
             how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
