@@ -51,7 +51,7 @@ OPEN_TIMEOUT_S = 30.0
 STOP_ACK_S = 0.3
 #: While streaming, no new sample row for this long means the rig hangs [s].
 HANG_S = 0.5
-#: How long the report of a dead rig waits for its exit code [s] (1 s was too short under load).
+#: How long the application waits to see a dead or killed rig's exit code [s] (1 s was too short under load).
 REAP_S = 5.0
 #: How long a hung rig gets to print its threads' stacks before it is killed [s].
 STACKS_S = 0.2

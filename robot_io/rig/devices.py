@@ -147,6 +147,6 @@ class RigDevices:
             except Exception:
                 log.exception("closing the rig's %s failed", name)
             if (took := time.monotonic() - began) > SLOW_CLOSE_S:
-                # the application kills a rig that has not exited 5 s after Shutdown: say where
+                # the application kills a rig that is slow to exit after Shutdown: say where
                 # the time went
                 log.warning("closing the rig's %s took %.1f s", name, took)
