@@ -76,5 +76,6 @@ def propose(name: AcquisitionName, model: PairwiseGP, best_x: torch.Tensor,
         # L-BFGS-B are drawn at random, which is BoTorch's designed fallback.
         acqf = build_acquisition(name, model, best_x, config, seed)
         candidate, _ = optimize_acqf(acqf, bounds=bounds, q=1, num_restarts=config.num_restarts,
-                                     raw_samples=config.raw_samples)
+                                     raw_samples=config.raw_samples,
+                                     options=config.scipy_options)
     return candidate.detach().reshape(dim)

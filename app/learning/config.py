@@ -41,6 +41,15 @@ class OptimizerConfig(BaseModel):
     num_restarts: int = Field(4, ge=1, description="L-BFGS-B starts; BoTorch's tutorials use 10")
     raw_samples: int = Field(256, ge=1, description="quasi-random points that pick the starts")
     mc_samples: int = Field(256, ge=1, description="QMC samples of the posterior for qNEI/qLogNEI")
+    tolerance: float | None = Field(
+        None, gt=0.0, lt=1.0, description="L-BFGS-B relative tolerance (ftol) of the acquisition "
+        "and recommendation searches; None is SciPy's default 2.2e-9")
+
+    @property
+    def scipy_options(self) -> dict[str, float | None]:
+        """``optimize_acqf``'s ``options``: the tolerance, if one is set (BoTorch's batched
+        L-BFGS-B takes ``ftol`` only with its default ``factr`` cleared)."""
+        return {} if self.tolerance is None else {"ftol": self.tolerance, "factr": None}
 
 
 class ModelConfig(BaseModel):
@@ -63,6 +72,10 @@ class ModelConfig(BaseModel):
     lazy_fit: bool = Field(
         False, description="after an interaction only recompute the posterior with the current "
         "hyperparameters; fit them before the next acquisition query instead")
+    lazy_kernels: bool = Field(
+        False, description="evaluate kernels through GPyTorch's lazy kernel tensors (GPyTorch's "
+        "default, what BoTorch's tutorials run); off: kernel matrices are computed directly, the "
+        "same numbers with less overhead at the few dozen points of a session")
     refit_growth: float = Field(
         0.0, ge=0.0, description="refit the hyperparameters only once the number of comparisons "
         "has grown by this fraction since the last fit (0: whenever new comparisons arrived); "

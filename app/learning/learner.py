@@ -36,7 +36,7 @@ from app.learning.models import (
     Suggestion,
 )
 from app.learning.population import PopulationMean
-from app.learning.preference_model import PreferenceModel, posterior_at
+from app.learning.preference_model import PreferenceModel, kernel_evaluation, posterior_at
 from app.learning.recommendation import Recommendation, recommend
 from app.learning.rng import derive_seed, seeded
 
@@ -140,8 +140,9 @@ class PreferenceLearner:
             self._recommended = (model, len(self.data.points), found)
         if strategy not in found:
             seed = derive_seed(self.config.seed, len(self.data.points), len(self.data.comparisons), 3)
-            found[strategy] = recommend(strategy, model, self.data, self.config.optimizer, seed,
-                                        self.config.lcb_beta)
+            with kernel_evaluation(self.config.model):
+                found[strategy] = recommend(strategy, model, self.data, self.config.optimizer,
+                                            seed, self.config.lcb_beta)
         return found[strategy]
 
     def incumbent(self) -> dict[str, float] | None:
@@ -180,7 +181,8 @@ class PreferenceLearner:
         for i, name in enumerate(box.names):
             X = center.repeat(points, 1)
             X[:, i] = grid
-            mean, std = posterior_at(model, X)
+            with kernel_evaluation(self.config.model):
+                mean, std = posterior_at(model, X)
             values = box.lower[i] + grid * (box.upper[i] - box.lower[i])
             slices.append(PosteriorSlice(parameter=name, values=tuple(values.tolist()),
                                          mean=tuple(mean.tolist()), std=tuple(std.tolist())))
@@ -233,5 +235,6 @@ class PreferenceLearner:
             return self._sobol(slot)
         index, _ = self.model.best(self.data)  # type: ignore[misc]  # a model exists here
         best_x = torch.tensor(self.data.points[index], dtype=torch.float64)
-        return propose(acquisition, model, best_x, self.config.optimizer,
-                       derive_seed(self.config.seed, slot.index, 2))
+        with kernel_evaluation(self.config.model):
+            return propose(acquisition, model, best_x, self.config.optimizer,
+                           derive_seed(self.config.seed, slot.index, 2))

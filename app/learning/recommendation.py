@@ -56,7 +56,8 @@ def recommend(strategy: RecommendationName, model: PairwiseGP, data: PreferenceD
                                          context="posterior-mean recommendation"):
         candidate, value = optimize_acqf(PosteriorMean(model), bounds=bounds, q=1,
                                          num_restarts=optimizer.num_restarts,
-                                         raw_samples=optimizer.raw_samples)
+                                         raw_samples=optimizer.raw_samples,
+                                         options=optimizer.scipy_options)
     if float(value) <= incumbent.mean:
         return incumbent
     return Recommendation(candidate.detach().reshape(dim).tolist(), float(value), None)
