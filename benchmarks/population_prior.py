@@ -11,7 +11,10 @@ with a cluster bootstrap over populations for the 95 % CIs:
   final interaction (≤ 1: the prior reaches at ``--early`` what none reaches at the end);
 - final ratio = with / without at the final interaction (the cost where there is no structure).
 
-Usage: ``nice -n 19 .venv/bin/python benchmarks/population_prior.py --spread 0.1 --populations 6``
+θ* is recommended by ``--recommendation`` (default: the learner's default strategy).
+
+Usage: ``nice -n 19 .venv/bin/python benchmarks/population_prior.py --spread 0.1 --populations 12
+--workers 2 [--weight 0.3]``
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from app.learning.cluster import dask_client, run_tasks
-from app.learning.config import LearnerSnapshot
+from app.learning.config import DEFAULT_RECOMMENDATION, LearnerSnapshot
 from app.learning.models import RecommendationName
 from app.learning.population import population_prior
 from app.learning.rng import derive_seed
@@ -70,6 +73,9 @@ def main() -> None:
     parser.add_argument("--noise", type=float, default=0.03)
     parser.add_argument("--weight", type=float, default=1.0, help="w of the prior mean")
     parser.add_argument("--early", type=int, default=15, help="interaction compared")
+    parser.add_argument("--recommendation", default=DEFAULT_RECOMMENDATION.value,
+                        choices=[r.value for r in RecommendationName],
+                        help="how θ* is recommended (default: the learner's)")
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
@@ -77,8 +83,9 @@ def main() -> None:
     args = parser.parse_args()
     spread = None if args.spread == "none" else float(args.spread)
     condition = StudyCondition(noise=args.noise,
-                               recommendation=RecommendationName.IN_SAMPLE_MEAN)
-    path = args.out / f"spread-{args.spread}-s{args.noise:g}-w{args.weight:g}.jsonl"
+                               recommendation=RecommendationName(args.recommendation))
+    path = (args.out / f"spread-{args.spread}-s{args.noise:g}-w{args.weight:g}-"
+            f"{args.recommendation}.jsonl")
     path.parent.mkdir(parents=True, exist_ok=True)
     done = load(path)
 
@@ -112,7 +119,8 @@ def main() -> None:
     none_early = np.array([[done[(p, i, False)]["distances"][args.early - 1]
                             for i in range(args.group)] for p in range(args.populations)])
     n_final = len(none_final[0]) and len(done[(0, 0, False)]["distances"])
-    print(f"spread {args.spread}, σ = {args.noise:g}, w = {args.weight:g}: {args.populations} "
+    print(f"spread {args.spread}, σ = {args.noise:g}, w = {args.weight:g}, θ* by "
+          f"{args.recommendation}: {args.populations} "
           f"populations × {args.group} participants (prior from the other {args.group - 1})")
     print(f"mean u(θ*): no prior at {args.early}: {none_early.mean():.3f}, at {n_final}: "
           f"{none_final.mean():.3f}; with prior at {args.early}: {early.mean():.3f}, at "
