@@ -61,7 +61,8 @@ def test_the_prior_comes_from_completed_participants_of_the_scenario_and_is_reco
         engine.close()
     # exactly the pooled posterior mean of the completed participants' final snapshots
     finals = {code: final_snapshot(study, code) for code in ("P01", "P02")}
-    assert stored_prior == population_prior(finals, weight=1.0)
+    assert stored_prior == population_prior(finals, weight=config(seed=5).prior_weight)
+    assert stored_prior.weight == 0.3  # the default, chosen by the prior study
 
     resumed = SessionEngine.resume(study, "P04")
     try:
