@@ -44,10 +44,6 @@ BASELINE_MODEL = ModelConfig(warm_start=False, lazy_fit=False, lazy_kernels=True
 BASELINE_OPTIMIZER = OptimizerConfig(num_restarts=10, raw_samples=512, mc_samples=512)
 
 
-def timed_trials(condition: StudyCondition, seed: int, trials: int) -> list[TrialResult]:
-    return [run_trial(condition, seed, t) for t in range(trials)]
-
-
 def alternating_trials(conditions: list[StudyCondition], seed: int,
                        trials: int) -> list[list[TrialResult]]:
     """Trial t of every condition, then trial t + 1 of every condition, ...: one list per
@@ -121,8 +117,8 @@ def main() -> None:
     total = 0.0
     for acq, q, noise in PAPER_CONDITIONS[:6]:
         condition = StudyCondition(acquisition=acq, q=q, noise=noise)
-        median = statistics.median(r.seconds for r in timed_trials(condition, args.seed + 1,
-                                                                   args.project_trials))
+        timed = alternating_trials([condition], args.seed + 1, args.project_trials)[0]
+        median = statistics.median(r.seconds for r in timed)
         total += 500 * median
         print(f"{condition.name:>34}: median {median:.2f} s/trial")
     print(f"projected full study (6 conditions x 500 trials): {total / 3600:.2f} h in 1 process, "
