@@ -53,11 +53,13 @@ def alternating_trials(conditions: list[StudyCondition], seed: int,
 
 
 def describe(label: str, results: list[TrialResult]) -> tuple[float, str]:
-    seconds = sorted(r.seconds for r in results)
+    seconds = [r.seconds for r in results]
     final = summarise(results)[-1]
     median = statistics.median(seconds)
+    # linear interpolation between order statistics; with one trial, that trial
+    p90 = statistics.quantiles(seconds, n=10, method="inclusive")[-1] if len(seconds) > 1 else median
     return median, (f"{label:>34}: median {median:6.2f} s/trial (p90 "
-                    f"{seconds[int(0.9 * (len(seconds) - 1))]:.2f}), final mean distance "
+                    f"{p90:.2f}), final mean distance "
                     f"{final.mean_distance:.3f} [{final.ci_low:.3f}, {final.ci_high:.3f}], "
                     f"success {final.success_rate:.2f}")
 
