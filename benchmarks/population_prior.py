@@ -54,6 +54,15 @@ def load(path: Path) -> dict[tuple[int, int, bool], dict]:
     return {(r["population"], r["index"], r["prior"]): r for r in rows}
 
 
+def oracle(row: dict, target: np.ndarray, n: int) -> float:
+    """u of the best handover shown in the first ``n`` interactions (the oracle curve), from the
+    stored snapshot (the simulated box is the unit cube)."""
+    snapshot = LearnerSnapshot.model_validate_json(row["snapshot"])
+    shown = [[i.theta[name] for name in snapshot.config.box.names]
+             for i in snapshot.interactions[:n]]
+    return float(np.linalg.norm(np.array(shown) - target, axis=1).min())
+
+
 def cluster_bootstrap(num: np.ndarray, den: np.ndarray, seed: int) -> tuple[float, float]:
     """95 % CI of mean(num)/mean(den), resampling the rows (populations) with replacement."""
     rng = np.random.default_rng(seed)
@@ -125,6 +134,11 @@ def main() -> None:
     print(f"mean u(θ*): no prior at {args.early}: {none_early.mean():.3f}, at {n_final}: "
           f"{none_final.mean():.3f}; with prior at {args.early}: {early.mean():.3f}, at "
           f"{n_final}: {with_final.mean():.3f}")
+    targets = {(p, i): participant_target(condition.dim, args.seed, p, i, spread) for p, i in keys}
+    for prior, label in ((False, "no prior"), (True, "with prior")):
+        at = {n: np.mean([oracle(done[(p, i, prior)], targets[(p, i)], n) for p, i in keys])
+              for n in (1, 5, args.early, n_final)}
+        print(f"oracle (best shown), {label}: " + ", ".join(f"at {n}: {u:.3f}" for n, u in at.items()))
     # resample whole populations; with one population, its participants
     per_population = ((early.mean(1), none_final.mean(1), with_final.mean(1))
                       if args.populations > 1 else (early[0], none_final[0], with_final[0]))
