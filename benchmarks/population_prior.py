@@ -2,9 +2,11 @@
 
 Populations of ``--group`` simulated participants share an optimum θ_0 ~ U[0, 1]³; each one's
 optimum is θ_0 + N(0, spread²·I), clipped (``--spread``; ``--spread none``: uniform optima, no
-shared structure). Every participant runs once without a prior (these runs are also the earlier
-participants' data) and once with the prior pooled from the *other* ``group − 1`` participants
-of its population, on the same optimum and the same noise (paired). Reported over participants,
+shared structure; ``--spread paper``: the paper's participants, each optimum one of the θ* of Table
+II (even populations) or III (odd) plus jitter, app.learning.paper_population). Every participant
+runs once without a prior (these runs are also the earlier participants' data) and once with the
+prior pooled from the *other* ``group − 1`` participants of its population, on the same optimum and
+the same noise (paired). Reported over participants,
 with a cluster bootstrap over populations for the 95 % CIs:
 
 - ratio = mean u(θ*) with the prior at interaction ``--early`` / mean u(θ*) without it at the
@@ -28,6 +30,7 @@ import numpy as np
 from app.learning.cluster import dask_client, run_tasks
 from app.learning.config import DEFAULT_RECOMMENDATION, LearnerSnapshot
 from app.learning.models import RecommendationName
+from app.learning.paper_population import PAPER_POPULATION
 from app.learning.population import population_prior
 from app.learning.rng import derive_seed
 from app.learning.simulation import StudyCondition, participant_target, simulate_learner
@@ -76,7 +79,8 @@ def cluster_bootstrap(num: np.ndarray, den: np.ndarray, seed: int) -> tuple[floa
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--spread", default="0.1", help="optimum spread, or 'none' (uniform)")
+    parser.add_argument("--spread", default="0.1",
+                        help="optimum spread, 'none' (uniform) or 'paper' (Tables II–III)")
     parser.add_argument("--populations", type=int, default=6)
     parser.add_argument("--group", type=int, default=9, help="participants per population")
     parser.add_argument("--noise", type=float, default=0.03)
@@ -90,7 +94,8 @@ def main() -> None:
     parser.add_argument("--scheduler", default=None)
     parser.add_argument("--out", type=Path, default=Path("out/prior"))
     args = parser.parse_args()
-    spread = None if args.spread == "none" else float(args.spread)
+    spread = (None if args.spread == "none" else args.spread if args.spread == PAPER_POPULATION
+              else float(args.spread))
     condition = StudyCondition(noise=args.noise,
                                recommendation=RecommendationName(args.recommendation))
     path = (args.out / f"spread-{args.spread}-s{args.noise:g}-w{args.weight:g}-"

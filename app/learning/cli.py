@@ -23,6 +23,19 @@ PAPER_CONDITIONS: tuple[tuple[AcquisitionName, int, float], ...] = (
 )
 
 
+def _spread(text: str) -> float | str:
+    """``--spread``: a number in [0, 1] or ``paper``."""
+    from app.learning.paper_population import PAPER_POPULATION
+
+    if text == PAPER_POPULATION:
+        return text
+    try:
+        return _bounded(float, 0.0, 1.0)(text)
+    except argparse.ArgumentTypeError as exc:
+        raise argparse.ArgumentTypeError(f"{exc}; allowed: a number in [0, 1] or "
+                                         f"{PAPER_POPULATION!r}") from None
+
+
 def _bounded(kind: type[int] | type[float], low: float, high: float) -> Callable[[str], float]:
     """An argparse type accepting ``kind`` values in [low, high], naming the range otherwise."""
 
@@ -108,9 +121,10 @@ def register_pilot(subparsers: argparse._SubParsersAction) -> None:
                         help="learning batches (default 4, the paper's)")
     parser.add_argument("--batch-size", type=_bounded(int, 2, 25), default=5,
                         help="interactions per learning batch, θ* included (default 5)")
-    parser.add_argument("--spread", type=_bounded(float, 0.0, 1.0), default=None,
+    parser.add_argument("--spread", type=_spread, default=None,
                         help="spread of the participants' optima around a scenario's shared one "
-                        "(unit-cube sd); default: uniform optima, no shared structure")
+                        "(unit-cube sd, 0 to 1), or 'paper': optima resampled from the θ* of "
+                        "Tables II–III; default: uniform optima, no shared structure")
     add_shared_options(parser, noise=0.05, out="out/pilot",
                        figure="PNG of scores and power (default OUT/pilot.png)")
     parser.set_defaults(func=run_pilot_command)

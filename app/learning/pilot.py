@@ -23,6 +23,7 @@ from __future__ import annotations
 import csv
 import json
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 from distributed import Client
@@ -33,6 +34,7 @@ from app.learning.cluster import run_tasks
 from app.learning.config import DEFAULT_RECOMMENDATION, AcquisitionName
 from app.learning.errors import StudyError
 from app.learning.models import RecommendationName
+from app.learning.paper_population import PaperPopulation
 from app.learning.planner import PAPER_SESSION_SCHEDULE, BatchSchedule
 from app.learning.rng import derive_seed
 from app.learning.simulation import StudyCondition, participant_target, simulate_learner
@@ -52,9 +54,10 @@ class PilotConfig(BaseModel):
     participants: int = Field(8, ge=1, le=1000, description="participants per scenario")
     scenarios: int = Field(2, ge=1, le=20, description="scenarios (paper: 2)")
     noise: float = Field(0.05, ge=0.0, le=1.0, description="σ of eq. (16)")
-    spread: float | None = Field(
-        None, ge=0.0, le=1.0, description="population spread of the optima in a scenario; None: "
-        "uniform optima (no shared structure)")
+    spread: Annotated[float, Field(ge=0.0, le=1.0)] | PaperPopulation | None = Field(
+        None, description="population spread of the optima in a scenario; None: uniform optima "
+        "(no shared structure); 'paper': the θ* of Tables II–III resampled "
+        "(app.learning.paper_population)")
     acquisition: AcquisitionName = AcquisitionName.QNEI
     recommendation: RecommendationName = DEFAULT_RECOMMENDATION
     schedule: BatchSchedule = PAPER_SESSION_SCHEDULE

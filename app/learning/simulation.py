@@ -17,7 +17,8 @@ curve (the best point shown so far). Success is u(θ*) < 0.1.
 
 Population mode (``spread``): the participants of a population share an optimum θ_0 ~ U[0, 1]^d and
 each one's target is θ_0 + N(0, spread²·I), clipped to the cube; without a spread every target is
-uniform (no shared structure). :func:`participant_target` draws them.
+uniform (no shared structure); ``spread = "paper"``: the paper's own participants, resampled from
+Tables II–III (:mod:`app.learning.paper_population`). :func:`participant_target` draws them.
 """
 
 from __future__ import annotations
@@ -44,6 +45,7 @@ from app.learning.models import (
     RecommendationName,
     SlotKind,
 )
+from app.learning.paper_population import PAPER_POPULATION, PaperPopulation, paper_optimum
 from app.learning.planner import BatchSchedule
 from app.learning.prior import PopulationPrior
 from app.learning.rng import derive_seed
@@ -112,11 +114,14 @@ class TrialResult(BaseModel):
 
 
 def participant_target(dim: int, seed: int, population: int, participant: int,
-                       spread: float | None) -> np.ndarray:
-    """The optimum θ_t of ``participant`` of ``population``: uniform, or around the shared θ_0."""
+                       spread: float | PaperPopulation | None) -> np.ndarray:
+    """The optimum θ_t of ``participant`` of ``population``: uniform, around the shared θ_0, or
+    (``"paper"``) one of the θ* of Table II (even ``population``) or III (odd) with jitter."""
     rng = np.random.default_rng(derive_seed(seed, population, participant, 0))
     if spread is None:
         return rng.uniform(size=dim)
+    if spread == PAPER_POPULATION:
+        return paper_optimum(rng, population % 2, dim)
     shared = np.random.default_rng(derive_seed(seed, population, 0x5EED)).uniform(size=dim)
     return np.clip(shared + rng.normal(0.0, spread, size=dim), 0.0, 1.0)
 
