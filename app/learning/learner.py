@@ -209,12 +209,16 @@ class PreferenceLearner:
         return learner
 
     def _initial(self, slot: Slot) -> torch.Tensor:
-        """A point of the initial batch: with a prior from earlier participants the first is
-        their best (where the pooled mean peaks), so θ* can be good from the first batch on;
-        otherwise, and for the others, the Sobol sequence."""
+        """A point of the initial batch: with a prior from earlier participants, the handovers
+        they liked best (:meth:`PopulationMean.initial_design`: the pooled best, then their own
+        bests spread out), so θ* can be good from the first batch on and the first comparisons
+        tell where this participant differs from them; otherwise, and for slots the earlier
+        participants cannot fill, the Sobol sequence."""
         prior_mean = self.model.prior_mean
-        if slot.index == 0 and prior_mean is not None:
-            return prior_mean.best_point().clone()
+        if prior_mean is not None:
+            design = prior_mean.initial_design(self.config.schedule.n_initial)
+            if slot.index < len(design):
+                return design[slot.index].clone()
         return self._sobol(slot)
 
     def _sobol(self, slot: Slot) -> torch.Tensor:

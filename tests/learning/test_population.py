@@ -10,7 +10,7 @@ from app.learning.config import LearnerConfig
 from app.learning.errors import LearningError
 from app.learning.learner import PreferenceLearner
 from app.learning.models import Interaction, ParameterBox
-from app.learning.population import PopulationMean, population_prior
+from app.learning.population import DISTINCT_FAVOURITES, PopulationMean, population_prior
 from app.learning.preference_model import posterior_at
 from app.learning.simulation import participant_target
 
@@ -77,9 +77,20 @@ def test_comparisons_override_a_wrong_prior():
     assert learner.best().theta["x1"] < 0.35  # the participant's own best region, not the prior's
 
 
+def _liking(box, winner, losers, seed=0):
+    """An earlier participant who preferred ``winner`` to every point in ``losers``."""
+    learner = PreferenceLearner(LearnerConfig(box=box, seed=seed))
+    points = [winner, *losers]
+    learner.observe_many([Interaction(interaction_id=str(k), theta={"x1": a, "x2": b})
+                          for k, (a, b) in enumerate(points)],
+                         [_beats("0", str(k)) for k in range(1, len(points))])
+    return learner
+
+
 def test_with_a_prior_the_first_handover_is_the_earlier_participants_best():
     """Interaction 1 is the earlier point where the pooled mean peaks (computed here from the
-    pooled mean, not taken from the learner); the rest of the initial batch stays Sobol."""
+    pooled mean, not taken from the learner); with one earlier participant there is no other
+    favourite to show, so the rest of the initial batch stays Sobol."""
     box = ParameterBox.unit_cube(2)
     earlier = PreferenceLearner(LearnerConfig(box=box, seed=0))
     corners = [(1.0, 1.0), (0.0, 0.0), (0.7, 0.6), (0.2, 0.1)]
@@ -98,6 +109,48 @@ def test_with_a_prior_the_first_handover_is_the_earlier_participants_best():
     for learner in (with_prior, without):
         learner.observe(Interaction(interaction_id="1", theta=learner.suggest().theta))
     assert with_prior.suggest().theta == without.suggest().theta  # Sobol point 2 for both
+
+
+def test_the_initial_batch_shows_the_earlier_participants_distinct_favourites():
+    """Four earlier participants, two of whom liked nearly the same handover (0.11 apart): the
+    initial batch is the pooled best, then the other favourites farthest first, but not the one
+    within DISTINCT_FAVOURITES of a shown one; Sobol points fill the rest. Each favourite is
+    checked here from that participant's own posterior mean."""
+    box = ParameterBox.unit_cube(2)
+    losers = [(0.5, 0.5), (0.3, 0.2), (0.6, 0.1), (0.1, 0.6)]
+    likes = {"P01": (0.9, 0.9), "P02": (0.1, 0.9), "P03": (0.85, 0.8), "P04": (0.5, 0.1)}
+    earlier = {who: _liking(box, best, losers, seed=k)
+               for k, (who, best) in enumerate(likes.items())}
+    for who, learner in earlier.items():
+        X = learner.model.model.datapoints
+        own_best = X[int(torch.argmax(posterior_at(learner.model.model, X)[0]))].tolist()
+        assert own_best == pytest.approx(likes[who])
+    assert np.hypot(0.9 - 0.85, 0.9 - 0.8) < DISTINCT_FAVOURITES < np.hypot(0.5 - 0.1, 0.1 - 0.9)
+    prior = population_prior({who: learner.snapshot() for who, learner in earlier.items()})
+    pooled = PopulationMean(prior)(torch.tensor(list(likes.values()), dtype=torch.float64))
+    pooled_best = list(likes.values())[int(torch.argmax(pooled))]
+    assert pooled_best in (likes["P01"], likes["P03"])  # two of four liked that corner
+    learner = PreferenceLearner(LearnerConfig(box=box, seed=3, prior=prior))
+    shown = []
+    for k in range(5):
+        theta = learner.suggest().theta
+        shown.append((theta["x1"], theta["x2"]))
+        learner.observe(Interaction(interaction_id=str(k), theta=theta))
+    # from either corner favourite, P04 is the farthest (> 0.76), then P02 (≥ 0.75 from both)
+    assert shown[:3] == [pytest.approx(b) for b in (pooled_best, likes["P04"], likes["P02"])]
+    assert shown[3:] == [(theta["x1"], theta["x2"]) for theta in _sobol(box, 3, [3, 4])]
+
+
+def _sobol(box, seed, indices):
+    """The Sobol points a learner without a prior shows in these initial slots."""
+    learner = PreferenceLearner(LearnerConfig(box=box, seed=seed))
+    shown = []
+    for k in range(max(indices) + 1):
+        theta = learner.suggest().theta
+        if k in indices:
+            shown.append(theta)
+        learner.observe(Interaction(interaction_id=str(k), theta=theta))
+    return shown
 
 
 def _beats(winner, loser):
