@@ -153,6 +153,11 @@ def main() -> None:
     low, high = cluster_bootstrap(per_population[2], per_population[1], args.seed)
     print(f"final ratio prior / none at {n_final}: {with_final.mean() / none_final.mean():.2f} "
           f"[{low:.2f}, {high:.2f}]")
+    curve = np.mean([done[(p, i, True)]["distances"] for p, i in keys], axis=0)
+    reached = np.flatnonzero(curve <= none_final.mean())
+    print(f"with the prior, mean u(θ*) first reaches none@{n_final} ({none_final.mean():.3f}) at "
+          f"interaction {reached[0] + 1 if reached.size else 'never'}; with prior at 5/10/…: "
+          + " ".join(f"{u:.3f}" for u in curve[4::5]))
 
 
 if __name__ == "__main__":
