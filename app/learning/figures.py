@@ -11,6 +11,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
+from app.learning.paper_population import PAPER_POPULATION
 from app.learning.pilot import ALPHAS, PilotReport
 from app.learning.study import ConditionSummary, InteractionSummary
 
@@ -53,8 +54,12 @@ def draw_pilot(report: PilotReport, path: Path) -> Path:
     left.bar(labels, list(report.score_distribution.values()), color="tab:blue")
     left.set_xlabel("validation score (θ* preferred)")
     left.set_ylabel("share of participants")
+    spread = report.config.spread
+    optima = ("uniform optima" if spread is None else "optima of Tables II–III"
+              if spread == PAPER_POPULATION else f"optima spread {spread:g}")
     left.set_title(f"{report.config.studies} studies × {report.config.scenarios} × "
-                   f"{report.config.participants} participants", fontsize=9)
+                   f"{report.config.participants} participants, σ = {report.config.noise:g}, "
+                   f"{optima}", fontsize=9)
     for alpha, colour in zip(ALPHAS, ("tab:green", "tab:red"), strict=True):
         points = [p for p in report.power_curve if p.alpha == alpha]
         n = [report.config.scenarios * p.participants_per_scenario for p in points]
