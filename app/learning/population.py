@@ -52,8 +52,12 @@ class PopulationMean(Mean):
         self.register_buffer("owners", torch.tensor(owners))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self._kernel(x) @ self.coefficients
+
+    def _kernel(self, x: torch.Tensor) -> torch.Tensor:
+        """exp(−½‖(x − X_p)/ℓ_p‖²) against every stacked point, ... × n × N."""
         diff = (x.unsqueeze(-2) - self.points) / self.lengthscales  # ... × n × N × d
-        return torch.exp(-0.5 * diff.pow(2).sum(-1)) @ self.coefficients
+        return torch.exp(-0.5 * diff.pow(2).sum(-1))
 
     def best_point(self) -> torch.Tensor:
         """The earlier participants' point (unit cube) where w · m̄ is largest: the population's
@@ -64,10 +68,9 @@ class PopulationMean(Mean):
         """Each earlier participant's own best: of the points p was shown, the one where p's
         posterior mean k_p(x, X_p) α_p is largest (one row per component, in order)."""
         same = self.owners.unsqueeze(-1) == self.owners
-        diff = (self.points.unsqueeze(-2) - self.points) / self.lengthscales
-        own_mean = (torch.exp(-0.5 * diff.pow(2).sum(-1)) * same) @ self.coefficients
-        best = [int(torch.nonzero(mine).reshape(-1)[torch.argmax(own_mean[mine])])
-                for mine in (self.owners == p for p in range(int(self.owners.max()) + 1))]
+        own_mean = (self._kernel(self.points) * same) @ self.coefficients
+        best = [int(torch.where(self.owners == p, own_mean, -torch.inf).argmax())
+                for p in range(int(self.owners.max()) + 1)]
         return self.points[best]
 
     def initial_design(self, n: int) -> torch.Tensor:
