@@ -6,8 +6,8 @@ shared structure; ``--spread paper``: the paper's participants, each optimum one
 II (even populations) or III (odd) plus jitter, app.learning.paper_population). Every participant
 runs once without a prior (these runs are also the earlier participants' data) and once with the
 prior pooled from the *other* ``group − 1`` participants of its population, on the same optimum and
-the same noise (paired). Reported over participants,
-with a cluster bootstrap over populations for the 95 % CIs:
+the same noise (paired). Reported over participants, with a cluster bootstrap over populations for
+the 95 % CIs:
 
 - ratio = mean u(θ*) with the prior at interaction ``--early`` / mean u(θ*) without it at the
   final interaction (≤ 1: the prior reaches at ``--early`` what none reaches at the end);
@@ -57,13 +57,12 @@ def load(path: Path) -> dict[tuple[int, int, bool], dict]:
     return {(r["population"], r["index"], r["prior"]): r for r in rows}
 
 
-def oracle(row: dict, target: np.ndarray, n: int) -> float:
-    """u of the best handover shown in the first ``n`` interactions (the oracle curve), from the
+def oracle_curve(row: dict, target: np.ndarray) -> np.ndarray:
+    """u of the best handover shown so far, after each interaction (the oracle curve), from the
     stored snapshot (the simulated box is the unit cube)."""
     snapshot = LearnerSnapshot.model_validate_json(row["snapshot"])
-    shown = [[i.theta[name] for name in snapshot.config.box.names]
-             for i in snapshot.interactions[:n]]
-    return float(np.linalg.norm(np.array(shown) - target, axis=1).min())
+    shown = [[i.theta[name] for name in snapshot.config.box.names] for i in snapshot.interactions]
+    return np.minimum.accumulate(np.linalg.norm(np.array(shown) - target, axis=1))
 
 
 def cluster_bootstrap(num: np.ndarray, den: np.ndarray, seed: int) -> tuple[float, float]:
@@ -141,9 +140,9 @@ def main() -> None:
           f"{n_final}: {with_final.mean():.3f}")
     targets = {(p, i): participant_target(condition.dim, args.seed, p, i, spread) for p, i in keys}
     for prior, label in ((False, "no prior"), (True, "with prior")):
-        at = {n: np.mean([oracle(done[(p, i, prior)], targets[(p, i)], n) for p, i in keys])
-              for n in (1, 5, args.early, n_final)}
-        print(f"oracle (best shown), {label}: " + ", ".join(f"at {n}: {u:.3f}" for n, u in at.items()))
+        curve = np.mean([oracle_curve(done[(p, i, prior)], targets[(p, i)]) for p, i in keys], axis=0)
+        print(f"oracle (best shown), {label}: "
+              + ", ".join(f"at {n}: {curve[n - 1]:.3f}" for n in (1, 5, args.early, n_final)))
     # resample whole populations; with one population, its participants
     per_population = ((early.mean(1), none_final.mean(1), with_final.mean(1))
                       if args.populations > 1 else (early[0], none_final[0], with_final[0]))
