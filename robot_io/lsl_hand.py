@@ -41,12 +41,20 @@ class LSLHand(TrackedHand):
         self.start()
 
     def receive_once(self) -> None:
-        # One sample at a time: pull_chunk waits out its whole timeout, which would age every sample.
+        # Wait for one sample (pull_chunk waits out its whole timeout, which would age every
+        # sample), then take whatever else has queued without waiting: a backlog (the stream's first
+        # ~0.6 s arrive at once while clock sync starts, or a network stall) is put in one wake.
+        # One sample per wake drained it at one sample per GIL turn (~2 ms) while the control loop
+        # ran, so the newest sample stayed hundreds of ms old and a trial could end tracker_lost.
         # proc_clocksync maps the outlet's time stamps onto pylsl.local_clock(), which on Linux is
         # the monotonic clock that time.monotonic() reads.
         sample, stamp = self.inlet.pull_sample(timeout=0.1)
-        if sample is not None:
-            self.put(stamp, [sample[c] for c in self.channels])
+        if sample is None:
+            return
+        self.put(stamp, [sample[c] for c in self.channels])
+        samples, stamps = self.inlet.pull_chunk(timeout=0.0)
+        for queued, queued_stamp in zip(samples, stamps, strict=True):
+            self.put(queued_stamp, [queued[c] for c in self.channels])
 
     def close(self) -> None:
         super().close()

@@ -87,12 +87,15 @@ class TrackedHand:
             return None
         return HandSample(newest[0] - (time.monotonic() - now), newest[1])
 
-    def wait_for_sample(self, timeout: float) -> None:
-        """Block until the first sample (start a trial only once the tracker is live)."""
+    def wait_for_sample(self, timeout: float, max_age_s: float) -> None:
+        """Block until the newest valid sample is at most ``max_age_s`` old (start a trial only once
+        the tracker is live: a first sample that arrives late, as LSL's first ~0.6 s do, is not)."""
         deadline = time.monotonic() + timeout
-        while self.age() is None:
+        while (age := self.valid_age()) is None or age > max_age_s:
             if time.monotonic() > deadline:
-                raise HandSourceError(f"{type(self).__name__}: no sample within {timeout} s")
+                got = "no valid sample" if age is None else f"the newest valid sample is {age:.3f} s old"
+                raise HandSourceError(f"{type(self).__name__}: {got} after {timeout} s "
+                                      f"(wanted one at most {max_age_s} s old)")
             time.sleep(0.005)
 
     def age(self) -> float | None:

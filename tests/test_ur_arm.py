@@ -16,7 +16,7 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from hand_replay import TRACKER, Replay
+from support.hand_replay import TRACKER, Replay
 from ur_helpers import (
     MOVEL,
     SERVO_STOP,
@@ -204,7 +204,7 @@ def test_a_stale_hand_source_stops_the_arm():
 
         replay = Replay(hand(config), send, 100.0, stop_after=0.8).start()
         try:
-            tracker.wait_for_sample(2.0)
+            tracker.wait_for_sample(2.0, config.loop.staleness_limit_s)
             record = ur_trial(config, THETA, tracker, arm)
             silent_at = replay.began + 0.8
         finally:

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from hand_replay import TRACKER, to_tracker
+from support.hand_replay import TRACKER, to_tracker
 from ur_helpers import standin
 
 from app.cli import main

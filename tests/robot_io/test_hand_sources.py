@@ -11,7 +11,7 @@ import time
 import numpy as np
 import pylsl
 import pytest
-from hand_replay import TRACKER, Replay, to_tracker
+from support.hand_replay import TRACKER, Replay, to_tracker
 
 from robot_io.clock import RealClock
 from robot_io.config import ControllerConfig
@@ -44,7 +44,7 @@ def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
     hand = LSLHand(config.hand_source, _transform(config))
     replay = Replay(simulated, lambda xyz: outlet.push_sample(xyz.tolist()), 100.0).start()
     try:
-        hand.wait_for_sample(5.0)
+        hand.wait_for_sample(5.0, config.loop.staleness_limit_s)
         clock = RealClock(125)
         arm = MockArm(clock, config.scene.point("robot_start"))
         loop_config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": 125})})
@@ -65,6 +65,64 @@ def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
     # stamps are fresh: at most a few tracker periods old when used
     age = record.samples["t"][valid] - hand_t[valid]
     assert np.median(age) < 0.03
+
+
+class WakeCountingLSLHand(LSLHand):
+    """The real LSL source, counting the receiver thread's wakes that put samples."""
+
+    def __init__(self, *args) -> None:
+        self.wakes = 0
+        super().__init__(*args)  # starts the receiver thread
+
+    def receive_once(self) -> None:
+        before = self.received
+        super().receive_once()
+        self.wakes += self.received > before
+
+
+def test_an_lsl_backlog_is_taken_in_one_wake_and_its_newest_sample_is_current():
+    config = ControllerConfig()
+    name = f"handover-backlog-{os.getpid()}"
+    config = source_config(config, kind="lsl", lsl_stream_name=name, lsl_stream_type="MocapTest")
+    outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name, "MocapTest", 3, 100.0, pylsl.cf_float32, name))
+    hand = WakeCountingLSLHand(config.hand_source, _transform(config))
+    try:
+        outlet.push_sample(to_tracker(np.array([0.5, 0.0, 0.3])).tolist())
+        _wait(lambda: hand.received == 1, timeout=5.0)
+        wakes = hand.wakes
+        # 80 samples that queued while the receiver was held up (0.8 s at 100 Hz), the last now
+        path = np.linspace([0.5, 0.0, 0.3], [0.6, 0.1, 0.4], 80)
+        now = pylsl.local_clock()
+        outlet.push_chunk([to_tracker(p).tolist() for p in path],
+                          [now - 0.79 + 0.01 * i for i in range(80)])
+        _wait(lambda: hand.received == 81)
+        newest = hand.latest(time.monotonic())
+        age = hand.age()
+    finally:
+        hand.close()
+    assert hand.wakes - wakes <= 8  # one sample per wake took 80
+    assert newest.position == pytest.approx(path[-1], abs=1e-5)
+    assert 0.0 <= age < 0.05  # stamped when pushed (now), not when the backlog began
+
+
+def test_waiting_for_the_tracker_wants_a_fresh_sample_not_just_any():
+    config = source_config(ControllerConfig(), kind="udp", udp_host="127.0.0.107", udp_port=0)
+    hand = UDPHand(config.hand_source, _transform(config))
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    x, y, z = to_tracker(np.array([0.55, 0.05, 0.30]))
+    try:
+        sender.sendto(json.dumps({"x": x, "y": y, "z": z, "t": time.monotonic() - 0.6}).encode(),
+                      hand.address)
+        _wait(lambda: hand.received == 1)
+        with pytest.raises(HandSourceError, match=r"newest valid sample is 0\.[6-9]\d* s old after "
+                                                  r"0\.2 s \(wanted one at most 0\.1 s old\)"):
+            hand.wait_for_sample(0.2, 0.1)
+        sender.sendto(json.dumps({"x": x, "y": y, "z": z}).encode(), hand.address)
+        hand.wait_for_sample(2.0, 0.1)
+        assert hand.valid_age() <= 0.1
+    finally:
+        sender.close()
+        hand.close()
 
 
 def _transform(config: ControllerConfig):
