@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TypeVar
 
 from playwright.sync_api import Browser, Page, sync_playwright
+from playwright.sync_api import Error as PlaywrightError
 
 from app.protocol.vocabulary import QUESTIONS
 from app.ui.deliberate import SETTLE_S
@@ -295,9 +296,29 @@ def timed_tap(page: Page, name: str, screen: str) -> float:
     return time.perf_counter() - began
 
 
+def labelled(page: Page, label: str):
+    """The input labelled ``label`` (viser's labels are not <label> elements)."""
+    return page.locator(f"xpath=//*[normalize-space(text())='{label}']/following::input[1]")
+
+
 def fill(page: Page, label: str, value: str) -> None:
-    """Type into the text field labelled ``label`` (viser's labels are not <label> elements)."""
-    page.locator(f"xpath=//*[normalize-space(text())='{label}']/following::input[1]").fill(value)
+    """Type into the text field labelled ``label``."""
+    labelled(page, label).fill(value)
+
+
+def tick(page: Page, label: str, attempts: int = 3) -> None:
+    """Tick the checkbox labelled ``label``. viser sets a box's state in the click's own event
+    handler, so a click that leaves it unticked did not land on it (seen once in CI, on a loaded
+    machine, right after a trial; not reproduced since). Such a click is tried again: ticking is
+    idempotent, so a retry never unticks the box."""
+    box = labelled(page, label)
+    for attempt in range(attempts):
+        try:
+            box.check()
+            return
+        except PlaywrightError:
+            if attempt == attempts - 1:
+                raise
 
 
 def unlock_dashboard(page: Page, token: str = TOKEN) -> None:

@@ -31,6 +31,7 @@ from support.browser import (
     serve,
     shot,
     tablet_screen,
+    tick,
     unlock_dashboard,
     wait_ready,
     wait_text,
@@ -139,8 +140,7 @@ def run_participant(dashboard: Page, code: str) -> None:
     """Create ``code`` and run the whole short protocol with the simulated participant rating;
     the experimenter presses Start for every trial."""
     open_participant(dashboard, code)
-    dashboard.locator("xpath=//*[normalize-space(text())='Simulated participant rates']"
-                      "/following::input[1]").check()
+    tick(dashboard, "Simulated participant rates")
     wait_text(dashboard, "simulated participant on")
     while "Session complete" not in dashboard.inner_text("body"):
         start = button(dashboard, "Start trial")

@@ -19,6 +19,7 @@ from support.browser import (
     serve,
     shot,
     tablet_screen,
+    tick,
     touch_drag_to,
     wait_text,
 )
@@ -68,8 +69,7 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
             assert tablet_screen(tablet, not_="place") == "wait"
         wait_text(dashboard, "3 of 9 handovers completed")
         dashboard.get_by_text("Rehearse a fault", exact=True).first.click()
-        dashboard.locator("xpath=//*[normalize-space(text())='The participant does not take the "
-                          "object']/following::input[1]").check()
+        tick(dashboard, "The participant does not take the object")
         wait_text(dashboard, "the simulated participant will not take the object")
         faults = shot(dashboard, screens, "dashboard-rehearse-a-fault")
         click(dashboard, "Start trial")
