@@ -76,6 +76,11 @@ class ModelConfig(BaseModel):
         False, description="evaluate kernels through GPyTorch's lazy kernel tensors (GPyTorch's "
         "default, what BoTorch's tutorials run); off: kernel matrices are computed directly, the "
         "same numbers with less overhead at the few dozen points of a session")
+    batch_position_noise: bool = Field(
+        False, description="weigh each comparison by the noise of eq. (16): a comparison between "
+        "batch positions i and j is √((i² + j²)/2) times as noisy as one between two first "
+        "positions (app.learning.comparison_noise); off: every comparison equally reliable, as "
+        "BoTorch's probit likelihood has it")
     refit_growth: float = Field(
         0.0, ge=0.0, description="refit the hyperparameters only once the number of comparisons "
         "has grown by this fraction since the last fit (0: whenever new comparisons arrived); "

@@ -13,6 +13,7 @@ import logging
 
 import torch
 
+from app.learning.comparison_noise import relative_noise
 from app.learning.errors import UnknownInteractionError
 from app.learning.models import Comparison, InteractionId
 
@@ -30,7 +31,10 @@ class PreferenceData:
         self.merge_tolerance = merge_tolerance
         self.points: list[list[float]] = []
         self.comparisons: list[tuple[int, int]] = []
+        #: each comparison's relative noise √((i² + j²)/2) from its batch positions (eq. (16))
+        self.comparison_noise: list[float] = []
         self._index: dict[InteractionId, int] = {}
+        self._position: dict[InteractionId, int] = {}
 
     @property
     def n_interactions(self) -> int:
@@ -61,8 +65,10 @@ class PreferenceData:
         """The interactions that showed point ``index``, in the order they were added."""
         return tuple(iid for iid, i in self._index.items() if i == index)
 
-    def add_interaction(self, interaction_id: InteractionId, unit_point: list[float]) -> int:
-        """Register an interaction at a unit-cube point; returns its (possibly reused) index."""
+    def add_interaction(self, interaction_id: InteractionId, unit_point: list[float],
+                        position: int = 1) -> int:
+        """Register an interaction at a unit-cube point and its ``position`` j within its batch
+        (eq. (16)); returns its (possibly reused) point index."""
         self.check_new_ids([interaction_id])
         index = self._find(unit_point)
         if index is None:
@@ -71,6 +77,7 @@ class PreferenceData:
         else:
             logger.debug("interaction %s reuses point %d", interaction_id, index)
         self._index[interaction_id] = index
+        self._position[interaction_id] = position
         return index
 
     def add_comparison(self, comparison: Comparison) -> bool:
@@ -81,6 +88,8 @@ class PreferenceData:
                          comparison.loser, pair[0])
             return False
         self.comparisons.append(pair)
+        self.comparison_noise.append(relative_noise(self._position[comparison.winner],
+                                                    self._position[comparison.loser]))
         return True
 
     def tensors(self) -> tuple[torch.Tensor, torch.Tensor]:

@@ -102,7 +102,8 @@ class PreferenceLearner:
                     raise UnknownInteractionError(
                         f"comparison names interaction_id = {iid!r}, which is not known")
         for interaction, unit in zip(interactions, units, strict=True):
-            self.data.add_interaction(interaction.interaction_id, unit)
+            position = self.config.schedule.slot(self.n_interactions).position  # j of eq. (16)
+            self.data.add_interaction(interaction.interaction_id, unit, position)
             self._interactions.append(interaction)
         added = [self.data.add_comparison(c) for c in comparisons]
         self._comparisons.extend(comparisons)

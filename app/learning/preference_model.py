@@ -31,6 +31,7 @@ from gpytorch.priors import GammaPrior, SmoothedBoxPrior
 from linear_operator.utils.errors import NotPSDError
 from linear_operator.utils.warnings import NumericalWarning
 
+from app.learning.comparison_noise import BatchPositionProbit
 from app.learning.config import Hyperparameters, ModelConfig
 from app.learning.data import PreferenceData
 from app.learning.expected_warnings import expected_warnings
@@ -86,11 +87,13 @@ def fit_model(data: PreferenceData, config: ModelConfig,
     """
     X, C = data.tensors()
     covar = _covar_module_at(data.dim, config, hyperparameters)
+    likelihood = (BatchPositionProbit(torch.tensor(data.comparison_noise, dtype=torch.float64))
+                  if config.batch_position_noise else PairwiseProbitLikelihood())
     with kernel_evaluation(config), expected_warnings(NumericalWarning, context="PairwiseGP"):
         if prior_mean is None:
-            model = PairwiseGP(X, C, likelihood=PairwiseProbitLikelihood(), covar_module=covar)
+            model = PairwiseGP(X, C, likelihood=likelihood, covar_module=covar)
         else:
-            model = PopulationPairwiseGP(X, C, prior_mean, likelihood=PairwiseProbitLikelihood(),
+            model = PopulationPairwiseGP(X, C, prior_mean, likelihood=likelihood,
                                          covar_module=covar)
     if optimize:
         mll = PairwiseLaplaceMarginalLogLikelihood(model.likelihood, model)
