@@ -77,6 +77,9 @@ def add_shared_options(parser: argparse.ArgumentParser, *, noise: float, out: st
     parser.add_argument("--recommendation", choices=[r.value for r in RecommendationName],
                         default=DEFAULT_RECOMMENDATION.value,
                         help=f"θ* strategy (default {DEFAULT_RECOMMENDATION.value})")
+    parser.add_argument("--batch-position-noise", action="store_true",
+                        help="the learner weighs each comparison by the noise of eq. (16) at the "
+                        "batch positions it compares (default: every comparison equally)")
     add_cluster_options(parser)
     parser.add_argument("--out", type=Path, default=Path(out),
                         help=f"output folder, resumed from (default {out})")
@@ -143,7 +146,8 @@ def run_pilot_command(args: argparse.Namespace) -> int:
                          scenarios=args.scenarios, noise=args.noise, spread=args.spread,
                          schedule=schedule,
                          acquisition=AcquisitionName(args.acq),
-                         recommendation=RecommendationName(args.recommendation), seed=args.seed)
+                         recommendation=RecommendationName(args.recommendation), seed=args.seed,
+                         batch_position_noise=args.batch_position_noise)
     with dask_client(args.scheduler, args.workers) as client:
         report = run_pilot(config, client=client, out=args.out, progress=not args.no_progress)
     figure = draw_pilot(report, args.figure or args.out / "pilot.png")
@@ -179,7 +183,8 @@ def run(args: argparse.Namespace) -> int:
         for acq, q, noise in specs:
             condition = StudyCondition(acquisition=acq, q=q, noise=noise, n_unique=args.queries,
                                        n_initial=args.initial,
-                                       recommendation=RecommendationName(args.recommendation))
+                                       recommendation=RecommendationName(args.recommendation)
+                                       ).with_batch_position_noise(args.batch_position_noise)
             results.append(run_condition(condition, trials=args.trials, seed=args.seed,
                                          client=client, out=args.out,
                                          progress=not args.no_progress))

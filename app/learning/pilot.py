@@ -64,12 +64,15 @@ class PilotConfig(BaseModel):
     validation_pairs: int = Field(4, ge=1, le=50, description="θ* vs random pairs (paper: 4)")
     seed: int = Field(0, ge=0)
     dim: int = Field(3, ge=1, le=10)
+    batch_position_noise: bool = Field(False, description="the learner weighs comparisons by the "
+                                       "noise of eq. (16) (app.learning.comparison_noise)")
 
     @property
     def condition(self) -> StudyCondition:
         return StudyCondition(acquisition=self.acquisition, q=self.schedule.q, noise=self.noise,
                               n_unique=self.schedule.n_unique, n_initial=self.schedule.n_initial,
-                              dim=self.dim, recommendation=self.recommendation)
+                              dim=self.dim, recommendation=self.recommendation
+                              ).with_batch_position_noise(self.batch_position_noise)
 
 
 class ParticipantResult(BaseModel):

@@ -85,8 +85,14 @@ class StudyCondition(BaseModel):
 
     @property
     def name(self) -> str:
-        """Short label, e.g. ``qnei-q5-s0.05``."""
-        return f"{self.acquisition.value}-q{self.q}-s{self.noise:g}"
+        """Short label, e.g. ``qnei-q5-s0.05`` (``-bpn``: comparisons weighed by batch position)."""
+        return (f"{self.acquisition.value}-q{self.q}-s{self.noise:g}"
+                + ("-bpn" if self.model.batch_position_noise else ""))
+
+    def with_batch_position_noise(self, on: bool) -> StudyCondition:
+        """The same condition with the likelihood of :mod:`app.learning.comparison_noise` on/off."""
+        model = self.model.model_copy(update={"batch_position_noise": on})
+        return self.model_copy(update={"model": model})
 
     @property
     def schedule(self) -> BatchSchedule:

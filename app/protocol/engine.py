@@ -17,7 +17,7 @@ import numpy as np
 from pydantic import BaseModel
 from scipy.stats import qmc
 
-from app.learning.config import LearnerConfig, LearnerSnapshot
+from app.learning.config import LearnerConfig, LearnerSnapshot, ModelConfig
 from app.learning.models import Comparison as LearnerComparison
 from app.learning.models import (
     Interaction,
@@ -79,6 +79,7 @@ def learner_config(config: StudyConfig, prior: PopulationPrior | None = None) ->
     return LearnerConfig(box=ParameterBox.from_bounds(config.theta_bounds),
                          acquisition=config.acquisition, seed=config.seed,
                          recommendation=RecommendationName(config.recommendation), prior=prior,
+                         model=ModelConfig(batch_position_noise=config.batch_position_noise),
                          schedule=BatchSchedule(n_initial=config.initial_trials,
                                                 q=config.batch_size, n_unique=unique))
 

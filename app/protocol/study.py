@@ -37,6 +37,10 @@ class StudyConfig(BaseModel):
                                 description="w, the weight of that prior mean (population_prior); "
                                 "0.3 beat 1.0 with and without shared structure in the prior "
                                 "study of docs/learning.md")
+    batch_position_noise: bool = Field(
+        False, description="opt-in: the learner weighs each comparison by the noise of eq. (16), "
+        "a comparison between batch positions i and j √((i² + j²)/2) times as noisy as one "
+        "between two first positions (docs/learning.md)")
     prior_sources: list[str] = Field(
         default_factory=list, description="the participants whose data formed the prior, fixed "
         "when the session was created (empty: no prior)")

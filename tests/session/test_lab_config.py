@@ -7,6 +7,7 @@ import pytest
 from pydantic import ValidationError
 
 from app.cli import main
+from app.protocol.engine import learner_config
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig, load_lab_config
 from robot_io.simulated_hand import Scenario
@@ -37,11 +38,15 @@ acquisition = "eubo"
 recommendation = "posterior_mean"
 population_prior = true
 prior_weight = 0.5
+batch_position_noise = true
 """))
     study = lab.study_config(Scenario.PERTURBED, seed=9)
     assert (study.batch_size, study.learning_batches, study.acquisition) == (3, 2, "eubo")
     assert (study.recommendation, study.population_prior, study.prior_weight) == (
         "posterior_mean", True, 0.5)
+    assert learner_config(study).model.batch_position_noise  # the learner weighs by eq. (16)
+    assert not learner_config(lab.study_config(Scenario.PERTURBED, seed=9).model_copy(
+        update={"batch_position_noise": False})).model.batch_position_noise
     assert study.prior_sources == []  # filled when the session is created, never by the lab
     assert study.initial_trials == 5  # the paper's default where the file says nothing
     assert study.controller.arm.kind == "ur" and study.controller.ur.host == "127.0.0.7"
@@ -55,6 +60,7 @@ prior_weight = 0.5
     ("[cycle]\nstart_zone_m = 2.0\n", "cycle.start_zone_m"),
     ("[learner]\nrecommendation = \"best\"\n", "learner.recommendation"),
     ("[learner]\nprior_weight = 11\n", "learner.prior_weight"),
+    ("[learner]\nbatch_position_noise = \"maybe\"\n", "learner.batch_position_noise"),
     ("[learner]\nprior_sources = [\"P01\"]\n", "prior_sources"),
 ])
 def test_a_bad_file_is_refused_naming_the_field(tmp_path, text, message):
