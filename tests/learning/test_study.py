@@ -102,6 +102,22 @@ def test_cli_json_summary(tmp_path, capsys):
     assert (tmp_path / "eubo-q2-s0.05" / "summary.csv").exists()
 
 
+def test_cli_batch_position_noise_is_its_own_condition(tmp_path, capsys):
+    """--batch-position-noise runs the same trials with the likelihood of eq. (16) into their own
+    folder (a resumed run never mixes the two likelihoods)."""
+    args = ["benchmark-pl", "--q", "3", "--noise", "0.05", "--trials", "1", "--queries", "7",
+            "--initial", "3", "--seed", "4", "--out", str(tmp_path), "--json", "--no-progress"]
+    summaries = []
+    for extra in ([], ["--batch-position-noise"]):
+        assert main([*args, *extra]) == 0
+        summaries.append(json.loads(capsys.readouterr().out))
+    equal, weighed = summaries
+    assert (equal["condition"], weighed["condition"]) == ("qnei-q3-s0.05", "qnei-q3-s0.05-bpn")
+    trials = [(tmp_path / name / "trials.csv").read_text() for name in
+              ("qnei-q3-s0.05", "qnei-q3-s0.05-bpn")]
+    assert trials[0] != trials[1]
+
+
 @pytest.mark.parametrize(("args", "message"), [
     (["--q", "1"], "argument --q: 1 is outside the allowed range [2, 25]"),
     (["--noise", "-1"], "argument --noise: -1.0 is outside the allowed range [0.0, 1.0]"),
