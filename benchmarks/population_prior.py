@@ -45,9 +45,11 @@ def participant(condition: StudyCondition, seed: int, spread: float | None, popu
     prior = None if prior_json is None else PopulationPrior.model_validate_json(prior_json)
     key = (seed, population, index)
     trial, learner = simulate_learner(condition, target, derive_seed(*key, 1),
-                                      derive_seed(*key, 2), prior=prior)
+                                      derive_seed(*key, 2), prior=prior,
+                                      strategies=tuple(RecommendationName))
     return {"population": population, "index": index, "prior": prior is not None,
-            "distances": trial.distances, "snapshot": learner.snapshot().model_dump_json()}
+            "distances": trial.distances, "snapshot": learner.snapshot().model_dump_json(),
+            "strategies": {s.value: curve for s, curve in trial.strategy_distances.items()}}
 
 
 def load(path: Path) -> dict[tuple[int, int, bool], dict]:
@@ -88,6 +90,8 @@ def main() -> None:
     parser.add_argument("--recommendation", default=DEFAULT_RECOMMENDATION.value,
                         choices=[r.value for r in RecommendationName],
                         help="how θ* is recommended (default: the learner's)")
+    parser.add_argument("--batch-position-noise", action="store_true",
+                        help="the likelihood weighs comparisons by the noise of eq. (16)")
     parser.add_argument("--seed", type=int, default=7)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
@@ -96,9 +100,10 @@ def main() -> None:
     spread = (None if args.spread == "none" else args.spread if args.spread == PAPER_POPULATION
               else float(args.spread))
     condition = StudyCondition(noise=args.noise,
-                               recommendation=RecommendationName(args.recommendation))
+                               recommendation=RecommendationName(args.recommendation)
+                               ).with_batch_position_noise(args.batch_position_noise)
     path = (args.out / f"spread-{args.spread}-s{args.noise:g}-w{args.weight:g}-"
-            f"{args.recommendation}.jsonl")
+            f"{args.recommendation}{'-bpn' if args.batch_position_noise else ''}.jsonl")
     path.parent.mkdir(parents=True, exist_ok=True)
     done = load(path)
 
@@ -123,41 +128,55 @@ def main() -> None:
             priors.append((condition, args.seed, spread, p, i, prior.model_dump_json()))
         run_tasks(client, participant, priors, keep, total=len(keys), desc="with prior")
 
-    early = np.array([[done[(p, i, True)]["distances"][args.early - 1] for i in range(args.group)]
-                      for p in range(args.populations)])
-    with_final = np.array([[done[(p, i, True)]["distances"][-1] for i in range(args.group)]
-                           for p in range(args.populations)])
-    none_final = np.array([[done[(p, i, False)]["distances"][-1] for i in range(args.group)]
-                           for p in range(args.populations)])
-    none_early = np.array([[done[(p, i, False)]["distances"][args.early - 1]
-                            for i in range(args.group)] for p in range(args.populations)])
-    n_final = len(none_final[0]) and len(done[(0, 0, False)]["distances"])
+    def curves(prior: bool, strategy: str | None = None) -> np.ndarray:
+        """u(θ*) per population × participant × interaction (``strategy``: one of the curves
+        every strategy gets on the same runs; None: the run's own)."""
+        return np.array([[done[(p, i, prior)]["distances"] if strategy is None
+                          else done[(p, i, prior)]["strategies"][strategy]
+                          for i in range(args.group)] for p in range(args.populations)])
+
+    with_prior, without = curves(True), curves(False)
+    n_final = without.shape[2]
     print(f"spread {args.spread}, σ = {args.noise:g}, w = {args.weight:g}, θ* by "
           f"{args.recommendation}: {args.populations} "
           f"populations × {args.group} participants (prior from the other {args.group - 1})")
-    print(f"mean u(θ*): no prior at {args.early}: {none_early.mean():.3f}, at {n_final}: "
-          f"{none_final.mean():.3f}; with prior at {args.early}: {early.mean():.3f}, at "
-          f"{n_final}: {with_final.mean():.3f}")
+    print(f"mean u(θ*): no prior at {args.early}: {without[..., args.early - 1].mean():.3f}, at "
+          f"{n_final}: {without[..., -1].mean():.3f}; with prior at {args.early}: "
+          f"{with_prior[..., args.early - 1].mean():.3f}, at {n_final}: "
+          f"{with_prior[..., -1].mean():.3f}")
     targets = {(p, i): participant_target(condition.dim, args.seed, p, i, spread) for p, i in keys}
     for prior, label in ((False, "no prior"), (True, "with prior")):
         curve = np.mean([oracle_curve(done[(p, i, prior)], targets[(p, i)]) for p, i in keys], axis=0)
         print(f"oracle (best shown), {label}: "
               + ", ".join(f"at {n}: {curve[n - 1]:.3f}" for n in (1, 5, args.early, n_final)))
-    # resample whole populations; with one population, its participants
-    per_population = ((early.mean(1), none_final.mean(1), with_final.mean(1))
-                      if args.populations > 1 else (early[0], none_final[0], with_final[0]))
-    low, high = cluster_bootstrap(per_population[0], per_population[1], args.seed)
-    print(f"ratio prior@{args.early} / none@{n_final}: "
-          f"{early.mean() / none_final.mean():.2f} [{low:.2f}, {high:.2f}]")
-    low, high = cluster_bootstrap(per_population[2], per_population[1], args.seed)
-    print(f"final ratio prior / none at {n_final}: {with_final.mean() / none_final.mean():.2f} "
-          f"[{low:.2f}, {high:.2f}]")
-    curve = np.mean([done[(p, i, True)]["distances"] for p, i in keys], axis=0)
-    reached = np.flatnonzero(curve <= none_final.mean())
-    print(f"with the prior, mean u(θ*) first reaches none@{n_final} ({none_final.mean():.3f}) at "
-          f"interaction {reached[0] + 1 if reached.size else 'never'}; with prior at 5/10/…: "
+    report_ratios(with_prior, without, args.early, args.seed)
+    curve = with_prior.mean(axis=(0, 1))
+    reached = np.flatnonzero(curve <= without[..., -1].mean())
+    print(f"with the prior, mean u(θ*) first reaches none@{n_final} ({without[..., -1].mean():.3f}) "
+          f"at interaction {reached[0] + 1 if reached.size else 'never'}; with prior at 5/10/…: "
           + " ".join(f"{u:.3f}" for u in curve[4::5]))
+    if all("strategies" in row for row in done.values()):
+        for strategy in RecommendationName:
+            print(f"θ* by {strategy.value} (the same runs):", end=" ")
+            report_ratios(curves(True, strategy), curves(False, strategy), args.early, args.seed)
 
+
+def report_ratios(with_prior: np.ndarray, without: np.ndarray, early: int, seed: int) -> None:
+    """The ratio prior@early / none@final and the final ratio, with cluster-bootstrap CIs over
+    populations (with one population, over its participants); arrays are population ×
+    participant × interaction."""
+    early_u, with_final, none_final = (with_prior[..., early - 1], with_prior[..., -1],
+                                       without[..., -1])
+    per_population = ((early_u.mean(1), none_final.mean(1), with_final.mean(1))
+                      if len(early_u) > 1 else (early_u[0], none_final[0], with_final[0]))
+    n_final = without.shape[2]
+    low, high = cluster_bootstrap(per_population[0], per_population[1], seed)
+    line = (f"ratio prior@{early} ({early_u.mean():.3f}) / none@{n_final} "
+            f"({none_final.mean():.3f}): {early_u.mean() / none_final.mean():.2f} [{low:.2f}, "
+            f"{high:.2f}]")
+    low, high = cluster_bootstrap(per_population[2], per_population[1], seed)
+    print(f"{line}\nfinal ratio prior / none at {n_final}: "
+          f"{with_final.mean() / none_final.mean():.2f} [{low:.2f}, {high:.2f}]")
 
 if __name__ == "__main__":
     main()
