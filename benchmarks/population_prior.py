@@ -178,5 +178,6 @@ def report_ratios(with_prior: np.ndarray, without: np.ndarray, early: int, seed:
     print(f"{line}\nfinal ratio prior / none at {n_final}: "
           f"{with_final.mean() / none_final.mean():.2f} [{low:.2f}, {high:.2f}]")
 
+
 if __name__ == "__main__":
     main()

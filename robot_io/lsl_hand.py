@@ -51,9 +51,8 @@ class LSLHand(TrackedHand):
         sample, stamp = self.inlet.pull_sample(timeout=0.1)
         if sample is None:
             return
-        self.put(stamp, [sample[c] for c in self.channels])
         samples, stamps = self.inlet.pull_chunk(timeout=0.0)
-        for queued, queued_stamp in zip(samples, stamps, strict=True):
+        for queued, queued_stamp in zip([sample, *samples], [stamp, *stamps], strict=True):
             self.put(queued_stamp, [queued[c] for c in self.channels])
 
     def close(self) -> None:
