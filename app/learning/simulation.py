@@ -39,6 +39,7 @@ from app.learning.config import (
 )
 from app.learning.learner import PreferenceLearner
 from app.learning.models import (
+    FitReport,
     Interaction,
     ParameterBox,
     Placement,
@@ -172,10 +173,17 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         return float(np.linalg.norm(target - np.array([theta[n] for n in box.names])))
 
     placements: list[Placement] = []
-    shown, failures = [], 0
+    shown: list[float] = []
+    fits: list[FitReport] = []  # every fit the learner ran, once: in observe or before a query
+
+    def count(report: FitReport) -> None:
+        if not fits or report is not fits[-1]:
+            fits.append(report)
+
     tracked = {s for s in strategies} | {condition.recommendation}
     curves: dict[RecommendationName, list[float]] = {s: [] for s in RecommendationName}
     while (suggestion := learner.suggest()).theta is not None:
+        count(suggestion.fit)  # the study preset (lazy_fit) fits before a query
         slot = suggestion.slot
         if slot.position == 1:
             placements = []  # the scale is cleared after every batch
@@ -183,9 +191,8 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         y = u + slot.position * noise_rng.normal(0.0, condition.noise)  # eq. (16)
         iid = str(slot.index + 1)
         placements.append(Placement(interaction_id=iid, position=scale_position(y)))
-        fit = learner.observe(Interaction(interaction_id=iid, theta=suggestion.theta),
-                              comparisons_for_newest(placements))
-        failures += fit.fit_failed
+        count(learner.observe(Interaction(interaction_id=iid, theta=suggestion.theta),
+                              comparisons_for_newest(placements)))
         final = learner.next_slot().kind is SlotKind.DONE
         for strategy, curve in curves.items():
             curve.append(distance(learner.best(strategy).theta)  # type: ignore[union-attr]
@@ -193,5 +200,6 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         shown.append(u)
     result = TrialResult(trial=trial, distances=curves[condition.recommendation],
                          shown_distances=shown, strategy_distances=curves,
-                         fit_failures=failures, seconds=time.monotonic() - start)
+                         fit_failures=sum(f.fit_failed for f in fits),
+                         seconds=time.monotonic() - start)
     return result, learner

@@ -200,3 +200,27 @@ def test_two_dask_workers_write_the_same_csv_as_one(tmp_path):
     assert files[1] == files[2]
     assert len(files[1].splitlines()) == 1 + 3 * SMALL.model_copy(
         update={"n_unique": 5}).schedule.n_interactions
+
+
+def test_every_failed_fit_is_counted_including_those_run_before_a_query(monkeypatch):
+    """The study preset fits lazily, just before a query (not in observe); a trial's
+    fit_failures counts every hyperparameter fit that failed, wherever it ran. BoTorch's fit is
+    made to fail on every call after the first; the count must equal the failures it raised."""
+    from botorch.exceptions import ModelFittingError
+
+    from app.learning import preference_model
+
+    real, calls, raised = preference_model.fit_gpytorch_mll, [], []
+
+    def fails_after_the_first(*args, **kwargs):
+        calls.append(1)
+        if len(calls) > 1:
+            raised.append(1)
+            raise ModelFittingError("injected")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(preference_model, "fit_gpytorch_mll", fails_after_the_first)
+    assert SMALL.model.lazy_fit  # the preset whose fits run in suggest
+    result = run_trial(SMALL, seed=3, trial=0)
+    assert len(raised) >= 2
+    assert result.fit_failures == len(raised)
