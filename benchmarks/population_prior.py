@@ -32,7 +32,6 @@ from app.learning.config import DEFAULT_RECOMMENDATION, LearnerSnapshot
 from app.learning.models import RecommendationName
 from app.learning.paper_population import PAPER_POPULATION
 from app.learning.population import population_prior
-from app.learning.prior import PriorMixing
 from app.learning.rng import derive_seed
 from app.learning.simulation import StudyCondition, participant_target, simulate_learner
 
@@ -87,9 +86,6 @@ def main() -> None:
     parser.add_argument("--group", type=int, default=9, help="participants per population")
     parser.add_argument("--noise", type=float, default=0.03)
     parser.add_argument("--weight", type=float, default=1.0, help="w of the prior mean")
-    parser.add_argument("--mixing", default=PriorMixing.POOLED.value,
-                        choices=[m.value for m in PriorMixing],
-                        help="how the earlier participants are combined (app.learning.prior)")
     parser.add_argument("--early", type=int, default=15, help="interaction compared")
     parser.add_argument("--recommendation", default=DEFAULT_RECOMMENDATION.value,
                         choices=[r.value for r in RecommendationName],
@@ -106,10 +102,8 @@ def main() -> None:
     condition = StudyCondition(noise=args.noise,
                                recommendation=RecommendationName(args.recommendation)
                                ).with_batch_position_noise(args.batch_position_noise)
-    mixing = PriorMixing(args.mixing)
     path = (args.out / f"spread-{args.spread}-s{args.noise:g}-w{args.weight:g}-"
-            f"{args.recommendation}{'-bpn' if args.batch_position_noise else ''}"
-            f"{'' if mixing is PriorMixing.POOLED else '-' + mixing.value}.jsonl")
+            f"{args.recommendation}{'-bpn' if args.batch_position_noise else ''}.jsonl")
     path.parent.mkdir(parents=True, exist_ok=True)
     done = load(path)
 
@@ -130,7 +124,7 @@ def main() -> None:
             others = {f"P{p}-{j}": LearnerSnapshot.model_validate_json(done[(p, j, False)]
                                                                        ["snapshot"])
                       for j in range(args.group) if j != i}
-            prior = population_prior(others, weight=args.weight, mixing=mixing)
+            prior = population_prior(others, weight=args.weight)
             priors.append((condition, args.seed, spread, p, i, prior.model_dump_json()))
         run_tasks(client, participant, priors, keep, total=len(keys), desc="with prior")
 
@@ -143,7 +137,7 @@ def main() -> None:
 
     with_prior, without = curves(True), curves(False)
     n_final = without.shape[2]
-    print(f"spread {args.spread}, σ = {args.noise:g}, w = {args.weight:g} ({mixing.value}), θ* by "
+    print(f"spread {args.spread}, σ = {args.noise:g}, w = {args.weight:g}, θ* by "
           f"{args.recommendation}: {args.populations} "
           f"populations × {args.group} participants (prior from the other {args.group - 1})")
     print(f"mean u(θ*): no prior at {args.early}: {without[..., args.early - 1].mean():.3f}, at "

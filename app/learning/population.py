@@ -13,7 +13,6 @@ priors never chain) and their posterior means pooled, see :mod:`app.learning.pri
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import torch
@@ -22,7 +21,7 @@ from gpytorch.means import Mean
 
 from app.learning.config import LearnerSnapshot
 from app.learning.errors import LearningError
-from app.learning.prior import PopulationPrior, PriorComponent, PriorMixing
+from app.learning.prior import PopulationPrior, PriorComponent
 
 #: Unit-cube distance beyond which two earlier participants' favourites count as different
 #: handovers for the initial batch (:meth:`PopulationMean.initial_design`): at the paper's noise a
@@ -32,58 +31,28 @@ DISTINCT_FAVOURITES = 0.25
 
 
 class PopulationMean(Mean):
-    """w · Σ_p π_p m_p(x): the earlier participants' posterior means, mixed by π (uniform for
-    ``pooled``; :meth:`matched_to` for ``matched``, see :mod:`app.learning.prior`), a fixed (not
-    fitted) mean.
+    """w · m̄(x): the pooled posterior mean of earlier participants, a fixed (not fitted) mean.
 
     All components are stacked into one set of points with per-point lengthscales and weights
-    (s_p·α_p), so an evaluation is one kernel matrix, whatever the number of participants.
+    (s_p·α_p·w/P), so an evaluation is one kernel matrix, whatever the number of participants.
     """
 
-    def __init__(self, prior: PopulationPrior, mixture: torch.Tensor | None = None) -> None:
+    def __init__(self, prior: PopulationPrior) -> None:
         super().__init__()
-        self.prior = prior
+        share = prior.weight / len(prior.components)
         points, lengthscales, coefficients, owners = [], [], [], []
         for p, c in enumerate(prior.components):
             points.extend(c.points)
             lengthscales.extend([c.lengthscale] * len(c.points))
-            coefficients.extend(c.outputscale * a for a in c.coefficients)
+            coefficients.extend(share * c.outputscale * a for a in c.coefficients)
             owners.extend([p] * len(c.points))
-        n = len(prior.components)
         self.register_buffer("points", torch.tensor(points, dtype=torch.float64))
         self.register_buffer("lengthscales", torch.tensor(lengthscales, dtype=torch.float64))
-        self.register_buffer("own_coefficients", torch.tensor(coefficients, dtype=torch.float64))
+        self.register_buffer("coefficients", torch.tensor(coefficients, dtype=torch.float64))
         self.register_buffer("owners", torch.tensor(owners))
-        self.register_buffer("mixture", torch.full((n,), 1.0 / n, dtype=torch.float64)
-                             if mixture is None else mixture)
-
-    @property
-    def coefficients(self) -> torch.Tensor:
-        """w·π_p·s_p·α_p per stacked point."""
-        return self.prior.weight * self.mixture[self.owners] * self.own_coefficients
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self._kernel(x) @ self.coefficients
-
-    def component_means(self, x: torch.Tensor) -> torch.Tensor:
-        """m_p(x) = s_p·k_p(x, X_p)·α_p of every earlier participant p (unweighted), n × P."""
-        own = self.owners == torch.arange(len(self.mixture)).unsqueeze(-1)  # P × N
-        return self._kernel(x) @ (own * self.own_coefficients).T
-
-    def matched_to(self, X: torch.Tensor, comparisons: torch.Tensor,
-                   noise: torch.Tensor) -> PopulationMean:
-        """The mean for a participant who compared the rows of ``X`` as ``comparisons``
-        (winner, loser index rows; ``noise``: each comparison's s_k): with ``matched`` mixing a
-        copy weighed by π_p, the posterior probability that the participant compares like p
-        (:mod:`app.learning.prior`; π_0, like nobody, is left out of the mean); with ``pooled``
-        mixing, or before any comparison, this mean itself."""
-        if self.prior.mixing is PriorMixing.POOLED or len(comparisons) == 0:
-            return self
-        m = self.component_means(X)
-        z = (m[comparisons[:, 0]] - m[comparisons[:, 1]]) / (math.sqrt(2.0) * noise.unsqueeze(-1))
-        nobody = torch.full((1,), len(comparisons) * math.log(0.5), dtype=torch.float64)
-        posterior = torch.softmax(torch.cat([nobody, torch.special.log_ndtr(z).sum(0)]), 0)
-        return PopulationMean(self.prior, posterior[1:])
 
     def _kernel(self, x: torch.Tensor) -> torch.Tensor:
         """exp(−½‖(x − X_p)/ℓ_p‖²) against every stacked point, ... × n × N."""
@@ -150,8 +119,8 @@ def component_of(source: str, model: PairwiseGP) -> PriorComponent:
         outputscale=float(kernel.outputscale.detach()))
 
 
-def population_prior(snapshots: Mapping[str, LearnerSnapshot], weight: float = 1.0,
-                     mixing: PriorMixing = PriorMixing.POOLED) -> PopulationPrior:
+def population_prior(snapshots: Mapping[str, LearnerSnapshot],
+                     weight: float = 1.0) -> PopulationPrior:
     """The prior mean for a new participant from earlier participants' learner snapshots.
 
     ``snapshots`` maps a participant id to its final snapshot; participants without a model (no
@@ -174,4 +143,4 @@ def population_prior(snapshots: Mapping[str, LearnerSnapshot], weight: float = 1
     if not components:
         raise LearningError(f"snapshots = {sorted(snapshots)}: none has a fitted preference "
                             "model (no comparisons), so there is no prior to pool")
-    return PopulationPrior(weight=weight, components=components, mixing=mixing)
+    return PopulationPrior(weight=weight, components=components)

@@ -161,12 +161,11 @@ class PreferenceModel:
         optimize = fit_hyperparameters or self.hyperparameters is None
         start = time.monotonic()
         initial = self.hyperparameters if self.config.warm_start or not optimize else None
-        prior_mean = self._mean(data)
         try:
             hyperparameters = (hyperparameters_of(fit_model(data, self.config, initial,
-                                                            prior_mean=prior_mean))
+                                                            prior_mean=self.prior_mean))
                                if optimize else self.hyperparameters)
-            model = self._build(data, hyperparameters, prior_mean)
+            model = self._build(data, hyperparameters)
         except (ModelFittingError, NotPSDError) as exc:
             message = f"{type(exc).__name__}: {exc}; keeping the previous model"
             logger.warning("preference model update failed with %d points, %d comparisons: %s",
@@ -194,28 +193,17 @@ class PreferenceModel:
             self.update(data, fit_hyperparameters=True)
             return
         if data.comparisons:
-            self.model = self._build(data, self.hyperparameters, self._mean(data))
+            self.model = self._build(data, self.hyperparameters)
         self._fitted_comparisons = fitted_comparisons
 
-    def _build(self, data: PreferenceData, hyperparameters: Hyperparameters,
-               prior_mean: PopulationMean | None) -> PairwiseGP:
+    def _build(self, data: PreferenceData, hyperparameters: Hyperparameters) -> PairwiseGP:
         """The model in use: built from (data, hyperparameters) without optimising, under a seed
         that depends on the data's size only (PairwiseGP perturbs its Newton start with numpy's
         global generator). So it is a function of the data and the hyperparameters alone, and a
         learner restored from a snapshot suggests exactly what the stored one would have."""
         with seeded(derive_seed(len(data.points), len(data.comparisons))):
             return fit_model(data, self.config, hyperparameters, optimize=False,
-                             prior_mean=prior_mean)
-
-    def _mean(self, data: PreferenceData) -> PopulationMean | None:
-        """The prior mean for ``data``: earlier participants mixed by how well they predict these
-        comparisons (``matched``), in the noise the likelihood assumes."""
-        if self.prior_mean is None:
-            return None
-        X, C = data.tensors()
-        noise = (torch.tensor(data.comparison_noise, dtype=torch.float64)
-                 if self.config.batch_position_noise else torch.ones(len(C), dtype=torch.float64))
-        return self.prior_mean.matched_to(X, C, noise)
+                             prior_mean=self.prior_mean)
 
     def best(self, data: PreferenceData) -> tuple[int, float] | None:
         """θ*: index and posterior mean of the observed point with the largest posterior mean.

@@ -11,22 +11,10 @@ each earlier participant p contributing its posterior mean k_p(θ, X_p) α_p (RB
 fitted hyperparameters, α_p = K_p⁻¹ f̂_p for its MAP utilities f̂_p). ``weight`` w scales it. The new
 participant's comparisons override it where they have data: the posterior mean there follows the
 likelihood, and the prior only fills in where the participant has not been.
-
-``mixing`` says how the earlier participants are combined. ``pooled``: all alike, 1/P each (the
-mean above). ``matched``: each by how well it predicts the new participant's own comparisons,
-
-    m(θ) = Σ_p π_p m_p(θ),   π_p ∝ Π_k Φ((m_p(θ_r,k) − m_p(θ_c,k)) / (√2·s_k)),
-
-the posterior probability, under the probit likelihood of eq. (13), that the participant compares
-like earlier participant p (equal prior odds), with one more hypothesis, "like nobody" (m = 0,
-probability ½ per comparison), whose share π_0 keeps no prior at all. s_k is the comparison's
-relative noise when the likelihood weighs batch positions (eq. (16)), else 1. Before the first
-comparison (the initial batch's favourites) the mixing is pooled's.
 """
 
 from __future__ import annotations
 
-from enum import StrEnum
 from typing import Self
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -55,13 +43,6 @@ class PriorComponent(BaseModel):
         return self
 
 
-class PriorMixing(StrEnum):
-    """How the earlier participants' posterior means are combined into the prior mean."""
-
-    POOLED = "pooled"  #: all alike, 1/P each
-    MATCHED = "matched"  #: each by how well it predicts the new participant's comparisons
-
-
 class PopulationPrior(BaseModel):
     """The prior mean w · m̄(θ) from earlier participants; recorded with every learner config."""
 
@@ -69,8 +50,6 @@ class PopulationPrior(BaseModel):
 
     weight: float = Field(1.0, ge=0.0, le=10.0, description="w, the weight of the pooled mean")
     components: list[PriorComponent] = Field(min_length=1)
-    mixing: PriorMixing = Field(PriorMixing.POOLED, description="how the components are combined "
-                                "(priors stored before this field: pooled)")
 
     @property
     def sources(self) -> list[str]:

@@ -3,8 +3,7 @@
 When a new participant's session is created with ``StudyConfig.population_prior``, the GP prior mean
 of eq. (12) becomes the pooled posterior mean of the *completed* participants (session done) of the
 same scenario and the same θ box in the study folder, each taken from its last stored learner
-snapshot (:func:`app.learning.population.population_prior`; weight ``prior_weight``, combined as
-``prior_mixing`` says). The prior is
+snapshot (:func:`app.learning.population.population_prior`; weight ``prior_weight``). The prior is
 fixed at creation and stored in the session (``session_created``: its sources in the config's
 ``prior_sources``, the prior itself in the event), so a resumed session, an export and a replay see
 exactly the prior the participant had, whatever happens to the folder later.
@@ -22,7 +21,7 @@ from pathlib import Path
 
 from app.learning.config import LearnerSnapshot
 from app.learning.errors import LearningError
-from app.learning.prior import PopulationPrior, PriorMixing
+from app.learning.prior import PopulationPrior
 from app.protocol.plan import protocol_slots
 from app.protocol.state import Step, replay
 from app.protocol.study import StudyConfig
@@ -57,11 +56,10 @@ def completed_snapshots(study_dir: Path, code: str, config: StudyConfig) -> dict
     return found
 
 
-def _pooled(snapshots: dict[str, LearnerSnapshot], weight: float,
-            mixing: PriorMixing) -> PopulationPrior:
+def _pooled(snapshots: dict[str, LearnerSnapshot], weight: float) -> PopulationPrior:
     from app.learning.population import population_prior  # torch: only in the spawned process
 
-    return population_prior(snapshots, weight=weight, mixing=mixing)
+    return population_prior(snapshots, weight=weight)
 
 
 def earlier_participants_prior(study_dir: Path, code: str,
@@ -75,8 +73,7 @@ def earlier_participants_prior(study_dir: Path, code: str,
         return None
     with ProcessPoolExecutor(1, mp_context=mp.get_context("spawn")) as pool:
         try:
-            return pool.submit(_pooled, snapshots, config.prior_weight,
-                               PriorMixing(config.prior_mixing)).result()
+            return pool.submit(_pooled, snapshots, config.prior_weight).result()
         except LearningError as exc:
             log.warning("participant %s: no prior (%s)", code, exc)
             return None

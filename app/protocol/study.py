@@ -37,10 +37,6 @@ class StudyConfig(BaseModel):
                                 description="w, the weight of that prior mean (population_prior); "
                                 "0.3 beat 1.0 with and without shared structure in the prior "
                                 "study of docs/learning.md")
-    prior_mixing: Literal["pooled", "matched"] = Field(
-        "pooled", description="how the earlier participants are combined (population_prior): "
-        "pooled, all alike; matched, each by how well it predicts this participant's comparisons "
-        "so far, with 'like nobody' as one more hypothesis (docs/learning.md)")
     batch_position_noise: bool = Field(
         False, description="opt-in: the learner weighs each comparison by the noise of eq. (16), "
         "a comparison between batch positions i and j √((i² + j²)/2) times as noisy as one "

@@ -28,7 +28,7 @@ from robot_io.simulated_hand import Scenario
 PROTOCOL_FIELDS = ("initial_trials", "batch_size", "learning_batches", "best_trials",
                    "validation_batches")
 LEARNER_FIELDS = ("acquisition", "theta_bounds", "recommendation", "population_prior",
-                  "prior_weight", "prior_mixing", "batch_position_noise")
+                  "prior_weight", "batch_position_noise")
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
 
 

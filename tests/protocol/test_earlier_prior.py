@@ -10,7 +10,6 @@ from app.learning.config import LearnerSnapshot
 from app.learning.learner import PreferenceLearner
 from app.learning.models import RecommendationName
 from app.learning.population import population_prior
-from app.learning.prior import PriorMixing
 from app.protocol.engine import SessionEngine, learner_config
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
@@ -74,10 +73,9 @@ def test_the_prior_comes_from_completed_participants_of_the_scenario_and_is_reco
         assert '"source":"P02"' in snapshot  # every stored learner snapshot carries the prior
     finally:
         resumed.close()
-    later = SessionEngine.create(study, "P05", config(seed=6, prior_mixing="matched"))
+    later = SessionEngine.create(study, "P05", config(seed=6))
     later.close()
     assert later.config.prior_sources == ["P01", "P02", "P04"]
-    assert later.prior.mixing is PriorMixing.MATCHED  # [learner] prior_mixing reaches the prior
 
 
 def test_without_the_opt_in_no_prior_is_built(tmp_path):

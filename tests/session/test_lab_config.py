@@ -38,13 +38,12 @@ acquisition = "eubo"
 recommendation = "posterior_mean"
 population_prior = true
 prior_weight = 0.5
-prior_mixing = "matched"
 batch_position_noise = true
 """))
     study = lab.study_config(Scenario.PERTURBED, seed=9)
     assert (study.batch_size, study.learning_batches, study.acquisition) == (3, 2, "eubo")
-    assert (study.recommendation, study.population_prior, study.prior_weight,
-            study.prior_mixing) == ("posterior_mean", True, 0.5, "matched")
+    assert (study.recommendation, study.population_prior, study.prior_weight) == (
+        "posterior_mean", True, 0.5)
     assert learner_config(study).model.batch_position_noise  # the learner weighs by eq. (16)
     assert not learner_config(lab.study_config(Scenario.PERTURBED, seed=9).model_copy(
         update={"batch_position_noise": False})).model.batch_position_noise
@@ -61,7 +60,6 @@ batch_position_noise = true
     ("[cycle]\nstart_zone_m = 2.0\n", "cycle.start_zone_m"),
     ("[learner]\nrecommendation = \"best\"\n", "learner.recommendation"),
     ("[learner]\nprior_weight = 11\n", "learner.prior_weight"),
-    ("[learner]\nprior_mixing = \"nearest\"\n", "learner.prior_mixing"),
     ("[learner]\nbatch_position_noise = \"maybe\"\n", "learner.batch_position_noise"),
     ("[learner]\nprior_sources = [\"P01\"]\n", "prior_sources"),
 ])
