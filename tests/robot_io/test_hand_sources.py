@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import socket
+import threading
 import time
 
 import numpy as np
@@ -68,13 +69,20 @@ def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
 
 
 class WakeCountingLSLHand(LSLHand):
-    """The real LSL source, counting the receiver thread's wakes that put samples."""
+    """The real LSL source, counting the receiver thread's wakes that put samples. Clearing
+    ``running`` holds the receiver up before its next wake (as the GIL or a stall would); it sets
+    ``parked`` once it waits there, outside any pull."""
 
     def __init__(self, *args) -> None:
         self.wakes = 0
+        self.running, self.parked = threading.Event(), threading.Event()
+        self.running.set()
         super().__init__(*args)  # starts the receiver thread
 
     def receive_once(self) -> None:
+        if not self.running.is_set():
+            self.parked.set()
+            self.running.wait()
         before = self.received
         super().receive_once()
         self.wakes += self.received > before
@@ -89,20 +97,24 @@ def test_an_lsl_backlog_is_taken_in_one_wake_and_its_newest_sample_is_current():
     try:
         outlet.push_sample(to_tracker(np.array([0.5, 0.0, 0.3])).tolist())
         _wait(lambda: hand.received == 1, timeout=5.0)
+        hand.running.clear()  # the receiver is held up ...
+        _wait(hand.parked.is_set, timeout=5.0)
         wakes = hand.wakes
-        # 80 samples that queued while the receiver was held up (0.8 s at 100 Hz), the last now
+        # ... while 80 samples queue (0.8 s at 100 Hz), the last now
         path = np.linspace([0.5, 0.0, 0.3], [0.6, 0.1, 0.4], 80)
         now = pylsl.local_clock()
         outlet.push_chunk([to_tracker(p).tolist() for p in path],
                           [now - 0.79 + 0.01 * i for i in range(80)])
+        _wait(lambda: hand.inlet.samples_available() >= 80, timeout=5.0)
+        hand.running.set()
         _wait(lambda: hand.received == 81)
-        newest = hand.latest(time.monotonic())
-        age = hand.age()
+        newest = hand.latest(time.monotonic())  # t: its time stamp (the monotonic clock)
     finally:
+        hand.running.set()
         hand.close()
-    assert hand.wakes - wakes <= 8  # one sample per wake took 80
+    assert hand.wakes - wakes == 1  # one sample per wake took 80
     assert newest.position == pytest.approx(path[-1], abs=1e-5)
-    assert 0.0 <= age < 0.05  # stamped when pushed (now), not when the backlog began
+    assert newest.t == pytest.approx(now, abs=0.005)  # the last pushed, not the backlog's first
 
 
 def test_waiting_for_the_tracker_wants_a_fresh_sample_not_just_any():
