@@ -166,15 +166,17 @@ class Served:
 @contextmanager
 def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML,
           token: str | None = TOKEN, ports: tuple[int, int] | None = None,
-          log_name: str = "serve.log") -> Iterator[Served]:
+          log_name: str = "serve.log", verbose: bool = False) -> Iterator[Served]:
     """`handover serve` on two free loopback ports (or ``ports``: tablet, dashboard) with a lab
     config of the short protocol (``protocol_toml`` is its [protocol] table) at ``rate`` Hz (125
-    for speed); ``token`` None: the study's own dashboard token; its output in ``tmp/log_name``."""
+    for speed); ``token`` None: the study's own dashboard token; its output in ``tmp/log_name``
+    (``verbose``: at INFO level, every message the dashboard shows)."""
     config = tmp / "lab.toml"
     config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}")
     study, log = tmp / "study", tmp / log_name
     tablet, dashboard = ports or (free_port(), free_port())
-    command = [sys.executable, "-m", "app.cli", "serve", "--study", str(study),
+    command = [sys.executable, "-m", "app.cli", *(["--verbose"] if verbose else []), "serve",
+               "--study", str(study),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
                "--config", str(config), *(["--token", token] if token else []), *extra]
     with log.open("w") as out:

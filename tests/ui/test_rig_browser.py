@@ -41,13 +41,15 @@ def watch_stages(dashboard, until: str, seen: set[str], timeout_s: float = 60.0)
         if until in text:
             return
         time.sleep(0.02)
-    raise AssertionError(f"the dashboard never showed {until!r}")
+    raise AssertionError(f"the dashboard never showed {until!r}; it shows: "
+                         f"{dashboard.inner_text('body')[:1500]!r}")
 
 
 def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_path: Path) -> None:
     screens = tmp_path / "screens"
     seen: set[str] = set()
-    with serve(tmp_path, "--rehearse", "--realtime-priority") as served, chromium() as browser:
+    with serve(tmp_path, "--rehearse", "--realtime-priority", verbose=True) as served, \
+            chromium() as browser:
         dashboard, tablet = open_screens(browser, served)
         open_participant(dashboard, "P01")
         wait_text(dashboard, "PolyScope 3.15")  # the stand-in's controller, through ur_rtde
