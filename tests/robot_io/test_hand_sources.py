@@ -114,7 +114,7 @@ def test_an_lsl_backlog_is_taken_in_one_wake_and_its_newest_sample_is_current():
         hand.close()
     assert hand.wakes - wakes == 1  # one sample per wake took 80
     assert newest.position == pytest.approx(path[-1], abs=1e-5)
-    assert newest.t == pytest.approx(now, abs=0.005)  # the last pushed, not the backlog's first
+    assert newest.t == pytest.approx(now, abs=0.02)  # the last pushed (the first: now - 0.79)
 
 
 def test_waiting_for_the_tracker_wants_a_fresh_sample_not_just_any():
