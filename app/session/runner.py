@@ -16,6 +16,7 @@ going on.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import threading
 import time
@@ -189,6 +190,12 @@ class SessionRunner:
         self._overview: list[ParticipantSummary] | None = None  # None: to be read again
         self._listeners: list[Listener] = []
         self._view = RunnerView()
+        # Views are made on the engine thread, numbered in the order they were made, and shown
+        # under one lock; a view made earlier than the one already shown is dropped (two threads
+        # publishing at once could otherwise show the older last: a dashboard stuck at "starting"
+        # with the trial's stage already stored, and Object loaded never enabled).
+        self._made = itertools.count(1)
+        self._showing = threading.RLock()
         self._wake = threading.Event()
         self._closing = False
         self._worker = threading.Thread(target=self._work, name="session-worker", daemon=True)
@@ -622,7 +629,7 @@ class SessionRunner:
                                             engine.participant.code)
         status["overview"] = self._overview
         if engine is None:
-            return RunnerView(version=self._view.version + 1, **status)
+            return RunnerView(version=next(self._made), **status)
         state = engine.state
         if self._theta_star_key != len(state.planned):  # a new θ means a new learner snapshot
             self._theta_star_key = len(state.planned)
@@ -631,7 +638,7 @@ class SessionRunner:
                           delta=r.theta_star_delta, k=r.theta_star_k)
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
         return RunnerView(
-            version=self._view.version + 1, code=engine.participant.code,
+            version=next(self._made), code=engine.participant.code,
             scenario=engine.config.scenario, seed=engine.config.seed, state=state.model_copy(deep=True),
             interactions=engine.config.interactions, preparing=self._preparing,
             waiting_for=self._waiting_for(state.stage) if state.step is Step.RUNNING else None,
@@ -722,15 +729,17 @@ class SessionRunner:
             self._messages.append(f"{time.strftime('%H:%M:%S')} {message}")
             log.info("%s", message)
         if not self._closing:
-            view = self._view
-            self._notify(view.model_copy(update={"version": view.version + 1,
-                                                 **self._device_status()}))
+            with self._showing:  # the shown view's engine state, with the devices' news
+                self._notify(self._view.model_copy(update=self._device_status()))
         self._wake.set()
 
     def _publish(self) -> None:
         if self._closing:
             return
-        self._notify(self._call(self._make_view))
+        view = self._call(self._make_view)
+        with self._showing:
+            if view.version > self._view.version:  # else a view made later is already shown
+                self._notify(view.model_copy(update=self._device_status()))
 
     def _notify(self, view: RunnerView) -> None:
         self._view = view
