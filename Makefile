@@ -4,7 +4,16 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: install demo test chromium bench clean
+.PHONY: install demo test soak chromium bench clean
+
+# The suite runs on PYTEST_WORKERS xdist workers (`--dist loadgroup`: tests marked
+# xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run.
+PYTEST_WORKERS ?= 3
+PYTEST_ARGS ?=
+# `make soak`: the browser, rehearsal, rig-process and kill tests SOAK_RUNS times beside
+# SOAK_HOGS busy cores (not in CI).
+SOAK_RUNS ?= 10
+SOAK_HOGS ?= 1
 
 install: $(VENV)/.installed
 
@@ -24,12 +33,16 @@ demo: install
 chromium:
 	@if [ ! -x /usr/bin/chromium ]; then \
 		export DEBIAN_FRONTEND=noninteractive; \
-		apt-get update -qq >/dev/null && apt-get install -y -qq chromium >/dev/null; \
+		apt-get update -qq >/dev/null && \
+		apt-get install -y -qq -o DPkg::Lock::Timeout=600 chromium >/dev/null; \
 	fi
 
 test: install chromium
 	$(BIN)/ruff check .
-	$(BIN)/pytest
+	$(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=25 $(PYTEST_ARGS)
+
+soak: install chromium
+	$(BIN)/python .ci/soak.py --runs $(SOAK_RUNS) --hogs $(SOAK_HOGS) --workers $(PYTEST_WORKERS)
 
 bench: install
 	$(BIN)/python benchmarks/control_loop.py

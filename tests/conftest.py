@@ -28,3 +28,17 @@ def goal(config: ControllerConfig) -> np.ndarray:
 settings.register_profile("handover", derandomize=True, database=None, deadline=None,
                           print_blob=True, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("handover")
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Tests that use a module-scoped fixture (a whole session run once, a study folder, a learner
+    worker) share one xdist worker, so the fixture is built once, not once per worker that happens
+    to draw one of them (``make test`` runs ``--dist loadgroup``). Runs before xdist reads the
+    groups."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None or item.get_closest_marker("xdist_group"):
+            continue
+        if any(defs[-1].scope == "module" for defs in info.name2fixturedefs.values() if defs):
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__))

@@ -95,6 +95,13 @@ class ConditionSummary(BaseModel):
     out_dir: str
 
 
+def t_half_width(values: list[float]) -> float:
+    """Half-width of the Student-t 95 % CI of the mean of ``values`` (NaN for fewer than two)."""
+    n = len(values)
+    return (float(stats.t.ppf(0.975, n - 1)) * statistics.stdev(values) / math.sqrt(n)
+            if n > 1 else math.nan)
+
+
 def summarise(results: list[TrialResult]) -> list[InteractionSummary]:
     """Mean distance of θ* to the target with 95 % CI, success rate and mean oracle distance, per
     interaction."""
@@ -104,8 +111,7 @@ def summarise(results: list[TrialResult]) -> list[InteractionSummary]:
     for i, values in enumerate(zip(*(r.distances for r in results), strict=True)):
         n = len(values)
         mean = statistics.fmean(values)
-        half = (float(stats.t.ppf(0.975, n - 1)) * statistics.stdev(values) / math.sqrt(n)
-                if n > 1 else math.nan)
+        half = t_half_width(values)
         rows.append(InteractionSummary(
             interaction=i + 1, n_trials=n, mean_distance=mean, ci_low=mean - half,
             ci_high=mean + half,
@@ -287,3 +293,12 @@ def run_condition(condition: StudyCondition, *, trials: int, seed: int, client: 
     summary = condition_summary(condition, ordered, rows, directory, timed,
                                 wall / len(fresh) if fresh else None)
     return summary, rows
+
+
+def final_distances(condition: StudyCondition, *, trials: int, seed: int, client: Client,
+                    out: Path) -> list[float]:
+    """Run (or resume) ``condition``; each trial's final inference distance u(θ*), in trial order
+    (paired with any other condition of the same ``seed``: the same targets and noise)."""
+    run_condition(condition, trials=trials, seed=seed, client=client, out=out, progress=False)
+    stored = TrialStore(out / condition.name, condition, seed).load()
+    return [stored[t].distances[-1] for t in range(trials)]

@@ -1,0 +1,82 @@
+"""`make soak`: the tests that meet the machine's timing, run N times beside a CPU hog.
+
+The browser, rehearsal, rig-process and kill tests (marker ``soak``, plus ``browser``) start servers,
+browsers, stand-in controllers and processes that are killed; they are where a wait on the clock
+would show. This runs them ``--runs`` times (default 10) as ``make test`` runs them (the same xdist
+workers), with ``yes > /dev/null`` keeping one core busy the whole time, and prints each test's pass
+count, the failures' first lines, and the wall time of each run. It is not part of CI: run it before
+saying that the suite is steady.
+
+    make soak [SOAK_RUNS=10] [SOAK_HOG=1] [PYTEST_WORKERS=3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+import xml.etree.ElementTree as ET
+from collections import Counter
+from pathlib import Path
+
+SELECTION = "browser or soak"
+
+
+def run_once(junit: Path, workers: str, extra: list[str]) -> float:
+    """One pytest run of the soak selection; its wall time [s]."""
+    began = time.monotonic()
+    subprocess.run([sys.executable, "-m", "pytest", "-m", SELECTION, "-n", workers,
+                    "--dist", "loadgroup", "-p", "no:cacheprovider", "-q", "--no-header",
+                    f"--junitxml={junit}", *extra], check=False)
+    return time.monotonic() - began
+
+
+def outcomes(junit: Path) -> dict[str, str]:
+    """Test id → "passed", "failed", "error" or "skipped", read from a JUnit XML report."""
+    result = {}
+    for case in ET.parse(junit).iter("testcase"):
+        name = f"{case.get('classname')}::{case.get('name')}"
+        kinds = [child.tag for child in case if child.tag in ("failure", "error", "skipped")]
+        result[name] = {"failure": "failed"}.get(kinds[0], kinds[0]) if kinds else "passed"
+    return result
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=10)
+    parser.add_argument("--hogs", type=int, default=1, help="cores kept busy by `yes > /dev/null`")
+    parser.add_argument("--workers", default="3")
+    parser.add_argument("pytest_args", nargs="*", help="passed on to pytest (e.g. -k rehearsal)")
+    args = parser.parse_args()
+    passed, ran, seconds = Counter(), Counter(), []
+    hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(args.hogs)]
+    try:
+        with tempfile.TemporaryDirectory(prefix="soak-") as folder:
+            for i in range(args.runs):
+                junit = Path(folder) / f"run-{i}.xml"
+                seconds.append(run_once(junit, args.workers, args.pytest_args))
+                for name, outcome in outcomes(junit).items():
+                    if outcome != "skipped":
+                        ran[name] += 1
+                        passed[name] += outcome == "passed"
+                print(f"soak run {i + 1}/{args.runs}: {seconds[-1]:.0f} s, "
+                      f"{sum(o == 'passed' for o in outcomes(junit).values())} passed", flush=True)
+    finally:
+        for hog in hogs:
+            hog.kill()
+            hog.wait()
+    width = max(map(len, ran), default=10)
+    print(f"\n{'test':<{width}}  passed/runs")
+    for name in sorted(ran, key=lambda n: (passed[n] - ran[n], n)):
+        print(f"{name:<{width}}  {passed[name]}/{ran[name]}")
+    steady = sum(passed[n] == ran[n] == args.runs for n in ran)
+    print(f"\n{steady} of {len(ran)} tests passed {args.runs} of {args.runs}; "
+          f"run wall time median {sorted(seconds)[len(seconds) // 2]:.0f} s "
+          f"(min {min(seconds):.0f}, max {max(seconds):.0f})")
+    return 0 if steady == len(ran) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
