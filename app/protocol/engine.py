@@ -405,7 +405,12 @@ class SessionEngine:
         return suggestion, learner
 
     def _snapshot_row(self, learner: LearnerClient, after: int, suggestion: Suggestion
-                      ) -> LearnerSnapshotRow:
+                      ) -> LearnerSnapshotRow | None:
+        """The learner as it stands, to store with the θ it planned; None while the worker has not
+        answered yet (a first reply later than the plan's timeout gives a fallback θ): there is no
+        state to keep, and a resume restores the learner from the placements alone."""
+        if learner.state is None:
+            return None
         best = learner.best
         return LearnerSnapshotRow(
             after_interaction=after, theta_star_a=best.theta["a"] if best else None,
@@ -428,7 +433,7 @@ class SessionEngine:
                                      **theta.model_dump(), origin=origin,
                                      fallback=suggestion.fallback,
                                      fit_failed=suggestion.fit.fit_failed),
-                     lambda: self.store.add(row))
+                     *([lambda: self.store.add(row)] if row is not None else []))
 
     def _plan_after_learning(self, timeout: float) -> None:
         """θ* of the finished learning phase for the best and validation interactions, and the
@@ -446,6 +451,6 @@ class SessionEngine:
             theta = best if slot.origin is ThetaOrigin.BEST else next(references)
             events.append(ev.ThetaPlanned(actor=Actor.LEARNER, interaction=slot.interaction,
                                           **theta.model_dump(), origin=slot.origin))
-        self._commit_all(events, lambda: self.store.add(row))
+        self._commit_all(events, *([lambda: self.store.add(row)] if row is not None else []))
         self._learner.close()
         self._learner = None
