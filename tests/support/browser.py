@@ -33,7 +33,7 @@ from playwright.sync_api import Error as PlaywrightError
 
 from app.protocol.vocabulary import QUESTIONS
 from app.ui.deliberate import SETTLE_S
-from support.waiting import tail, wait_for
+from support.waiting import CEILING_S, tail, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -240,11 +240,16 @@ class Served:
     study: Path
     log: Path
 
-    def shutdown(self, timeout: float = 30.0) -> str:
-        """Ctrl-C, as the experimenter would; returns the server's output."""
+    def shutdown(self, timeout: float = CEILING_S) -> str:
+        """Ctrl-C, as the experimenter would; returns the server's output. ``timeout`` is a ceiling
+        for a hung shutdown (it stops the arm and closes the session), not a bound."""
         if self.process.poll() is None:
             self.process.send_signal(signal.SIGINT)
-            self.process.wait(timeout)
+            try:
+                self.process.wait(timeout)
+            except subprocess.TimeoutExpired:
+                raise AssertionError(f"handover serve did not end {timeout:g} s after Ctrl-C; its "
+                                     f"output:\n{tail(self.log.read_text())}") from None
         return self.log.read_text()
 
 
