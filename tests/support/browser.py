@@ -43,6 +43,13 @@ TOKEN = "test-token"
 #: The short protocol of tests/support/engine.SHORT_PROTOCOL, as the [protocol] table of a lab config.
 SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
               "validation_batches = 1\n")
+#: Lab-config tables of a simulated participant who never takes the object (robot_io.simulated_pull:
+#: ``pull_n = 0``): once the arm holds the object out at H, the trial stays in its hold until the
+#: experimenter acts. Only [release] timeout_s (here its largest value, 60 s) of holding would end it
+#: (``not_taken``): as long as Playwright's ceiling for any one action (TIMEOUT_MS), so a stop that
+#: misses the hold is an action slower than the suite allows, and the test says the trial ended
+#: not_taken. The session keeps these tables for every trial of a participant it creates.
+NEVER_TAKES = "[hand]\npull_n = 0.0\n\n[release]\ntimeout_s = 60.0\n"
 #: Playwright's ceiling for one wait (a locator, a function): far above what a state takes on a
 #: loaded 2-core machine; a timeout is re-raised by :func:`awaiting` with what the page showed.
 TIMEOUT_MS = 60_000
@@ -262,17 +269,18 @@ STARTED = "dashboard token:"
 
 @contextmanager
 def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML,
-          token: str | None = TOKEN, ports: tuple[int, int] | None = None,
+          tables: str = "", token: str | None = TOKEN, ports: tuple[int, int] | None = None,
           log_name: str = "serve.log", verbose: bool = False) -> Iterator[Served]:
     """`handover serve` on two loopback ports the server binds itself (port 0: any free one; or
     ``ports``: tablet, dashboard, e.g. those a first run of the same test bound) with a lab config
-    of the short protocol (``protocol_toml`` is its [protocol] table) at ``rate`` Hz (125 for
-    speed); ``token`` None: the study's own dashboard token; its output in ``tmp/log_name``
+    of the short protocol (``protocol_toml`` is its [protocol] table; ``tables``: more tables of
+    the lab config, e.g. :data:`NEVER_TAKES`) at ``rate`` Hz (125 for speed); ``token`` None: the
+    study's own dashboard token; its output in ``tmp/log_name``
     (``verbose``: at INFO level, every message the dashboard shows). The URLs are read from the
     server's output once it says it has started."""
     tmp.mkdir(parents=True, exist_ok=True)
     config = tmp / "lab.toml"
-    config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}")
+    config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}\n{tables}")
     study, log = tmp / "study", tmp / log_name
     tablet, dashboard = ports or (0, 0)
     command = [sys.executable, "-m", "app.cli", *(["--verbose"] if verbose else []), "serve",

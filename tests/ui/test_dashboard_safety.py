@@ -3,7 +3,11 @@
 * Start is refused while no tablet is paired; the reason stands beside it; the tablet pairs with the
   code the dashboard shows (typed with touch), and Start is allowed.
 * STOP ARM is in the viewport after the panel is scrolled to its end at 1366×768, and Esc stops
-  the arm; after the stop, Start stays refused until Re-arm (the stop's state is shown).
+  the arm while it holds the object out at H (the simulated participant never takes it, so the
+  hold lasts until the stop); after the stop, Start stays refused until Re-arm (the stop's state is
+  shown). A stop while the arm moves on its reach: tests/robot_io/test_loop.py
+  (``test_real_clock_worker_thread_stops_on_request``) and tests/session/test_rehearsal.py (the rig
+  killed mid-reach).
 * Two participants run one after the other in one server process (End session, then create the
   next), and the study overview lists both.
 * A restart keeps the dashboard token (stored with the study); while the server is down the page
@@ -21,6 +25,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Page
 from support.browser import (
+    NEVER_TAKES,
     button,
     chromium,
     click,
@@ -79,7 +84,8 @@ def start_refused_because(dashboard: Page, reason: str) -> None:
 
 def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
     screens = tmp_path / "screens"
-    with serve(tmp_path) as served, chromium() as browser:
+    # The participant never takes the object: the trial's hold lasts until the experimenter's stop.
+    with serve(tmp_path, tables=NEVER_TAKES) as served, chromium() as browser:
         dashboard = open_page(browser, served.dashboard_url, size=LAPTOP)
         open_participant(dashboard, "P01")
         start_refused_because(dashboard, "no tablet is connected")
@@ -104,11 +110,12 @@ def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
         wait_enabled(dashboard, "Start trial")
         wait_gone(dashboard, "Start is locked")  # its reason is sent after the button's state
 
-        # STOP by its key during the reach: the trial is stopped, Start locked until Re-arm.
+        # STOP by its key while the arm holds the object out at H (the hold lasts until the stop:
+        # nobody takes the object): the trial is stopped, Start locked until Re-arm.
         click(dashboard, "Start trial")
         click(dashboard, "Object loaded")
         click(dashboard, "Go")
-        wait_text(dashboard, "[reach]")
+        wait_text(dashboard, "[hold]")
         dashboard.locator("body").click(position={"x": 200, "y": 300})  # focus on the page
         dashboard.keyboard.press("Escape")
         wait_text(dashboard, "Arm: STOPPED")
@@ -135,9 +142,12 @@ def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
     store = ParticipantStore.open(served.study, "P01")
     try:
         [trial] = store.rows("trials")
+        stages = [e.payload["stage"] for e in store.events() if e.kind == "trial_stage"]
     finally:
         store.close()
     assert trial.outcome.value == "aborted" and trial.reason == "stopped by the experimenter (Stop)"
+    # stopped in the hold: neither released nor timed out (not_taken), and never retracted
+    assert stages == ["prepare", "loaded", "ready", "go", "reach", "hold"], stages
 
 
 def run_participant(dashboard: Page, code: str) -> None:
