@@ -34,8 +34,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                             "without it (mock arm, simulated hand, the paper's protocol)")
     serve.add_argument("--host", default="127.0.0.1",
                        help="address to bind (default 127.0.0.1; 0.0.0.0 for a tablet on the LAN)")
-    serve.add_argument("--tablet-port", type=argument_type(port_number), default=8080)
-    serve.add_argument("--dashboard-port", type=argument_type(port_number), default=8081)
+    serve.add_argument("--tablet-port", type=argument_type(port_number), default=8080,
+                       help="the tablet's port (default 8080; 0: any free port, the one bound is "
+                            "printed)")
+    serve.add_argument("--dashboard-port", type=argument_type(port_number), default=8081,
+                       help="the dashboard's port (default 8081; 0: any free port, the one bound is "
+                            "printed)")
     serve.add_argument("--token", help="dashboard access token (default: the study's own, created "
                                        "on first use and kept in <study>/.dashboard-token)")
     serve.add_argument("--blind", action="store_true",
@@ -57,13 +61,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def port_number(text: str) -> int:
-    """A TCP port to serve on: a whole number in 1–65535."""
+    """A TCP port to serve on: a whole number in 1–65535, or 0 for any free port (the system
+    picks it when the server binds; serve prints the URLs with the ports bound). Port 0 lets two
+    servers start side by side without guessing a free port first (a guess can be taken by
+    another program before the server binds it)."""
     try:
         port = int(text)
     except ValueError:
         port = None
-    if port is None or not 1 <= port <= 65535:
-        raise ValueError(f"port = {text!r} must be a whole number in [1, 65535]")
+    if port is None or not 0 <= port <= 65535:
+        raise ValueError(f"port = {text!r} must be a whole number in [1, 65535], or 0 for any "
+                         "free port")
     return port
 
 

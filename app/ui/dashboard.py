@@ -106,6 +106,8 @@ class Controls:
     resume: viser.GuiButtonHandle
     end: viser.GuiButtonHandle
     auto: viser.GuiCheckboxHandle
+    #: The session's "simulated participant" setting the box was last set to (None: not yet).
+    shown_auto: bool | None = None
 
     def enable_for(self, view: RunnerView) -> None:
         step, state = view.step, view.state
@@ -120,7 +122,15 @@ class Controls:
         self.pause.disabled = state is None or paused or step in (Step.RUNNING, Step.DONE)
         self.resume.disabled = not paused
         self.end.disabled = state is None or step is Step.RUNNING
-        self.auto.value = view.auto
+        self._show_auto(view.auto)
+
+    def _show_auto(self, auto: bool) -> None:
+        """Set the box when the session's setting changed, not on every refresh: viser holds a
+        click's value in the box before the box's callback reads it to switch the session, and a
+        refresh for anything else in between would set the box back and lose the click."""
+        if auto != self.shown_auto:
+            self.shown_auto = auto
+            self.auto.value = auto
 
 
 @dataclass

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 import threading
+import time
 from collections.abc import Callable
 from typing import Literal
 
@@ -150,10 +151,11 @@ class TabletClient:
     :meth:`_input` (settled, one at a time)."""
 
     def __init__(self, client: viser.ClientHandle, runner: SessionRunner,
-                 redraw: Callable[[], None], settle_s: float = SETTLE_S) -> None:
+                 redraw: Callable[[], None], settle_s: float = SETTLE_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         self.client, self.runner, self._redraw = client, runner, redraw
         self.screen: Screen | None = None
-        self.settle = Settle(settle_s)
+        self.settle = Settle(settle_s, clock)
         self._draft: Draft | None = None  # the questionnaire's choices before the last Next
         self._choice: Choice | None = None
         self._next: viser.GuiButtonHandle | None = None
@@ -177,7 +179,10 @@ class TabletClient:
                      "place": self._place, "rate": self._rate, "question": self._question,
                      "done": self._done, "unused": self._unused, "pair": self._pair}
             build[screen.kind](gui, screen)
-        self.settle.restart()
+            # Inside atomic(): the window starts before the screen can reach the page (viser holds
+            # the messages until the block ends), so no input answering this screen is judged
+            # against the window of the screen before it.
+            self.settle.restart()
 
     # -- the screens: each adds its handles and callbacks ----------------------------------------
     def _wait(self, gui: viser.GuiApi, screen: Screen) -> None:
@@ -326,11 +331,12 @@ class Tablet:
     """The tablet server: one :class:`TabletClient` per open page; the paired one is the study's
     tablet (:class:`~app.session.pairing.TabletPairing`). ``source_of`` gives a page's remote
     address (:meth:`app.ui.guard.Guard.source_of`); ``settle_s``: input is ignored for this long
-    after each screen change."""
+    after each screen change, on ``clock`` (a test's own clock ends the window when it says so)."""
 
     def __init__(self, server: viser.ViserServer, runner: SessionRunner,
-                 source_of: Callable[[int], str], settle_s: float = SETTLE_S) -> None:
-        self.server, self.runner, self.settle_s = server, runner, settle_s
+                 source_of: Callable[[int], str], settle_s: float = SETTLE_S,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.server, self.runner, self.settle_s, self._clock = server, runner, settle_s, clock
         self._pages: dict[int, TabletClient] = {}  # in the order they connected
         self._source_of = source_of
         self.pairing = runner.attach_tablet()
@@ -351,7 +357,7 @@ class Tablet:
     def _connect(self, client: viser.ClientHandle) -> None:
         with self._lock:
             self._pages[client.client_id] = TabletClient(client, self.runner, self.redraw,
-                                                         self.settle_s)
+                                                         self.settle_s, self._clock)
         self.runner.tablet_connected(client.client_id, self._source_of(client.client_id))
         log.info("tablet page %d connected (%d open)", client.client_id, self.connected_count())
         self.redraw()

@@ -5,6 +5,11 @@ browser pages. Touch drags are real touch events sent through the DevTools proto
 (``Input.dispatchTouchEvent``), the same path a finger on a tablet takes; taps are
 ``page.touchscreen.tap``. The tablet ignores input for ``SETTLE_S`` after each screen change
 (app/ui/deliberate.py), so the participant's helpers let a screen settle before they touch it.
+
+Every helper waits for a state and, when it gives up, says what the page showed (its text) and, for a
+page of a server started by :func:`serve`, the end of the server's log. The servers bind port 0 (any
+free port) and the helpers read the ports bound from the server's output: two suites, or two xdist
+workers, never race for a guessed port.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from playwright.sync_api import Error as PlaywrightError
 
 from app.protocol.vocabulary import QUESTIONS
 from app.ui.deliberate import SETTLE_S
+from support.waiting import CEILING_S, tail, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
@@ -37,8 +43,66 @@ TOKEN = "test-token"
 #: The short protocol of tests/support/engine.SHORT_PROTOCOL, as the [protocol] table of a lab config.
 SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
               "validation_batches = 1\n")
+#: Lab-config tables of a simulated participant who never takes the object (robot_io.simulated_pull:
+#: ``pull_n = 0``): once the arm holds the object out at H, the trial stays in its hold until the
+#: experimenter acts. Only [release] timeout_s (here its largest value, 60 s) of holding would end it
+#: (``not_taken``): as long as Playwright's ceiling for any one action (TIMEOUT_MS), so a stop that
+#: misses the hold is an action slower than the suite allows, and the test says the trial ended
+#: not_taken. The session keeps these tables for every trial of a participant it creates.
+NEVER_TAKES = "[hand]\npull_n = 0.0\n\n[release]\ntimeout_s = 60.0\n"
+#: Playwright's ceiling for one wait (a locator, a function): far above what a state takes on a
+#: loaded 2-core machine; a timeout is re-raised by :func:`awaiting` with what the page showed.
 TIMEOUT_MS = 60_000
+#: How much of a page's text a failure shows.
+PAGE_CHARS = 1000
 T = TypeVar("T")
+
+#: The output of each server :func:`serve` runs now in this process, by its URLs (for failures).
+_LOGS: dict[str, Path] = {}
+
+
+def page_text(page: Page) -> str:
+    """What the page shows (its first PAGE_CHARS characters), for a failure's message."""
+    try:
+        # A live page answers at once; 5 s keeps a failure's message from waiting a minute more
+        # on a page that is gone or hung (which the message then says).
+        return repr(page.inner_text("body", timeout=5_000)[:PAGE_CHARS])
+    except PlaywrightError as exc:  # a closed page, a page between loads: say so
+        return f"<page text unreadable: {str(exc).splitlines()[0]}>"
+
+
+def server_tail(page: Page) -> str:
+    """The end of the log of the server that served ``page``, if :func:`serve` started it."""
+    for url, log in list(_LOGS.items()):
+        if page.url.startswith(url):
+            try:
+                return tail(log.read_text())
+            except OSError as exc:
+                return f"<{log} unreadable: {exc}>"
+    return ""
+
+
+def what_it_showed(page: Page) -> str:
+    """The page's text and its server's log tail (when known), for a failure's message."""
+    log = server_tail(page)
+    return f"the page showed: {page_text(page)}" + (f"\nserver log tail:\n{log}" if log else "")
+
+
+@contextmanager
+def awaiting(page: Page, what: str) -> Iterator[None]:
+    """Re-raise a Playwright timeout (or a wait cut short) inside as an AssertionError naming
+    ``what`` was awaited and what the page showed instead."""
+    try:
+        yield
+    except PlaywrightError as exc:
+        raise AssertionError(f"{what}: {str(exc).splitlines()[0]}\n{what_it_showed(page)}") from exc
+
+
+def wait_function(page: Page, script: str, what: str, arg: object = None, polling: str = "raf",
+                  timeout_ms: float = TIMEOUT_MS) -> None:
+    """``page.wait_for_function`` for the state ``what``; a timeout says what the page showed."""
+    with awaiting(page, f"waiting for {what}"):
+        page.wait_for_function(script, arg=arg, polling=polling, timeout=timeout_ms)
 
 
 SCREENS = {"unused": "not in use", "pair": "Connect this tablet", "pairs": "pairs of handovers",
@@ -55,14 +119,14 @@ def tablet_screen(page: Page, not_: str | tuple[str, ...] = (), timeout_s: float
     skip = {not_} if isinstance(not_, str) else set(not_)
     if not unused_ok:
         skip.update(("unused", "pair"))
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+
+    def shown() -> str | None:
         text = page.inner_text("body")
-        for name, marker in SCREENS.items():
-            if marker in text and name not in skip:
-                return name
-        time.sleep(0.02)
-    raise AssertionError(f"tablet shows no known screen: {page.inner_text('body')[:300]}")
+        return next((name for name, marker in SCREENS.items()
+                     if marker in text and name not in skip), None)
+
+    return wait_for(shown, f"the tablet to show a screen other than {sorted(skip)}",
+                    timeout=timeout_s, seen=lambda: what_it_showed(page))
 
 
 def start_trial(dashboard: Page) -> None:
@@ -85,6 +149,12 @@ def run_trial(dashboard: Page, tablet: Page) -> str:
 def settle() -> None:
     """Let the screen just shown settle, as a participant reading it would (input earlier than
     SETTLE_S after a screen change is ignored by design)."""
+    # A product rule, not a wait for a state: the tablet ignores input for SETTLE_S after a screen
+    # change (app/ui/deliberate.py) and keeps that window on the server; the page does not show
+    # whether input is armed yet. The server starts the window when it sends the screen, before the
+    # page can show it, and this sleep starts after the page showed it: on any load, input sent after
+    # it arrives outside the window. (+0.1 s: the server's window starts a little after it queued the
+    # screen, app/ui/tablet.py TabletClient._draw.)
     time.sleep(SETTLE_S + 0.1)
 
 
@@ -93,6 +163,9 @@ def double_tap(page: Page, name: str, gap_s: float = 0.15) -> None:
     on whatever the first one brought up)."""
     point = tap_point(page, name)
     page.touchscreen.tap(*point)
+    # A human double tap's gap, deliberate. Load only stretches it, and the tests' outcome holds for
+    # any gap: the second tap lands on the same screen (ignored: busy, settling, or a stale answer
+    # refused) or on the next screen's button, disabled or absent there; the store holds one answer.
     time.sleep(gap_s)
     page.touchscreen.tap(*point)
 
@@ -116,8 +189,7 @@ def rate(tablet: Page, answer: str, folder: Path | None = None) -> float:
     settle()
     tap(tablet, answer)
     if folder is not None:
-        tablet.wait_for_function("() => [...document.querySelectorAll('button')].some("
-                                 "b => !b.disabled && b.innerText.trim() === 'Confirm')")
+        wait_enabled(tablet, "Confirm")
         shot(tablet, folder, "tablet-rate")
     return timed_tap(tablet, "Confirm", "rate")
 
@@ -128,20 +200,40 @@ def confirm_placement(tablet: Page) -> float:
     point = tap_point(tablet, "Confirm")
     began = time.perf_counter()
     tablet.touchscreen.tap(*point)
-    tablet.wait_for_function("() => !document.querySelector('.hl-scale')", polling="raf")
-    return time.perf_counter() - began
+    wait_function(tablet, "() => !document.querySelector('.hl-scale')",
+                  "the scale to go after Confirm")
+    return time.perf_counter() - began  # reported (benchmarks/ui_latency.py), never asserted
 
 
 def open_participant(dashboard: Page, code: str) -> None:
-    """Unlock the dashboard if it is locked, then create or resume ``code``."""
-    if "Enter the dashboard token" in dashboard.inner_text("body"):
+    """Unlock the dashboard if it is locked, then create or resume ``code``. Waits until the page
+    shows either state (the token prompt or the participant's Code field) and acts on what came: a
+    page read once before it rendered would look unlocked."""
+    if dashboard_state(dashboard) == "locked":
         unlock_dashboard(dashboard)
     fill(dashboard, "Code", code)
     click(dashboard, "Create or resume")
     wait_text(dashboard, "handovers completed")
 
 
+def dashboard_state(dashboard: Page) -> str:
+    """Wait until the dashboard shows the token prompt ("locked") or the Code field of "Create or
+    resume" ("unlocked"), and say which."""
+    code = labelled(dashboard, "Code")
+
+    def state() -> str | None:
+        if "Enter the dashboard token" in dashboard.inner_text("body"):
+            return "locked"
+        return "unlocked" if code.count() and code.first.is_visible() else None
+
+    return wait_for(state, "the dashboard's token prompt or its participant Code field",
+                    seen=lambda: what_it_showed(dashboard))
+
+
 def free_port() -> int:
+    """A port that was free a moment ago. Racy (another program may bind it before the caller
+    does): tests let the server bind port 0 and read the port it reports instead; kept for the
+    benchmarks and tests outside tests/ui that still use it."""
     with socket.socket() as sock:
         sock.bind(("127.0.0.1", 0))
         return sock.getsockname()[1]
@@ -155,26 +247,42 @@ class Served:
     study: Path
     log: Path
 
-    def shutdown(self, timeout: float = 30.0) -> str:
-        """Ctrl-C, as the experimenter would; returns the server's output."""
+    def shutdown(self, timeout: float = CEILING_S) -> str:
+        """Ctrl-C, as the experimenter would; returns the server's output. ``timeout`` is a ceiling
+        for a hung shutdown (it stops the arm and closes the session), not a bound."""
         if self.process.poll() is None:
             self.process.send_signal(signal.SIGINT)
-            self.process.wait(timeout)
+            try:
+                self.process.wait(timeout)
+            except subprocess.TimeoutExpired:
+                raise AssertionError(f"handover serve did not end {timeout:g} s after Ctrl-C; its "
+                                     f"output:\n{tail(self.log.read_text())}") from None
         return self.log.read_text()
+
+
+#: The URLs serve prints once its servers are bound (app/ui/cli.py).
+URL_LINES = {"tablet": re.compile(r"^tablet \(participant\):\s+(http://\S+)$", re.M),
+             "dashboard": re.compile(r"^dashboard \(experimenter\):\s+(http://\S+)$", re.M)}
+#: Its last line of start-up: the servers are bound and the dashboard's token is known.
+STARTED = "dashboard token:"
 
 
 @contextmanager
 def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML,
-          token: str | None = TOKEN, ports: tuple[int, int] | None = None,
+          tables: str = "", token: str | None = TOKEN, ports: tuple[int, int] | None = None,
           log_name: str = "serve.log", verbose: bool = False) -> Iterator[Served]:
-    """`handover serve` on two free loopback ports (or ``ports``: tablet, dashboard) with a lab
-    config of the short protocol (``protocol_toml`` is its [protocol] table) at ``rate`` Hz (125
-    for speed); ``token`` None: the study's own dashboard token; its output in ``tmp/log_name``
-    (``verbose``: at INFO level, every message the dashboard shows)."""
+    """`handover serve` on two loopback ports the server binds itself (port 0: any free one; or
+    ``ports``: tablet, dashboard, e.g. those a first run of the same test bound) with a lab config
+    of the short protocol (``protocol_toml`` is its [protocol] table; ``tables``: more tables of
+    the lab config, e.g. :data:`NEVER_TAKES`) at ``rate`` Hz (125 for speed); ``token`` None: the
+    study's own dashboard token; its output in ``tmp/log_name``
+    (``verbose``: at INFO level, every message the dashboard shows). The URLs are read from the
+    server's output once it says it has started."""
+    tmp.mkdir(parents=True, exist_ok=True)
     config = tmp / "lab.toml"
-    config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}")
+    config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}\n{tables}")
     study, log = tmp / "study", tmp / log_name
-    tablet, dashboard = ports or (free_port(), free_port())
+    tablet, dashboard = ports or (0, 0)
     command = [sys.executable, "-m", "app.cli", *(["--verbose"] if verbose else []), "serve",
                "--study", str(study),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
@@ -182,19 +290,37 @@ def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TO
     with log.open("w") as out:
         process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
                                    env={**os.environ, "PYTHONUNBUFFERED": "1"})
-    served = Served(process, f"http://127.0.0.1:{tablet}", f"http://127.0.0.1:{dashboard}",
-                    study, log)
     try:
-        deadline = time.monotonic() + 60
-        while "dashboard token" not in log.read_text():
-            assert process.poll() is None, log.read_text()
-            assert time.monotonic() < deadline, "server did not start"
-            time.sleep(0.1)
+        urls = wait_for(lambda: started(process, log), "handover serve to print its URLs and token",
+                        seen=lambda: tail(log.read_text()))
+        served = Served(process, urls["tablet"], urls["dashboard"], study, log)
+        _LOGS.update({served.tablet_url: log, served.dashboard_url: log})
         yield served
     finally:
+        for url in [url for url, path in _LOGS.items() if path == log]:
+            del _LOGS[url]
         if process.poll() is None:
             process.kill()
             process.wait()
+
+
+def started(process: subprocess.Popen, log: Path) -> dict[str, str] | None:
+    """The URLs serve printed ({"tablet": …, "dashboard": …}) once it has started; None before.
+    Raises at once if serve has exited (a dead server is not a slow one)."""
+    text = log.read_text()
+    if STARTED in text:
+        urls = {role: pattern.search(text) for role, pattern in URL_LINES.items()}
+        assert all(urls.values()), f"serve started without printing both URLs:\n{tail(text)}"
+        return {role: match.group(1) for role, match in urls.items()}
+    if (code := process.poll()) is not None:
+        raise AssertionError(f"handover serve exited with {code} before it started; its output:\n"
+                             f"{tail(log.read_text())}")
+    return None
+
+
+def ports_of(served: Served) -> tuple[int, int]:
+    """The (tablet, dashboard) ports a server bound, to start the next one on the same ports."""
+    return (int(served.tablet_url.rsplit(":", 1)[1]), int(served.dashboard_url.rsplit(":", 1)[1]))
 
 
 @contextmanager
@@ -219,7 +345,8 @@ def open_page(browser: Browser, url: str, touch: bool = False,
                             "document.head.appendChild(s); });")
     page = context.new_page()
     page.set_default_timeout(TIMEOUT_MS)
-    page.goto(url)
+    with awaiting(page, f"opening {url}"):
+        page.goto(url)
     wait_ready(page)
     return page
 
@@ -236,8 +363,8 @@ def open_screens(browser: Browser, served: Served) -> tuple[Page, Page]:
 
 def pairing_code(dashboard: Page) -> str:
     """The tablet pairing code the (unlocked) dashboard shows."""
-    wait_text(dashboard, "pairing code")
-    return re.search(r"pairing code (\d{4})", dashboard.inner_text("body")).group(1)
+    return wait_for(lambda: re.search(r"pairing code (\d{4})", dashboard.inner_text("body")),
+                    "the dashboard's pairing code", seen=lambda: what_it_showed(dashboard)).group(1)
 
 
 def pair_tablet(dashboard: Page, tablet: Page) -> None:
@@ -251,35 +378,55 @@ def pair_tablet(dashboard: Page, tablet: Page) -> None:
 
 
 def wait_ready(page: Page) -> None:
-    page.wait_for_function("() => document.body && document.body.innerText.length > 0 && "
-                           "!document.body.innerText.includes('Connecting')")
+    """Wait until viser has connected and drawn something."""
+    wait_function(page, "() => document.body && document.body.innerText.length > 0 && "
+                        "!document.body.innerText.includes('Connecting')",
+                  "the page to connect and draw", polling="raf")
 
 
 def reload(page: Page) -> None:
-    page.reload()
+    with awaiting(page, "reloading the page"):
+        page.reload()
     wait_ready(page)
 
 
 def wait_text(page: Page, text: str) -> None:
-    page.get_by_text(text, exact=False).first.wait_for(state="visible")
+    """Wait until ``text`` is visible on the page."""
+    with awaiting(page, f"waiting for the text {text!r}"):
+        page.get_by_text(text, exact=False).first.wait_for(state="visible")
+
+
+def wait_gone(page: Page, text: str) -> None:
+    """Wait until the page's text no longer contains ``text``."""
+    wait_function(page, "t => !document.body.innerText.includes(t)", f"{text!r} to go", arg=text)
 
 
 def button(page: Page, name: str):
     return page.get_by_role("button", name=re.compile(f"^{re.escape(name)}$"))
 
 
+def wait_enabled(page: Page, name: str) -> None:
+    """Wait until a button ``name`` is shown and enabled."""
+    wait_function(page, "n => [...document.querySelectorAll('button')].some("
+                        "b => !b.disabled && b.innerText.trim() === n)",
+                  f"the button {name!r} enabled", arg=name)
+
+
 def click(page: Page, name: str) -> None:
-    button(page, name).click()  # waits until it is visible and enabled
+    """Click button ``name`` once it is visible and enabled."""
+    with awaiting(page, f"clicking {name!r} (waits until it is visible and enabled)"):
+        button(page, name).click()
 
 
 def tap_point(page: Page, name: str, enabled: bool = True) -> tuple[float, float]:
     """The centre of button ``name`` once it is visible (and enabled, unless ``enabled`` is
     False: to tap a disabled button)."""
     target = button(page, name)
-    target.wait_for(state="visible")
-    if enabled:
-        page.wait_for_function("b => !b.disabled", arg=target.element_handle())
-    box = target.bounding_box()
+    with awaiting(page, f"waiting for the button {name!r}" + (" enabled" if enabled else "")):
+        target.wait_for(state="visible")
+        if enabled:
+            page.wait_for_function("b => !b.disabled", arg=target.element_handle())
+        box = target.bounding_box()
     return box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
 
 
@@ -295,7 +442,7 @@ def timed_tap(page: Page, name: str, screen: str) -> float:
     began = time.perf_counter()
     page.touchscreen.tap(*point)
     tablet_screen(page, not_=screen)
-    return time.perf_counter() - began
+    return time.perf_counter() - began  # reported, never asserted
 
 
 def labelled(page: Page, label: str):
@@ -305,36 +452,40 @@ def labelled(page: Page, label: str):
 
 def fill(page: Page, label: str, value: str) -> None:
     """Type into the text field labelled ``label``."""
-    labelled(page, label).fill(value)
+    with awaiting(page, f"typing into the field {label!r}"):
+        labelled(page, label).fill(value)
 
 
-def tick(page: Page, label: str, attempts: int = 3) -> None:
-    """Tick the checkbox labelled ``label``. viser sets a box's state in the click's own event
-    handler, so a click that leaves it unticked did not land on it (seen once in CI, on a loaded
-    machine, right after a trial; not reproduced since). Such a click is tried again: ticking is
-    idempotent, so a retry never unticks the box."""
+def tick(page: Page, label: str, confirmed: str) -> None:
+    """Tick the checkbox labelled ``label`` with one click, then wait until the server has taken
+    it: the page shows ``confirmed`` (the server's own words for the new state) and the box is
+    ticked. The server is the box's truth: a click is sent once, and the box shows what the server
+    holds (a dashboard refresh once overwrote a click in flight: app/ui/dashboard.py Controls)."""
     box = labelled(page, label)
-    for attempt in range(attempts):
-        try:
-            box.check()
-            return
-        except PlaywrightError:
-            if attempt == attempts - 1:
-                raise
+    with awaiting(page, f"clicking the checkbox {label!r}"):
+        if not box.is_checked():
+            box.click()
+    wait_text(page, confirmed)
+    wait_function(page, "b => b.checked", f"the checkbox {label!r} ticked",
+                  arg=box.element_handle())
 
 
 def unlock_dashboard(page: Page, token: str = TOKEN) -> None:
+    """Type the token and press Unlock; wait for the unlocked dashboard (its STOP ARM)."""
     fill(page, "Token", token)
     click(page, "Unlock")
-    button(page, "STOP ARM").wait_for(state="visible")
+    with awaiting(page, "waiting for the unlocked dashboard (STOP ARM)"):
+        button(page, "STOP ARM").wait_for(state="visible")
 
 
-def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:
+def touch_drag_to(page: Page, fraction: float, steps: int = 12, settled: bool = True) -> None:
     """Drag the scale's handle (the slider thumb) with one finger to ``fraction`` of the track,
-    once the screen has settled."""
-    settle()
-    track = page.locator(".mantine-Slider-track").first.bounding_box()
-    thumb = page.locator(".mantine-Slider-thumb").first.bounding_box()
+    once the screen has settled (``settled`` False: at once)."""
+    if settled:
+        settle()
+    with awaiting(page, "waiting for the scale's slider"):
+        track = page.locator(".mantine-Slider-track").first.bounding_box()
+        thumb = page.locator(".mantine-Slider-thumb").first.bounding_box()
     y = thumb["y"] + thumb["height"] / 2
     x0 = thumb["x"] + thumb["width"] / 2
     x1 = track["x"] + fraction * track["width"]
@@ -347,7 +498,7 @@ def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:
     touch("touchStart", x0)
     for i in range(1, steps + 1):
         touch("touchMove", x0 + (x1 - x0) * i / steps)
-        time.sleep(0.01)
+        time.sleep(0.01)  # a finger's pace between moves; where the handle ends is the last move's
     # While the finger is down, no number is shown: no value label, no number box, no end marks.
     shown = page.evaluate("() => { const f = document.querySelector('.mantine-Slider-root')"
                           ".closest('.mantine-Flex-root'); const box = f.querySelector("
@@ -357,11 +508,12 @@ def touch_drag_to(page: Page, fraction: float, steps: int = 12) -> None:
     touch("touchEnd", x1)
     cdp.detach()
     # The server redraws the newest marker where it received the handle: wait until it has.
-    page.wait_for_function(
-        "() => { const m = document.querySelector('.hl-new'); const t = document.querySelector("
+    wait_function(
+        page, "() => { const m = document.querySelector('.hl-new'); const t = document.querySelector("
         "'.mantine-Slider-thumb'); return m && t && Math.abs(parseFloat(m.style.left) - "
         "100 * parseFloat(t.getAttribute('aria-valuenow'))) < 0.05 || "
-        "document.body.innerText.includes('Same as'); }")
+        "document.body.innerText.includes('Same as'); }",
+        f"the server to redraw the newest marker at the dropped handle ({fraction:g})")
 
 
 def scale_value(page: Page) -> float:
@@ -395,13 +547,19 @@ def keep_starting(dashboard: Page, done: Callable[[], T | None], timeout_s: floa
     """The experimenter's part while the simulated participant rates: press Start trial each time
     the dashboard says the session is ready for it (once per time it says so), until ``done()``
     returns something, which is returned."""
-    deadline = time.monotonic() + timeout_s
     pressed = False
-    while (result := done()) is None:
-        assert time.monotonic() < deadline, dashboard.inner_text("body")[:1000]
+
+    def step() -> T | None:
+        nonlocal pressed
+        if (result := done()) is not None:
+            return result
         ready = READY_TO_START in dashboard.inner_text("body")
         if ready and not pressed:
             click(dashboard, "Start trial")
         pressed = ready
-        time.sleep(0.02)
-    return result
+        return None
+
+    # The ceiling of a whole session's worth of trials (34 on the paper's protocol), not a bound.
+    return wait_for(step, "the session to reach the awaited point while Start trial is pressed "
+                          "each time the dashboard is ready", timeout=timeout_s,
+                    seen=lambda: what_it_showed(dashboard))

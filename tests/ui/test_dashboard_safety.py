@@ -3,7 +3,11 @@
 * Start is refused while no tablet is paired; the reason stands beside it; the tablet pairs with the
   code the dashboard shows (typed with touch), and Start is allowed.
 * STOP ARM is in the viewport after the panel is scrolled to its end at 1366×768, and Esc stops
-  the arm; after the stop, Start stays refused until Re-arm (the stop's state is shown).
+  the arm while it holds the object out at H (the simulated participant never takes it, so the
+  hold lasts until the stop); after the stop, Start stays refused until Re-arm (the stop's state is
+  shown). A stop while the arm moves on its reach: tests/robot_io/test_loop.py
+  (``test_real_clock_worker_thread_stops_on_request``) and tests/session/test_rehearsal.py (the rig
+  killed mid-reach).
 * Two participants run one after the other in one server process (End session, then create the
   next), and the study overview lists both.
 * A restart keeps the dashboard token (stored with the study); while the server is down the page
@@ -16,23 +20,28 @@ from __future__ import annotations
 
 import re
 import signal
-import time
 from pathlib import Path
 
 import pytest
 from playwright.sync_api import Page
 from support.browser import (
+    NEVER_TAKES,
     button,
     chromium,
     click,
+    keep_starting,
     open_page,
     open_participant,
     pair_tablet,
+    ports_of,
     serve,
     shot,
     tablet_screen,
     tick,
     unlock_dashboard,
+    wait_enabled,
+    wait_function,
+    wait_gone,
     wait_ready,
     wait_text,
 )
@@ -59,12 +68,13 @@ def in_viewport(page: Page, name: str) -> bool:
 
 
 def scroll_panel_to_end(page: Page) -> None:
-    """Scroll every scrollable container of the page (the main panel) to its end."""
-    page.evaluate("""() => { for (const e of document.querySelectorAll('*')) {
-        if (e.scrollHeight > e.clientHeight + 4 &&
-            ['auto', 'scroll'].includes(getComputedStyle(e).overflowY)) e.scrollTop = e.scrollHeight;
-        } }""")
-    page.wait_for_timeout(300)
+    """Scroll every scrollable container of the page (the main panel) to its end, and wait until
+    each is there (a smooth scroll takes a few frames)."""
+    scrollables = """[...document.querySelectorAll('*')].filter(e => e.scrollHeight > e.clientHeight + 4
+        && ['auto', 'scroll'].includes(getComputedStyle(e).overflowY))"""
+    page.evaluate(f"() => {{ for (const e of {scrollables}) e.scrollTop = e.scrollHeight; }}")
+    wait_function(page, f"() => {scrollables}.every(e => e.scrollTop + e.clientHeight >= "
+                        "e.scrollHeight - 4)", "every scrollable container at its end")
 
 
 def start_refused_because(dashboard: Page, reason: str) -> None:
@@ -74,7 +84,8 @@ def start_refused_because(dashboard: Page, reason: str) -> None:
 
 def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
     screens = tmp_path / "screens"
-    with serve(tmp_path) as served, chromium() as browser:
+    # The participant never takes the object: the trial's hold lasts until the experimenter's stop.
+    with serve(tmp_path, tables=NEVER_TAKES) as served, chromium() as browser:
         dashboard = open_page(browser, served.dashboard_url, size=LAPTOP)
         open_participant(dashboard, "P01")
         start_refused_because(dashboard, "no tablet is connected")
@@ -96,15 +107,15 @@ def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
         pair_tablet(dashboard, tablet)
         wait_text(dashboard, "Tablet: connected and paired")
         assert tablet_screen(tablet) == "wait"
-        dashboard.wait_for_function("() => [...document.querySelectorAll('button')].some("
-                                    "b => b.innerText.trim() === 'Start trial' && !b.disabled)")
-        assert "Start is locked" not in dashboard.inner_text("body")
+        wait_enabled(dashboard, "Start trial")
+        wait_gone(dashboard, "Start is locked")  # its reason is sent after the button's state
 
-        # STOP by its key during the reach: the trial is stopped, Start locked until Re-arm.
+        # STOP by its key while the arm holds the object out at H (the hold lasts until the stop:
+        # nobody takes the object): the trial is stopped, Start locked until Re-arm.
         click(dashboard, "Start trial")
         click(dashboard, "Object loaded")
         click(dashboard, "Go")
-        wait_text(dashboard, "[reach]")
+        wait_text(dashboard, "[hold]")
         dashboard.locator("body").click(position={"x": 200, "y": 300})  # focus on the page
         dashboard.keyboard.press("Escape")
         wait_text(dashboard, "Arm: STOPPED")
@@ -113,40 +124,38 @@ def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
         start_refused_because(dashboard, "the arm was stopped")
         wait_text(dashboard, "make sure the scene is safe, then press Re-arm")
         shot(dashboard, screens, "dashboard-stopped")
+        # A watch for something that must not happen (Start unlocking by itself), not a wait for a
+        # state: load can only make the watch see fewer refreshes, never fail a locked Start.
         dashboard.wait_for_timeout(1000)
         assert button(dashboard, "Start trial").is_disabled()  # still locked: nobody re-armed
         click(dashboard, "Re-arm (scene is safe)")
         wait_text(dashboard, "Arm: armed")
-        dashboard.wait_for_function("() => [...document.querySelectorAll('button')].some("
-                                    "b => b.innerText.trim() === 'Start trial' && !b.disabled)")
+        wait_enabled(dashboard, "Start trial")
 
         # A second page on the paired tablet is not offered the scale.
         second = open_page(browser, served.tablet_url, touch=True, size=(820, 1180))
         assert tablet_screen(second, unused_ok=True) == "unused"
         start_refused_because(dashboard, "2 pages are open on the tablet port")
         second.close()
-        dashboard.wait_for_function("() => [...document.querySelectorAll('button')].some("
-                                    "b => b.innerText.trim() === 'Start trial' && !b.disabled)")
+        wait_enabled(dashboard, "Start trial")
         served.shutdown()
     store = ParticipantStore.open(served.study, "P01")
     try:
         [trial] = store.rows("trials")
+        stages = [e.payload["stage"] for e in store.events() if e.kind == "trial_stage"]
     finally:
         store.close()
     assert trial.outcome.value == "aborted" and trial.reason == "stopped by the experimenter (Stop)"
+    # stopped in the hold: neither released nor timed out (not_taken), and never retracted
+    assert stages == ["prepare", "loaded", "ready", "go", "reach", "hold"], stages
 
 
 def run_participant(dashboard: Page, code: str) -> None:
     """Create ``code`` and run the whole short protocol with the simulated participant rating;
     the experimenter presses Start for every trial."""
     open_participant(dashboard, code)
-    tick(dashboard, "Simulated participant rates")
-    wait_text(dashboard, "simulated participant on")
-    while "Session complete" not in dashboard.inner_text("body"):
-        start = button(dashboard, "Start trial")
-        if start.is_enabled():
-            start.click()
-        time.sleep(0.2)
+    tick(dashboard, "Simulated participant rates", "simulated participant on")
+    keep_starting(dashboard, lambda: "Session complete" in dashboard.inner_text("body") or None)
 
 
 def test_two_participants_in_one_server_and_the_token_kept(tmp_path: Path) -> None:
@@ -167,17 +176,17 @@ def test_two_participants_in_one_server_and_the_token_kept(tmp_path: Path) -> No
         assert re.search(r"P01\s+perturbed\s+9 of 9\s+complete", rows), rows
         assert re.search(r"P02\s+perturbed\s+9 of 9\s+complete", rows), rows
         shot(dashboard, screens, "dashboard-overview")
-        ports = (int(served.tablet_url.rsplit(":", 1)[1]), int(served.dashboard_url.rsplit(":", 1)[1]))
+        ports = ports_of(served)  # the restart binds the same ports: the open page reconnects
         served.process.send_signal(signal.SIGKILL)  # the server dies: the page says so
         served.process.wait(10)
-        dashboard.wait_for_function(
-            "() => getComputedStyle(document.body, '::after').content.includes('SERVER UNREACHABLE')")
+        wait_function(dashboard, "() => getComputedStyle(document.body, '::after').content"
+                                 ".includes('SERVER UNREACHABLE')", "the unreachable banner")
         shot(dashboard, screens, "dashboard-unreachable")
         with serve(tmp_path, token=None, ports=ports) as again:
             assert re.search(r"dashboard token:\s+(\S+)", again.log.read_text()).group(1) == token
             wait_ready(dashboard)  # the same page reconnects by itself
-            dashboard.wait_for_function(
-                "() => !getComputedStyle(document.body, '::after').content.includes('UNREACHABLE')")
+            wait_function(dashboard, "() => !getComputedStyle(document.body, '::after').content"
+                                     ".includes('UNREACHABLE')", "the unreachable banner to go")
             unlock_dashboard(dashboard, token)
             wait_text(dashboard, "P02")
             again.shutdown()

@@ -5,10 +5,10 @@ staged from the dashboard's "Rehearse a fault" panel: a participant who does not
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import pytest
+from playwright.sync_api import Page
 from support.browser import (
     chromium,
     click,
@@ -22,7 +22,9 @@ from support.browser import (
     tick,
     touch_drag_to,
     wait_text,
+    what_it_showed,
 )
+from support.waiting import wait_for
 
 from session_store.store import ParticipantStore
 
@@ -32,17 +34,16 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 SEEN_STAGES = ("[prepare]", "[ready]", "[reach]", "[hold]")
 
 
-def watch_stages(dashboard, until: str, seen: set[str], timeout_s: float = 60.0) -> None:
-    """Read the dashboard until ``until`` shows, noting every stage it showed on the way."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
+def watch_stages(dashboard: Page, until: str, seen: set[str]) -> None:
+    """Read the dashboard until ``until`` shows, noting every stage it showed on the way; if it
+    never does, say what the dashboard showed and what serve logged (at INFO: every message the
+    dashboard was sent), to tell a re-locked or stale page from a silent server."""
+    def shows() -> bool:
         text = dashboard.inner_text("body")
         seen.update(stage for stage in SEEN_STAGES if stage in text)
-        if until in text:
-            return
-        time.sleep(0.02)
-    raise AssertionError(f"the dashboard never showed {until!r}; it shows: "
-                         f"{dashboard.inner_text('body')[:1500]!r}")
+        return until in text
+
+    wait_for(shows, f"the dashboard to show {until!r}", seen=lambda: what_it_showed(dashboard))
 
 
 def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_path: Path) -> None:
@@ -71,8 +72,8 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
             assert tablet_screen(tablet, not_="place") == "wait"
         wait_text(dashboard, "3 of 9 handovers completed")
         dashboard.get_by_text("Rehearse a fault", exact=True).first.click()
-        tick(dashboard, "The participant does not take the object")
-        wait_text(dashboard, "the simulated participant will not take the object")
+        tick(dashboard, "The participant does not take the object",
+             "the simulated participant will not take the object")
         faults = shot(dashboard, screens, "dashboard-rehearse-a-fault")
         click(dashboard, "Start trial")
         wait_text(dashboard, "into the gripper, then press")

@@ -1,17 +1,29 @@
-"""``handover serve`` refuses an impossible port on its command line, before anything starts."""
+"""``handover serve`` refuses an impossible port on its command line, before anything starts; port 0
+binds any free port and prints the one bound."""
 
 from __future__ import annotations
 
 import pytest
+from support.browser import serve
 
 from app.cli import main
 
 
-@pytest.mark.parametrize("port", ["70000", "0", "-1", "http"])
+@pytest.mark.parametrize("port", ["70000", "65536", "-1", "http"])
 def test_a_port_outside_1_to_65535_is_refused_with_its_range(tmp_path, capsys, port):
     with pytest.raises(SystemExit) as exited:
         main(["serve", "--study", str(tmp_path / "study"), "--tablet-port", port])
     assert exited.value.code == 2
-    assert f"argument --tablet-port: port = '{port}' must be a whole number in [1, 65535]" in \
-        capsys.readouterr().err
+    assert (f"argument --tablet-port: port = '{port}' must be a whole number in [1, 65535], or 0 "
+            "for any free port") in capsys.readouterr().err
     assert not (tmp_path / "study").exists()
+
+
+def test_port_0_binds_a_free_port_each_and_prints_the_urls(tmp_path):
+    """Two servers at once on port 0: four different ports, each the one printed and bound."""
+    with serve(tmp_path / "a") as first, serve(tmp_path / "b") as second:
+        urls = [first.tablet_url, first.dashboard_url, second.tablet_url, second.dashboard_url]
+        ports = [int(url.rsplit(":", 1)[1]) for url in urls]
+        assert 0 not in ports and len(set(ports)) == 4, urls
+        first.shutdown()
+        second.shutdown()

@@ -25,8 +25,10 @@ from support.browser import (
     serve,
     shot,
     touch_drag_to,
+    wait_function,
     wait_text,
 )
+from support.waiting import wait_for
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -45,26 +47,38 @@ PARTS = [".hl-title", ".hl-detail", ".hl-caption", ".hl-lane", ".hl-arrow", ".hl
          ".mantine-Slider-root"]
 
 
-def check_layout(page: Page, width: int, height: int) -> None:
-    for selector in CHROME:
-        for element in page.locator(selector).all():
-            assert not element.is_visible(), f"{selector} is visible at {width}×{height}"
+def layout_problems(page: Page, width: int, height: int) -> list[str]:
+    """What is wrong with the scale screen's layout at ``width``×``height`` (nothing: [])."""
+    problems = [f"{selector} is visible" for selector in CHROME
+                for element in page.locator(selector).all() if element.is_visible()]
     boxes = [page.locator(selector).first.bounding_box() for selector in PARTS]
     boxes.append(button(page, "Confirm").bounding_box())
-    for upper, lower in pairwise(boxes):
-        assert upper["y"] + upper["height"] <= lower["y"] + 1, f"overlap at {width}×{height}"
+    if any(box is None for box in boxes):
+        return [*problems, f"a part is not shown: {dict(zip([*PARTS, 'Confirm'], boxes, strict=True))}"]
+    problems += [f"overlap: {upper} over {lower}" for upper, lower in pairwise(boxes)
+                 if upper["y"] + upper["height"] > lower["y"] + 1]
     confirm = boxes[-1]
-    assert confirm["x"] >= 0 and confirm["x"] + confirm["width"] <= width
-    assert confirm["y"] >= 0 and confirm["y"] + confirm["height"] <= height, (
-        f"Confirm cut off at {width}×{height}: {confirm}")
+    if not (confirm["x"] >= 0 and confirm["x"] + confirm["width"] <= width
+            and confirm["y"] >= 0 and confirm["y"] + confirm["height"] <= height):
+        problems.append(f"Confirm cut off: {confirm}")
     lane = boxes[PARTS.index(".hl-lane")]
     markers = sorted((m.bounding_box() for m in page.locator(".hl-marker").all()),
                      key=lambda box: -box["y"])
-    assert len(markers) == 5
-    for lower, upper in pairwise(markers):
-        assert upper["y"] + upper["height"] <= lower["y"] + 1, f"markers overlap at {width}×{height}"
-    assert lane["y"] - 1 <= markers[-1]["y"] and markers[0]["y"] + markers[0]["height"] <= (
-        lane["y"] + lane["height"] + 1)
+    if len(markers) != 5:
+        return [*problems, f"{len(markers)} markers, not 5"]
+    problems += [f"markers overlap: {upper} over {lower}" for lower, upper in pairwise(markers)
+                 if upper["y"] + upper["height"] > lower["y"] + 1]
+    if not (lane["y"] - 1 <= markers[-1]["y"] and markers[0]["y"] + markers[0]["height"] <= (
+            lane["y"] + lane["height"] + 1)):
+        problems.append(f"markers outside the lane {lane}: {markers}")
+    return problems
+
+
+def check_layout(page: Page, width: int, height: int) -> None:
+    """Wait until viser has laid the screen out for the new size (its mobile layout below 576 px
+    comes a few frames after the resize) and it is right; if it never is, say what is wrong."""
+    wait_for(lambda: not layout_problems(page, width, height), f"a right layout at {width}×{height}",
+             seen=lambda: layout_problems(page, width, height))
 
 
 def test_kiosk_layouts_with_five_markers_and_the_offline_cover(tmp_path: Path) -> None:
@@ -85,15 +99,14 @@ def test_kiosk_layouts_with_five_markers_and_the_offline_cover(tmp_path: Path) -
         wait_text(tablet, "Same as 1")
         for name, (width, height) in SIZES.items():
             tablet.set_viewport_size({"width": width, "height": height})
-            tablet.wait_for_function(f"() => window.innerWidth === {width}")
-            tablet.wait_for_timeout(500)  # viser re-lays out on resize (mobile layout < 576 px)
+            wait_function(tablet, f"() => window.innerWidth === {width}", f"the window {width} wide")
             check_layout(tablet, width, height)
             shot(tablet, screens, f"tablet-{name}-{width}x{height}")
 
         served.process.kill()  # the server dies: the whole screen asks for the experimenter
         served.process.wait()
-        tablet.wait_for_function("() => getComputedStyle(document.body, '::after').content"
-                                 ".includes('Please tell the experimenter')")
+        wait_function(tablet, "() => getComputedStyle(document.body, '::after').content"
+                              ".includes('Please tell the experimenter')", "the offline cover")
         cover = tablet.evaluate("() => { const s = getComputedStyle(document.body, '::after');"
                                 " return [s.position, s.width, s.height, s.backgroundColor]; }")
         assert cover == ["fixed", "390px", "844px", "rgb(255, 255, 255)"]

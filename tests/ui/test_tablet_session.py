@@ -10,7 +10,6 @@ docs/figures/ for docs/running-a-study.md).
 from __future__ import annotations
 
 import statistics
-import time
 from pathlib import Path
 
 import pytest
@@ -30,6 +29,7 @@ from support.browser import (
     shot,
     tablet_screen,
     touch_drag_to,
+    wait_function,
     wait_text,
 )
 
@@ -57,6 +57,13 @@ def place_by_touch(tablet: Page, interaction: int, positions: dict[int, float],
     return scale_value(tablet), None
 
 
+def wait_stage(dashboard: Page) -> None:
+    """Wait until the dashboard shows the trial's stage from Go on (its live view drawing)."""
+    wait_function(dashboard, "s => s.some(t => document.body.innerText.includes(t))",
+                  "the dashboard showing the trial from Go on",
+                  arg=["[go]", "[reach]", "[hold]", "[release]", "[retract]", "[done]"])
+
+
 def test_participant_session_with_touch(tmp_path: Path) -> None:
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
@@ -80,11 +87,11 @@ def test_participant_session_with_touch(tmp_path: Path) -> None:
                 assert tablet_screen(tablet, not_=screen) in ("go", "place", "rate", "Q1")
                 if "go" not in shown:
                     assert tablet.locator("audio.hl-cue").count() == 1  # the audible cue
-                    tablet.wait_for_function(  # it plays (or has played) without a tap
-                        "() => { const a = document.querySelector('audio.hl-cue');"
-                        " return a && (!a.paused || a.ended); }", timeout=5000)
+                    wait_function(tablet, "() => { const a = document.querySelector('audio.hl-cue');"
+                                          " return a && (!a.paused || a.ended); }",
+                                  "the cue playing (or played) without a tap")
                     shot(tablet, screens, "tablet-go")
-                    time.sleep(0.4)
+                    wait_stage(dashboard)  # the trial under way on the dashboard, for its shot
                     shot(dashboard, screens, "dashboard-trial")
                     shown.add("go")
                 continue

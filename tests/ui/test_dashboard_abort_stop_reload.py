@@ -1,6 +1,10 @@
 """End-to-end: `handover serve` in a subprocess, the dashboard and the tablet in headless Chromium.
 
-The dashboard's Abort, Stop and reloads (the participant's own tablet tests are in tests/ui/).
+The dashboard's Abort, Stop and reloads (the participant's own tablet tests are in tests/ui/). Abort
+and Stop each land in a stage the trial keeps until the experimenter acts (waiting for Object
+loaded, waiting for Go), never in one that ends by itself: a stop while the arm holds the object
+out is in test_dashboard_safety.py, a stop while it moves in tests/robot_io/test_loop.py and
+tests/session/test_rehearsal.py.
 Screenshots go to the test's tmp folder (and, with HANDOVER_DOC_FIGURES=1, to docs/figures/ for
 docs/running-a-study.md).
 """
@@ -20,11 +24,11 @@ from support.browser import (
     run_trial,
     serve,
     shot,
-    start_trial,
     tablet_screen,
     tap,
     touch_drag_to,
     unlock_dashboard,
+    wait_enabled,
     wait_text,
 )
 
@@ -38,14 +42,18 @@ def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
     with serve(tmp_path) as served, chromium() as browser:
         dashboard, tablet = open_screens(browser, served)
         open_participant(dashboard, "P02")
-        # Abort: recorded as aborted, never rated (the tablet goes back to "Please wait").
+        # Abort while the trial waits for Object loaded: recorded as aborted, never rated (the
+        # tablet goes back to "Please wait").
         click(dashboard, "Start trial")
         click(dashboard, "Abort trial")
         wait_text(dashboard, "aborted by the experimenter")
         assert tablet_screen(tablet, not_="go") == "wait"
-        # Stop during the reach: the arm stops, the trial is aborted too.
-        start_trial(dashboard)
-        wait_text(dashboard, "[reach]")
+        # Stop while the trial waits for Go (the hand rests at A; the trial stays there until Go):
+        # the arm stops, the trial is aborted too.
+        click(dashboard, "Start trial")
+        click(dashboard, "Object loaded")
+        wait_enabled(dashboard, "Go")
+        wait_text(dashboard, "[ready]")
         click(dashboard, "STOP ARM")
         wait_text(dashboard, "Arm: STOPPED")
         wait_text(dashboard, "stopped by the experimenter (Stop)")
@@ -82,10 +90,15 @@ def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
     store = ParticipantStore.open(served.study, "P02")
     try:
         trials = store.rows("trials", order_by="trial_index")
+        stages = [(e.payload["trial_index"], e.payload["stage"]) for e in store.events()
+                  if e.kind == "trial_stage"]
         assert [(t.interaction, t.attempt, t.outcome.value) for t in trials] == [
             (1, 1, "aborted"), (1, 2, "aborted"), (1, 3, "completed"), (2, 1, "completed")]
         assert trials[0].reason == "aborted by the experimenter"
         assert trials[1].reason == "stopped by the experimenter (Stop)"
+        # each landed where the test acted: the abort before Object loaded, the stop before Go
+        assert "loaded" not in [s for i, s in stages if i == 1]
+        assert [s for i, s in stages if i == 2] == ["prepare", "loaded", "ready"]
         placements = store.rows("placements")
         assert [(p.interaction, p.trial_index) for p in placements] == [(1, 3), (2, 4)]
         assert placements[0].position == pytest.approx(0.3, abs=0.01)
