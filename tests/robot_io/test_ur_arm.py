@@ -46,10 +46,11 @@ THETA = Theta(a=5.0, delta=-0.2, k=1.0)
 STEP = np.array([0.0002, 0.0, 0.0])
 
 
-#: For the tests that send servo targets one by one: the controller's watchdog stops the script
-#: when no target comes for 1/watchdog_hz s (0.1 s by default). That rule is not what they test, and
-#: a test at normal priority on a loaded machine can take longer than 0.1 s from setWatchdog to its
-#: first target (seen: the target never recorded, the script already stopped): 100 s instead.
+#: For the tests whose subject is not the controller's watchdog, which stops the script when no
+#: target comes for 1/watchdog_hz s (0.1 s by default): a test streaming at normal priority on a
+#: loaded machine (the loop, and the ur_rtde worker process that sends its targets) can be starved
+#: longer than that (seen under a CPU hog: the first target never recorded, the script already
+#: stopped; a trial ending "watchdog" before the fault it injects): 100 s instead.
 PATIENT_WATCHDOG_HZ = 0.01
 
 
@@ -151,11 +152,12 @@ def assert_recovers_for_the_next_trial(config: ControllerConfig, arm: URArm) -> 
 
 @pytest.mark.slow
 def test_protective_stop_aborts_the_trial_stops_streaming_and_recovers_for_the_next():
-    with connected_arm() as (control, config, arm):
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
         record, at, targets = aborted_by(control, config, arm, "protective_stop", "protective stop")
         received = servo_targets_once_stopped(control)  # the loop's stop ended the script
-        # the stand-in got exactly what the loop commanded, and the loop stopped commanding
-        assert len(received) == np.isfinite(record.samples["commanded"][:, 0]).sum()
+        # the stand-in got no target the loop did not command (it records none once the stop has
+        # ended the script, so one in flight then is not recorded), and the loop stopped commanding
+        assert len(received) <= np.isfinite(record.samples["commanded"][:, 0]).sum()
         assert cycles_after(record, targets) <= STOP_WITHIN_CYCLES
         assert arm.state is ArmState.FAULT
         with pytest.raises(ArmFault, match="protective stop"):
@@ -167,7 +169,7 @@ def test_protective_stop_aborts_the_trial_stops_streaming_and_recovers_for_the_n
 
 @pytest.mark.slow
 def test_dropped_socket_mid_trial_aborts_and_a_reconnect_serves_the_next_trial():
-    with connected_arm() as (control, config, arm):
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
         record, _, targets = aborted_by(control, config, arm, "drop_sockets",
                                         "lost the RTDE connection")
         assert cycles_after(record, targets) <= STOP_WITHIN_CYCLES
@@ -260,7 +262,7 @@ def test_a_stale_hand_source_stops_the_arm():
 
 @pytest.mark.slow
 def test_a_stalled_controller_aborts_the_trial_within_a_few_cycles():
-    with connected_arm() as (control, config, arm):
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
         record, _, targets = aborted_by(control, config, arm, "stall", "sent no new state",
                                         after_targets=62, seconds=1.0)
         assert record.summary.stop_commanded_s is not None
