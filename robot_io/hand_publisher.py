@@ -16,6 +16,7 @@ import multiprocessing
 import signal
 import socket
 import time
+import uuid
 from multiprocessing.connection import Connection
 
 import numpy as np
@@ -54,8 +55,9 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
     rate = config.hand.tracker_rate_hz
     outlet = None
     if spec.lsl_name is not None:
+        # a source_id of its own: no other outlet (another rehearsal, a test) can be taken for it
         info = pylsl.StreamInfo(spec.lsl_name, config.hand_source.lsl_stream_type, 3, rate,
-                                pylsl.cf_double64, f"{spec.lsl_name}-source")
+                                pylsl.cf_double64, f"{spec.lsl_name}-{uuid.uuid4().hex}")
         outlet = pylsl.StreamOutlet(info)
     udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM) if spec.udp_target else None
     standin = ControlClient(spec.standin_host) if spec.standin_host else None

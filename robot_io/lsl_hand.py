@@ -1,5 +1,13 @@
 """A hand source reading a Lab Streaming Layer stream (Vicon, OptiTrack and most mocap systems publish
-one). The stream's channels ``lsl_channels`` hold the marker's x, y, z in tracker units."""
+one). The stream's channels ``lsl_channels`` hold the marker's x, y, z in tracker units.
+
+Which stream: exactly one stream on the network may satisfy ``[hand_source]``'s type (and name, when
+set); the source never follows "the first one that answered". A resolve returns as soon as *one*
+stream answers, so with a second stream of the type on the network (another rehearsal, another
+suite's Mocap stream, a second tracker bridge) the answer could be either: the name is therefore part
+of the resolve's predicate, and after the first answer the network gets :data:`DISCOVERY_WINDOW_S`
+to show a second match, which is refused with the list of what answered.
+"""
 
 from __future__ import annotations
 
@@ -14,30 +22,71 @@ from robot_io.tracked_hand import TrackedHand
 
 log = logging.getLogger(__name__)
 
+#: After the first matching stream answered, how long a second one gets to answer [s]. Outlets answer
+#: a resolve's query within milliseconds on a LAN (on loopback under load, tens of ms); the resolve
+#: returns at once when a second one answers, so one stream costs this window once, at open.
+DISCOVERY_WINDOW_S = 1.0
+
+
+def xpath_literal(value: str) -> str:
+    """``value`` as an XPath 1.0 string literal (XPath has no escapes: a value holding both quote
+    kinds is spelled with ``concat``)."""
+    if "'" not in value:
+        return f"'{value}'"
+    if '"' not in value:
+        return f'"{value}"'
+    parts = value.split("'")
+    return "concat(" + ", \"'\", ".join(f"'{part}'" for part in parts) + ")"
+
+
+def stream_predicate(config: HandSourceConfig) -> str:
+    """The XPath predicate a stream's description must satisfy: its type, and its name when set."""
+    predicate = f"type={xpath_literal(config.lsl_stream_type)}"
+    if config.lsl_stream_name is not None:
+        predicate = f"name={xpath_literal(config.lsl_stream_name)} and {predicate}"
+    return predicate
+
+
+def describe_stream(info: pylsl.StreamInfo) -> str:
+    return (f"{info.name()!r} (source_id {info.source_id()!r}, host {info.hostname()!r}, "
+            f"{info.channel_count()} channels)")
+
+
+def resolve_one(config: HandSourceConfig, window: float = DISCOVERY_WINDOW_S) -> pylsl.StreamInfo:
+    """The one stream that satisfies ``config``'s type (and name); a :class:`HandSourceError` if none
+    answers within ``resolve_timeout_s`` or more than one answers within ``window`` of the first."""
+    predicate = stream_predicate(config)
+    wanted = (f"LSL stream of type {config.lsl_stream_type!r}"
+              + (f" named {config.lsl_stream_name!r}" if config.lsl_stream_name is not None else ""))
+    first = pylsl.resolve_bypred(predicate, 1, config.resolve_timeout_s)
+    if not first:
+        raise HandSourceError(f"no {wanted} found within resolve_timeout_s = "
+                              f"{config.resolve_timeout_s} s")
+    # a second resolve waits until two answer (at once when a second exists) or the window ends
+    found = {info.uid(): info for info in [*first, *pylsl.resolve_bypred(predicate, 2, window)]}
+    if len(found) > 1:
+        listed = "; ".join(describe_stream(info) for info in found.values())
+        fix = ("set hand_source.lsl_stream_name to the one to use" if config.lsl_stream_name is None
+               else "stop the other or give each tracker stream a name of its own")
+        raise HandSourceError(f"{len(found)} streams answered as the {wanted}: {listed}; {fix}")
+    return first[0]
+
 
 class LSLHand(TrackedHand):
-    """Resolves the stream by type (and name), then pulls samples in a thread."""
+    """Resolves the one stream of the type (and name), then pulls samples in a thread."""
 
     def __init__(self, config: HandSourceConfig, transform: FrameTransform) -> None:
         super().__init__(transform)
         self.channels = list(config.lsl_channels)
-        streams = pylsl.resolve_byprop("type", config.lsl_stream_type,
-                                       timeout=config.resolve_timeout_s)
-        if config.lsl_stream_name is not None:
-            streams = [s for s in streams if s.name() == config.lsl_stream_name]
-        if not streams:
-            raise HandSourceError(
-                f"no LSL stream of type {config.lsl_stream_type!r}"
-                + (f" named {config.lsl_stream_name!r}" if config.lsl_stream_name else "")
-                + f" found within resolve_timeout_s = {config.resolve_timeout_s} s")
-        info = streams[0]
+        info = resolve_one(config)
         if max(self.channels) >= info.channel_count():
             raise HandSourceError(f"hand_source.lsl_channels = {tuple(self.channels)} but stream "
                                   f"{info.name()!r} has {info.channel_count()} channels")
         self.name, self.nominal_rate_hz = info.name(), info.nominal_srate()
+        self.source_id, self.hostname = info.source_id(), info.hostname()
         self.inlet = pylsl.StreamInlet(info, max_buflen=1, processing_flags=pylsl.proc_clocksync)
         self.inlet.open_stream(timeout=config.resolve_timeout_s)
-        log.info("LSL hand source: stream %r at %g Hz", self.name, self.nominal_rate_hz)
+        log.info("LSL hand source: stream %s at %g Hz", describe_stream(info), self.nominal_rate_hz)
         self.start()
 
     def receive_once(self) -> None:

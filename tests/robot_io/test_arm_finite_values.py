@@ -5,11 +5,11 @@ mock arm."""
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
-from ur_helpers import MOVEL, SERVOL, commands, settled_servo_targets, standin
+from support.ur import MOVEL, SERVOL, commands, settled_servo_targets, standin
+from support.waiting import wait_for
 
 from robot_io.arm import ArmState
 from robot_io.clock import SimClock
@@ -25,18 +25,21 @@ NAN_POSE = [math.nan, 0.1, 0.3, 0.0, 3.14, 0.0]
 def _receive_nan_pose(control, arm: URArm) -> None:
     """Make the stand-in report a NaN TCP position; wait until ur_rtde's receive side has it."""
     control("set_pose", pose=NAN_POSE)
-    while not math.isnan(arm._receive.getActualTCPPose()[0]):
-        time.sleep(0.002)
+    wait_for(lambda: math.isnan(arm._receive.getActualTCPPose()[0]), "the NaN pose at ur_rtde",
+             seen=arm._receive.getActualTCPPose)
 
 
 def _arm(host: str) -> URArm:
+    """A URArm on ``host`` whose watchdog waits 100 s for a target: these tests send targets one by
+    one from a test at normal priority, and on a loaded machine the first can come later than the
+    default 0.1 s after setWatchdog (the script would stop first; the watchdog is not tested here)."""
     config = ControllerConfig()
-    return URArm(config.ur.model_copy(update={"host": host}), config.safety)
+    return URArm(config.ur.model_copy(update={"host": host, "watchdog_hz": 0.01}), config.safety)
 
 
 def test_a_nan_tcp_position_faults_the_ur_arm_and_no_movel_is_sent():
-    with standin("127.0.0.151") as control:
-        arm = _arm("127.0.0.151")
+    with standin() as ur:
+        control, arm = ur.control, _arm(ur.host)
         try:
             start = arm.read_pose()
             _receive_nan_pose(control, arm)
@@ -52,8 +55,8 @@ def test_a_nan_tcp_position_faults_the_ur_arm_and_no_movel_is_sent():
 
 
 def test_a_nan_tcp_position_while_streaming_stops_the_stream():
-    with standin("127.0.0.152") as control:
-        arm = _arm("127.0.0.152")
+    with standin() as ur:
+        control, arm = ur.control, _arm(ur.host)
         try:
             arm.begin_stream()
             start = arm.read_pose()
@@ -64,7 +67,7 @@ def test_a_nan_tcp_position_while_streaming_stops_the_stream():
             assert arm.state is ArmState.FAULT
             with pytest.raises(ArmFault):
                 arm.command(start)
-            sent = [xyz for _, xyz in settled_servo_targets(control, expected=1)]
+            sent = [xyz for _, xyz in settled_servo_targets(control, arm, expected=1)]
         finally:
             arm.close()
     assert all(xyz == pytest.approx(start + np.array([0.0002, 0.0, 0.0])) for xyz in sent)

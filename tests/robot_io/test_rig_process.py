@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support.waiting import tail, wait_for
 
 from robot_io.config import ControllerConfig
 from robot_io.rig.client import RigClient
@@ -28,20 +29,25 @@ pytestmark = pytest.mark.slow
 class Reports:
     def __init__(self) -> None:
         self.queue: queue.Queue = queue.Queue()
+        self.seen: list = []
 
     def __call__(self, report) -> None:
         self.queue.put(report)
 
-    def until(self, predicate, timeout: float = 30.0):
+    def until(self, predicate, what: str = "the expected report", timeout: float = 60.0):
+        """The first report (from now on) that ``predicate`` accepts; ``timeout`` is a ceiling for a
+        rig that never sends it, and the failure lists the reports that came instead."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             try:
                 report = self.queue.get(timeout=0.1)
             except queue.Empty:
                 continue
+            self.seen.append(report)
             if predicate(report):
                 return report
-        raise AssertionError("the expected report never came")
+        raise AssertionError(f"gave up after {timeout:g} s waiting for {what}; the last reports: "
+                             f"{[type(r).__name__ for r in self.seen[-10:]]}")
 
 
 def trial(index: int = 1) -> RunTrial:
@@ -78,10 +84,14 @@ def test_a_rig_asked_for_its_stacks_prints_them_and_runs_on(capfd):
     client = rig(realtime=False, reports=reports)
     try:
         os.kill(client.pid, STACKS_SIGNAL)
-        err, deadline = "", time.monotonic() + 10.0
-        while "robot_io/rig/process.py" not in err and time.monotonic() < deadline:
-            time.sleep(0.05)
-            err += capfd.readouterr().err
+        printed = []
+
+        def stacks_printed() -> bool:
+            printed.append(capfd.readouterr().err)
+            return "robot_io/rig/process.py" in "".join(printed)
+
+        wait_for(stacks_printed, "the rig's stacks on stderr", seen=lambda: tail("".join(printed)))
+        err = "".join(printed)
         assert 'File "' in err and "robot_io/rig/process.py" in err and "in main" in err
         assert client.alive
         client.run_trial(trial())
@@ -105,7 +115,9 @@ def rig_at(stage: Stage) -> Iterator[tuple[RigClient, Reports]]:
 
 def test_a_rig_killed_mid_reach_is_reported_with_the_stage_and_its_samples_so_far_remain():
     with rig_at(Stage.REACH) as (client, reports):
-        time.sleep(0.3)
+        # some of the reach written (counted rows, not a sleep): what must survive the kill
+        wait_for(lambda: len(client.stream.columns()["t"]) > 10, "11 rows of the reach in the stream",
+                 seen=lambda: len(client.stream.columns()["t"]))
         os.kill(client.pid, signal.SIGKILL)
         died = reports.until(lambda r: isinstance(r, RigDied))
         samples = client.stream.columns()
@@ -119,14 +131,14 @@ def test_a_rig_killed_mid_reach_is_reported_with_the_stage_and_its_samples_so_fa
 def freeze(pid: int) -> None:
     """SIGSTOP the process and wait until the kernel shows it stopped (every thread frozen)."""
     os.kill(pid, signal.SIGSTOP)
-    while Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0] != "T":
-        time.sleep(0.001)
+    state = lambda: Path(f"/proc/{pid}/stat").read_text().split(") ")[1][0]  # noqa: E731
+    wait_for(lambda: state() == "T", f"process {pid} stopped (T in /proc)", seen=state, poll=0.001)
 
 
 def test_a_rig_that_hangs_mid_reach_is_stopped_by_the_backstop_without_being_asked():
     with rig_at(Stage.REACH) as (client, reports):
         freeze(client.pid)  # the loop freezes: no sample, no answer
-        died = reports.until(lambda r: isinstance(r, RigDied), timeout=10.0)
+        died = reports.until(lambda r: isinstance(r, RigDied), "the backstop's RigDied")
     assert "killed by signal 9" in died.reason
 
 

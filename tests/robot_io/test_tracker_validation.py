@@ -13,7 +13,8 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
-from ur_helpers import standin
+from support.ur import standin
+from support.waiting import wait_for
 
 from app.cli import main
 from robot_io.config import ControllerConfig
@@ -21,26 +22,31 @@ from robot_io.devices import tracker_transform
 from robot_io.hand import HandSample
 from robot_io.udp_hand import UDPHand
 
-HOST = "127.0.0.155"
+HOST = "127.0.0.1"  # the UDP tests' address (their ports are the kernel's: bound to 0)
 HAND_MM = [950.0, 100.0, 50.0]  # A, the hand start, in millimetres
 
 
-def _free_udp_port() -> int:
+def _free_udp_port(host: str) -> int:
+    """A UDP port free on ``host``: check-devices binds the configured port itself (no port 0 in a
+    lab file). On the stand-in's own loopback address no other test listens, so a free port stays
+    free until check-devices binds it."""
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind((HOST, 0))
+        sock.bind((host, 0))
         return sock.getsockname()[1]
 
 
 @contextmanager
-def sending(port: int, message: Callable[[int], dict], period: float = 0.01) -> Iterator[None]:
-    """Send ``message(n)`` as JSON to ``HOST:port`` every ``period`` until the block ends."""
+def sending(address: tuple[str, int], message: Callable[[int], dict],
+            period: float = 0.01) -> Iterator[None]:
+    """Send ``message(n)`` as JSON to ``address`` every ``period`` (a tracker's pace) until the block
+    ends."""
     stop = threading.Event()
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
     def run() -> None:
         n = 0
         while not stop.is_set():
-            sock.sendto(json.dumps(message(n)).encode(), (HOST, port))
+            sock.sendto(json.dumps(message(n)).encode(), address)
             n += 1
             stop.wait(period)
 
@@ -60,13 +66,6 @@ def _udp_hand() -> UDPHand:
     return UDPHand(source, tracker_transform(config))
 
 
-def _wait(condition: Callable[[], bool], timeout: float = 5.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not condition():
-        assert time.monotonic() < deadline, "condition not met in time"
-        time.sleep(0.005)
-
-
 def _newest_after(datagrams: list[bytes]) -> tuple[UDPHand, HandSample | None]:
     """A UDPHand sent ``datagrams`` in order; returns it (closed) and its newest sample."""
     hand = _udp_hand()
@@ -74,7 +73,8 @@ def _newest_after(datagrams: list[bytes]) -> tuple[UDPHand, HandSample | None]:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
             for datagram in datagrams:
                 sock.sendto(datagram, hand.address)
-            _wait(lambda: hand.received == len(datagrams))
+            wait_for(lambda: hand.received == len(datagrams), f"{len(datagrams)} datagrams received",
+                     seen=lambda: hand.received)
         return hand, hand.latest(0.0)
     finally:
         hand.close()
@@ -107,17 +107,19 @@ STREAMS = {
 
 
 def test_check_devices_fails_in_plain_words_on_a_stale_occluded_or_invalid_stream(tmp_path, capsys):
-    port = _free_udp_port()
-    lab = tmp_path / "lab.toml"
-    lab.write_text(f'[hand_source]\nkind = "udp"\nudp_host = "{HOST}"\nudp_port = {port}\n')
     results = {}
-    with standin(HOST):
-        with sending(port, lambda n: {"x": 950.0, "y": 100.0, "z": 50.0}):
-            healthy = main(["check-devices", "--ur-host", HOST, "--config", str(lab)])
+    with standin() as ur:
+        address = (ur.host, _free_udp_port(ur.host))
+        lab = tmp_path / "lab.toml"
+        lab.write_text(f'[hand_source]\nkind = "udp"\nudp_host = "{ur.host}"\n'
+                       f'udp_port = {address[1]}\n')
+        check = ["check-devices", "--ur-host", ur.host, "--config", str(lab)]
+        with sending(address, lambda n: {"x": 950.0, "y": 100.0, "z": 50.0}):
+            healthy = main(check)
         healthy_out = capsys.readouterr().out
         for name, (message, _) in STREAMS.items():
-            with sending(port, message):
-                code = main(["check-devices", "--ur-host", HOST, "--config", str(lab)])
+            with sending(address, message):
+                code = main(check)
             results[name] = (code, capsys.readouterr().out)
     assert healthy == 0, healthy_out  # the positive control: the same set-up with a good stream
     assert "hand: udp," in healthy_out

@@ -5,17 +5,15 @@ pose read, at rest and after a move; a pose no UR5 can take has no joint angles 
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
-from ur_helpers import standin
+from support.ur import standin
+from support.waiting import wait_for
 
 from robot_io.arm import ArmState
 from robot_io.config import ControllerConfig
 from robot_io.ur_arm import URArm
 from robot_io.ur_kinematics import forward, pose_to_transform
-
-HOST = "127.0.0.171"
 
 
 def _fk_matches_the_tcp(arm: URArm) -> np.ndarray:
@@ -30,8 +28,9 @@ def _fk_matches_the_tcp(arm: URArm) -> np.ndarray:
 
 def test_the_joint_angles_read_are_the_ur5_pose_of_the_tcp_and_move_with_it():
     config = ControllerConfig()
-    with standin(HOST) as control:
-        arm = URArm(config.ur.model_copy(update={"host": HOST}), config.safety)
+    with standin() as ur:
+        control = ur.control
+        arm = URArm(config.ur.model_copy(update={"host": ur.host}), config.safety)
         try:
             start = _fk_matches_the_tcp(arm)
             assert np.allclose(control("state")["q"], start)
@@ -39,10 +38,9 @@ def test_the_joint_angles_read_are_the_ur5_pose_of_the_tcp_and_move_with_it():
             moved = _fk_matches_the_tcp(arm)
             assert 0.05 < np.abs(moved - start).max() < 1.0  # moved, on the same branch
             control("set_pose", pose=[0.95, 0.6, 0.05, 0.0, math.pi, 0.0])  # beyond the UR5's reach
-            deadline = time.monotonic() + 2.0
-            while arm.read_pose()[0] < 0.9 or not np.all(np.isnan(arm.read_joints())):
-                assert time.monotonic() < deadline, "the stand-in still reports joint angles"
-                time.sleep(0.005)
+            wait_for(lambda: arm.read_pose()[0] >= 0.9 and np.all(np.isnan(arm.read_joints())),
+                     "the unreachable pose read with no joint angles",
+                     seen=lambda: (arm.read_pose().tolist(), arm.read_joints().tolist()))
             assert arm.state is ArmState.IDLE  # recorded as missing, not a fault
         finally:
             arm.close()

@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 from support.hand_replay import TRACKER, to_tracker
-from ur_helpers import standin
+from support.ur import standin
 
 from app.cli import main
 from robot_io.ur_standin import rtde_protocol as rtde
@@ -25,8 +25,8 @@ def request(sock: socket.socket, message_type: int, payload: bytes = b"") -> tup
 
 
 def test_rtde_handshake_recipes_not_found_in_use_and_data_packages_at_the_controller_rate():
-    host = "127.0.0.110"
-    with standin(host, series="e"):
+    with standin(series="e") as ur:
+        host = ur.host
         first = socket.create_connection((host, 30004))
         second = socket.create_connection((host, 30004))
         try:

@@ -1,0 +1,297 @@
+"""The UR backend with ur_rtde's real client against the stand-in controller (one address per test).
+
+What the controller received is read back from the stand-in and asserted on.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import socket
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from support.hand_replay import TRACKER, Replay
+from support.ur import (
+    MOVEL,
+    SERVO_STOP,
+    SERVOL,
+    SET_WATCHDOG,
+    STOP_SCRIPT,
+    commands,
+    servo_targets,
+    servo_targets_once_stopped,
+    settled_servo_targets,
+    standin,
+)
+from support.waiting import wait_for
+
+from robot_io.arm import ArmState
+from robot_io.config import ControllerConfig
+from robot_io.devices import tracker_transform, ur_trial
+from robot_io.errors import ArmFault
+from robot_io.loop import Outcome
+from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.theta import Theta
+from robot_io.udp_hand import UDPHand
+from robot_io.ur_arm import EMERGENCY_STOPPED_BITS, URArm
+from robot_io.ur_standin.control import ControlClient
+
+THETA = Theta(a=5.0, delta=-0.2, k=1.0)
+STEP = np.array([0.0002, 0.0, 0.0])
+
+
+#: For the tests whose subject is not the controller's watchdog, which stops the script when no
+#: target comes for 1/watchdog_hz s (0.1 s by default): a test streaming at normal priority on a
+#: loaded machine (the loop, and the ur_rtde worker process that sends its targets) can be starved
+#: longer than that (seen under a CPU hog: the first target never recorded, the script already
+#: stopped; a trial ending "watchdog" before the fault it injects): 100 s instead.
+PATIENT_WATCHDOG_HZ = 0.01
+
+
+def ur_config(host: str, **ur) -> ControllerConfig:
+    config = ControllerConfig()
+    return config.model_copy(update={"ur": config.ur.model_copy(update={"host": host, **ur})})
+
+
+@contextlib.contextmanager
+def connected_arm(**ur) -> Iterator[tuple[ControlClient, ControllerConfig, URArm]]:
+    """A stand-in on a free address and a URArm connected to it (``ur``: [ur] settings); both ended
+    afterwards."""
+    with standin() as ur_standin:
+        config = ur_config(ur_standin.host, **ur)
+        arm = URArm(config.ur, config.safety)
+        try:
+            yield ur_standin.control, config, arm
+        finally:
+            arm.close()
+
+
+def hand(config: ControllerConfig, seed: int = 0) -> SimulatedHand:
+    return SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, seed)
+
+
+@pytest.mark.slow
+def test_full_handover_from_the_cli_targets_follow_the_dmp_within_1mm(tmp_path):
+    samples = tmp_path / "samples.npz"
+    with standin() as ur:
+        control = ur.control
+        run = subprocess.run(
+            [sys.executable, "-m", "app.cli", "simulate-trial", "--arm", "ur", "--ur-host", ur.host,
+             "--scenario", "perturbed", "--theta", "5,-0.2,15", "--seed", "2", "--json",
+             "--samples", str(samples)],
+            capture_output=True, text=True, timeout=300)  # a ceiling for a hung run, not a measure
+        assert run.returncode == 0, run.stderr
+        summary = json.loads(run.stdout)
+        received = servo_targets_once_stopped(control)
+        sequence = commands(control)
+        state = control("state")
+    assert summary["outcome"] == "completed" and summary["rate_hz"] == 125
+    data = np.load(samples)
+    dmp_path = data["x"][np.isfinite(data["commanded"][:, 0])]
+    sent = np.array([xyz for _, xyz in received])
+    assert len(sent) == len(dmp_path) > 100
+    assert np.max(np.linalg.norm(sent - dmp_path, axis=1)) < 1e-3
+    # the protocol around the stream: moveL to the start, watchdog, servoL…, servoStop, stop script
+    assert sequence[:2] == [MOVEL, SET_WATCHDOG] and sequence[-2:] == [SERVO_STOP, STOP_SCRIPT]
+    assert set(sequence[2:-2]) == {SERVOL}
+    assert np.linalg.norm(np.array(state["pose"][:3]) - dmp_path[-1]) < 0.01
+
+
+def aborted_by(control: ControlClient, config: ControllerConfig, arm: URArm, fault: str,
+               reason: str, after_targets: int = 75, **arguments):
+    """A trial with the stand-in fault ``fault`` injected once the stand-in has received
+    ``after_targets`` servo targets (75: 0.6 s into the reach at 125 Hz, counted, not timed);
+    asserts it ended as an arm fault whose reason says ``reason``; returns (record, injected_at,
+    targets received when injected)."""
+    injected = {}
+
+    def later() -> None:
+        injected["targets"] = wait_for(
+            lambda: (n := len(servo_targets(control))) >= after_targets and n,
+            f"{after_targets} servo targets at the stand-in", timeout=120.0)
+        injected["at"] = time.monotonic()
+        control(fault, **arguments)
+
+    timer = threading.Thread(target=later)
+    timer.start()
+    record = ur_trial(config, THETA, hand(config), arm)
+    timer.join()
+    assert record.summary.outcome is Outcome.ARM_FAULT
+    assert reason in record.summary.reason
+    return record, injected["at"], injected["targets"]
+
+
+#: Loop cycles from the cycle whose target made the stand-in's count reach the injection point to
+#: the trial's last cycle. A count of cycles, not a time, and a bound kept with its reason: the fault
+#: is in the stand-in's next state package (one controller cycle) and the loop reads the state every
+#: cycle, so 2-3 cycles idle; the margin is for the targets in flight between the loop, the worker
+#: process and the stand-in when the injection counted them, which grows when those processes are
+#: starved at once (two suites and a CPU hog on 2 cores). A loop that ignored the fault would stream
+#: on to the end of the reach: 100+ cycles more.
+STOP_WITHIN_CYCLES = 25
+
+
+def cycles_after(record, targets: int) -> int:
+    """Loop cycles after the one that commanded the ``targets``-th servo target."""
+    commanded = np.flatnonzero(np.isfinite(record.samples["commanded"][:, 0]))
+    return len(record.samples["t"]) - 1 - int(commanded[targets - 1])
+
+
+def assert_recovers_for_the_next_trial(config: ControllerConfig, arm: URArm) -> None:
+    arm.recover()
+    assert arm.state is ArmState.IDLE
+    second = ur_trial(config, THETA, hand(config, 1), arm)
+    assert second.summary.outcome is Outcome.COMPLETED, second.summary.reason
+
+
+@pytest.mark.slow
+def test_protective_stop_aborts_the_trial_stops_streaming_and_recovers_for_the_next():
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
+        record, at, targets = aborted_by(control, config, arm, "protective_stop", "protective stop")
+        received = servo_targets_once_stopped(control)  # the loop's stop ended the script
+        # the stand-in got no target the loop did not command (it records none once the stop has
+        # ended the script, so one in flight then is not recorded), and the loop stopped commanding
+        assert len(received) <= np.isfinite(record.samples["commanded"][:, 0]).sum()
+        assert cycles_after(record, targets) <= STOP_WITHIN_CYCLES
+        assert arm.state is ArmState.FAULT
+        with pytest.raises(ArmFault, match="protective stop"):
+            arm.move_to(config.scene.point("robot_start"))
+        assert_recovers_for_the_next_trial(config, arm)  # recover() raises past its 15 s timeout
+        assert time.monotonic() - at >= 5.0  # the controller's 5 s rule (load only adds to it)
+        assert "protective stop unlocked" in control("state")["events"]
+
+
+@pytest.mark.slow
+def test_dropped_socket_mid_trial_aborts_and_a_reconnect_serves_the_next_trial():
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
+        record, _, targets = aborted_by(control, config, arm, "drop_sockets",
+                                        "lost the RTDE connection")
+        assert cycles_after(record, targets) <= STOP_WITHIN_CYCLES
+        assert_recovers_for_the_next_trial(config, arm)
+
+
+def test_a_target_outside_the_workspace_box_is_never_sent():
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
+        arm.begin_stream()
+        start = arm.read_pose()
+        arm.command(start + STEP)  # a legal target: 0.025 m/s, 3.1 m/s² at 125 Hz
+        outside = start.copy()
+        outside[2] = config.safety.workspace_min[2] - 0.01
+        with pytest.raises(ArmFault, match="outside the workspace box"):
+            arm.command(outside)
+        assert arm.state is ArmState.FAULT
+        with pytest.raises(ArmFault):
+            arm.command(start)  # nothing more is sent after the fault
+        sent = [xyz for _, xyz in settled_servo_targets(control, arm, expected=1)]
+    assert len(sent) == 1 and sent[0] == pytest.approx(start + STEP)
+
+
+def test_a_target_beyond_the_speed_cap_is_refused_and_a_far_start_pose_is_not_moved_to():
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, _, arm):
+        far = arm.read_pose() + np.array([0.0, 0.9, 0.0])
+        with pytest.raises(ArmFault, match="max_move_distance"):
+            arm.move_to(far)
+        arm.begin_stream()
+        with pytest.raises(ArmFault, match="m/s"):
+            arm.command(arm.read_pose() + np.array([0.05, 0.0, 0.0]))  # 6.25 m/s at 125 Hz
+        assert settled_servo_targets(control, arm, expected=0) == [] and MOVEL not in commands(control)
+
+
+def test_check_devices_reports_versions_and_rate_and_moves_nothing(capsys):
+    from app.cli import main
+
+    with standin(series="e") as ur:
+        control = ur.control
+        code = main(["check-devices", "--ur-host", ur.host])
+        out = capsys.readouterr().out
+        assert not {MOVEL, SERVOL, SET_WATCHDOG} & set(commands(control))
+        pose_after = control("state")["pose"]
+    assert code == 0, out
+    assert "PolyScope 5.11.1.108318" in out and "500 Hz" in out and "gripper: none" in out
+    assert pose_after[:3] == pytest.approx([0.35, -0.35, 0.35])
+
+
+@pytest.mark.slow
+def test_a_stale_hand_source_stops_the_arm():
+    """The tracker (UDP/JSON at 100 Hz) goes silent mid-reach: the loop stops, servoL stops, the
+    controller is told servoStop."""
+    with standin() as ur:
+        config = ur_config(ur.host)
+        source = config.hand_source.model_copy(update={
+            "kind": "udp", "udp_host": ur.host, "udp_port": 0, "units_to_m": TRACKER.units_to_m,
+            "rotation": tuple(map(tuple, TRACKER.rotation)),
+            "translation": tuple(TRACKER.translation)})
+        config = config.model_copy(update={"hand_source": source})
+        arm = URArm(config.ur, config.safety)
+        tracker = UDPHand(config.hand_source, tracker_transform(config))
+        sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+
+        def send(xyz: np.ndarray) -> None:
+            sender.sendto(json.dumps(dict(zip("xyz", xyz.tolist(), strict=True))).encode(),
+                          tracker.address)
+
+        replay = Replay(hand(config), send, 100.0, stop_after=0.8).start()
+        try:
+            tracker.wait_for_sample(30.0, config.loop.staleness_limit_s)  # a ceiling
+            record = ur_trial(config, THETA, tracker, arm)
+        finally:
+            replay.stop()
+            tracker.close()
+            sender.close()
+            arm.close()
+        servo_targets_once_stopped(ur.control)
+        received = ur.control("received")["received"]
+    assert record.summary.outcome is Outcome.TRACKER_LOST, record.summary.reason
+    # in the loop's own clock and the hand's own stamps: every target was commanded on a hand sample
+    # at most staleness_limit_s old, and the trial ended on the first cycle it was older
+    samples, limit = record.samples, config.loop.staleness_limit_s
+    commanded = np.isfinite(samples["commanded"][:, 0])
+    assert np.all(samples["t"][commanded] - samples["hand_t"][commanded] <= limit)
+    assert record.summary.stop_commanded_s - record.summary.last_hand_sample_s > limit
+    # at the controller: exactly those targets, then servoStop
+    sequence = [command for _, command, _ in received]
+    assert sequence.count(SERVOL) == commanded.sum()
+    assert SERVO_STOP in sequence and SERVOL not in sequence[sequence.index(SERVO_STOP):]
+
+
+@pytest.mark.slow
+def test_a_stalled_controller_aborts_the_trial_within_a_few_cycles():
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
+        record, _, targets = aborted_by(control, config, arm, "stall", "sent no new state",
+                                        after_targets=62, seconds=1.0)
+        assert record.summary.stop_commanded_s is not None
+        # STATE_SILENCE_S of silence (0.1 s: 13 cycles at 125 Hz), then as any fault
+        assert cycles_after(record, targets) <= 13 + STOP_WITHIN_CYCLES
+        assert_recovers_for_the_next_trial(config, arm)
+
+
+def test_an_emergency_stop_is_a_fault_that_recover_refuses_until_released():
+    with connected_arm() as (control, _, arm):
+        control("emergency_stop")
+        wait_for(lambda: arm.state is ArmState.FAULT, "the emergency stop in the arm's state",
+                 seen=lambda: arm.state)
+        assert "emergency stop" in arm.fault
+        with pytest.raises(ArmFault, match="emergency stop still engaged"):
+            arm.recover()
+        control("release_emergency_stop")
+        wait_for(lambda: not any(arm._bits("getSafetyStatusBits") >> bit & 1
+                                 for bit in EMERGENCY_STOPPED_BITS),
+                 "the release in the controller's state package",
+                 seen=lambda: f"safety status bits {arm._bits('getSafetyStatusBits'):b}")
+        arm.recover()
+        assert arm.state is ArmState.IDLE
+
+
+def test_check_devices_says_in_plain_words_when_no_controller_answers(capsys):
+    from app.cli import main
+
+    code = main(["check-devices", "--ur-host", "127.0.0.113"])  # nothing listens there
+    out = capsys.readouterr().out
+    assert code == 1
+    assert "arm: NOT OK — cannot connect to the UR controller at 127.0.0.113" in out
