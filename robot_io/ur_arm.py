@@ -213,14 +213,22 @@ class URArm:
                            "(controller stalled or network congested); call recover()")
 
     def _state_silent(self) -> bool:
-        """True when the controller's time stamp has not advanced for STATE_SILENCE_S (a
-        non-finite time stamp faults the arm here)."""
+        """True when the controller's time stamp has not advanced for STATE_SILENCE_S while this
+        process was there to see it (a non-finite time stamp faults the arm here).
+
+        A check that comes more than half of STATE_SILENCE_S after the one before measures this
+        process's own stall (the loop and ur_rtde's receive thread not scheduled: a loaded machine
+        without real-time priority), not the controller's: the silence is counted afresh from it.
+        A stall of this process is the controller's watchdog's to catch (no target for
+        1/watchdog_hz stops the script), which it does whatever this process does."""
         now = time.monotonic()
+        stalled = now - self._checked_at > STATE_SILENCE_S / 2
+        self._checked_at = now
         try:
             stamp = float(self._finite(self._receive.getTimestamp(), "state time stamp"))
         except ArmFault:
             return False
-        if stamp != self._stamp:
+        if stamp != self._stamp or stalled:
             self._stamp, self._stamp_seen = stamp, now
         return now - self._stamp_seen > STATE_SILENCE_S
 
@@ -303,6 +311,7 @@ class URArm:
         self._last = self.read_pose()
         self._last_velocity = np.zeros(3)
         self._stamp, self._stamp_seen = self._receive.getTimestamp(), time.monotonic()
+        self._checked_at = self._stamp_seen
         self._state = ArmState.STREAMING
 
     def command(self, target: np.ndarray) -> None:
