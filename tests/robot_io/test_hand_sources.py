@@ -28,6 +28,8 @@ from robot_io.theta import Theta
 from robot_io.trial import make_loop
 from robot_io.udp_hand import UDPHand
 
+pytestmark = pytest.mark.soak  # real processes and sockets on the clock: `make soak` repeats them
+
 
 def unique(label: str) -> str:
     """A stream name, type or source_id no other test, process or suite uses."""

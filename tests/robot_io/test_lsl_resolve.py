@@ -22,6 +22,8 @@ from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
 from robot_io.lsl_hand import LSLHand, xpath_literal
 
+pytestmark = pytest.mark.soak  # real processes and sockets on the clock: `make soak` repeats them
+
 WANTED, OTHER = np.array([0.55, 0.05, 0.30]), np.array([0.40, -0.20, 0.45])  # robot base [m]
 
 

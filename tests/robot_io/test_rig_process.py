@@ -23,7 +23,7 @@ from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.soak]
 
 
 class Reports:

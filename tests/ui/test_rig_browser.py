@@ -30,8 +30,13 @@ from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
-#: The cycle's stages as the dashboard shows the current one: "[stage]" in bold.
-SEEN_STAGES = ("[prepare]", "[ready]", "[reach]", "[hold]")
+#: The cycle's stages as the dashboard shows the current one: "[stage]" in bold. Only stages that
+#: wait for someone are watched for on the page: prepare and ready wait for the experimenter, and
+#: the hold of a participant who does not take the object lasts [release] timeout_s (10 s, the
+#: default; the page shows a stage within a second even on a loaded machine). A completing trial's
+#: reach and hold last ~1 s and could be over before a loaded browser drew them: the store's stage
+#: events prove the rig went through them.
+SEEN_STAGES = ("[prepare]", "[ready]", "[hold]")
 
 
 def watch_stages(dashboard: Page, until: str, seen: set[str]) -> None:
@@ -63,9 +68,6 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
             watch_stages(dashboard, "hand is at the start — press Go", seen)
             click(dashboard, "Go")
             assert tablet_screen(tablet, not_="wait") == "go"
-            watch_stages(dashboard, "[hold]", seen)
-            if position == 0.3:
-                hold = shot(dashboard, screens, "dashboard-rehearsal-hold")
             assert tablet_screen(tablet, not_=("go", "back")) == "place"
             touch_drag_to(tablet, position)
             confirm_placement(tablet)
@@ -80,6 +82,8 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
         click(dashboard, "Object loaded")
         wait_text(dashboard, "hand is at the start — press Go")
         click(dashboard, "Go")
+        watch_stages(dashboard, "[hold]", seen)  # held until the release times out
+        hold = shot(dashboard, screens, "dashboard-rehearsal-hold")
         wait_text(dashboard, "trial 4 not_taken")
         assert tablet_screen(tablet) == "wait"  # a handover not taken is never rated
         served.shutdown()
@@ -98,6 +102,6 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
     assert trials[3].release_s is None and trials[3].interaction == 4  # repeated, not rated
     assert stages[:27] == ["prepare", "loaded", "ready", "go", "reach", "hold", "release",
                            "retract", "done"] * 3
-    assert "release" not in stages[27:] and stages[-1] == "done"
+    assert "hold" in stages[27:] and "release" not in stages[27:] and stages[-1] == "done"
     assert devices[0]["arm"] == "ur" and devices[0]["hand_source"] == "lsl"
     assert placements == pytest.approx([0.3, 0.8, 0.55], abs=0.01)
