@@ -18,7 +18,7 @@ from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.export import DTYPES, data_dictionary, export_study, read_table
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 @pytest.fixture(scope="module")
