@@ -20,7 +20,7 @@ from app.session.config import LabConfig
 from app.session.faults import StagedFault
 from app.session.rehearsal import Rehearsal
 from app.session.replay import stored_rows
-from app.session.runner import SessionRunner
+from app.session.runner import PLAN_TIMEOUT_S, SessionRunner
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import SAMPLE_CODE, Stage
 from robot_io.ur_kinematics import forward
@@ -67,6 +67,12 @@ def test_run_session_rehearse_completes_the_papers_34_interactions_through_the_s
     assert stand_in["tcp_to_R_m"] < 1e-3
 
 
+#: The ceiling of a wait for the next θ ('ready'): above the product's own PLAN_TIMEOUT_S, after
+#: which a learner late with its reply (under load its first start took over a minute) is replaced
+#: by a flagged fallback θ — the wait must see that happen, not give up at the same moment.
+READY_CEILING_S = PLAN_TIMEOUT_S + CEILING_S
+
+
 def ended(view, index: int):
     return next((t for t in view.trials if t.trial_index == index and t.outcome), None)
 
@@ -83,7 +89,8 @@ def stopped(state: dict) -> dict | None:
 
 
 def start_until(runner: SessionRunner, probe: Probe, stage: Stage) -> None:
-    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start")
+    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start",
+               timeout=READY_CEILING_S)
     runner.start_trial()
     probe.wait(lambda v: v.stage is stage, what=f"stage {stage.value}")
 
@@ -95,7 +102,8 @@ def test_every_rehearsed_sample_carries_joint_angles_and_coupling_signals(rehear
     eqs. (5) and (8): τ = τ0 (1 + C_t), C_t = k σ_d σ_j."""
     runner, probe = rehearsed
     runner.open("J01", Scenario.PERTURBED, seed=7)
-    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start")
+    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start",
+               timeout=READY_CEILING_S)
     runner.start_trial()
     view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
     assert ended(view, 1).outcome.value == "completed"
@@ -138,7 +146,8 @@ def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(re
     # Keep the marker hidden until the repeated trial has said it waits for it (the staged 1.5 s
     # loss may or may not be over by the time the trial checks, depending on the machine's load).
     runner.rehearsal.publisher.occlude(CEILING_S)
-    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to repeat")
+    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to repeat",
+               timeout=READY_CEILING_S)
     runner.start_trial()
     waiting = probe.wait(lambda v: v.state.running_trial == 2 and v.ready_wait is not None,
                          what="the repeat (trial 2) waiting for the hand")
@@ -160,7 +169,8 @@ def test_a_protective_stop_during_hold_aborts_and_the_trial_completes_after_reco
     with pytest.raises(RefusedAction, match=r"Start refused: the arm has a fault \(protective stop"):
         runner.start_trial()  # no trial on an arm in a protective stop
     runner.recover_arm(inspected=True)  # waits out the controller's 5 s rule
-    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready again")
+    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready again",
+               timeout=READY_CEILING_S)
     runner.start_trial()
     view = probe.wait(lambda v: any(t.outcome and t.outcome.value == "completed"
                                     for t in v.trials), what="a completed trial")
@@ -236,7 +246,8 @@ def test_the_rehearsal_plays_the_hand_over_udp_too(tmp_path):
     try:
         runner.open("U01", Scenario.PERTURBED, seed=6)
         assert runner.view.hand.startswith("UDP on 127.0.0.1:")
-        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready")
+        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready",
+                   timeout=READY_CEILING_S)
         runner.start_trial()
         view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
     finally:
