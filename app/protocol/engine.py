@@ -406,9 +406,10 @@ class SessionEngine:
 
     def _snapshot_row(self, learner: LearnerClient, after: int, suggestion: Suggestion
                       ) -> LearnerSnapshotRow | None:
-        """The learner as it stands, to store with the θ it planned; None while the worker has not
-        answered yet (a first reply later than the plan's timeout gives a fallback θ): there is no
-        state to keep, and a resume restores the learner from the placements alone."""
+        """The learner's snapshot to store with a planned θ; None while the learner has never
+        replied (a fresh learner late with its first reply, e.g. still importing under load, gave a
+        fallback θ): there is no state to store, and a resume without a snapshot is exactly that
+        learner — fresh, given the placements made since (:meth:`_ensure_learner`)."""
         if learner.state is None:
             return None
         best = learner.best
@@ -420,6 +421,10 @@ class SessionEngine:
             fit_failed=suggestion.fit.fit_failed, message=suggestion.fit.message,
             n_points=suggestion.fit.n_points, n_comparisons=suggestion.fit.n_comparisons,
             state=learner.state.model_dump_json())
+
+    def _stored(self, row: LearnerSnapshotRow | None) -> list[Callable[[], None]]:
+        """The write of ``row`` for a commit (none without a row)."""
+        return [] if row is None else [lambda: self.store.add(row)]
 
     def _plan_from_learner(self, slot: Slot, timeout: float) -> None:
         suggestion, learner = self._suggestion(timeout)
@@ -433,7 +438,7 @@ class SessionEngine:
                                      **theta.model_dump(), origin=origin,
                                      fallback=suggestion.fallback,
                                      fit_failed=suggestion.fit.fit_failed),
-                     *([lambda: self.store.add(row)] if row is not None else []))
+                     *self._stored(row))
 
     def _plan_after_learning(self, timeout: float) -> None:
         """θ* of the finished learning phase for the best and validation interactions, and the
@@ -451,6 +456,6 @@ class SessionEngine:
             theta = best if slot.origin is ThetaOrigin.BEST else next(references)
             events.append(ev.ThetaPlanned(actor=Actor.LEARNER, interaction=slot.interaction,
                                           **theta.model_dump(), origin=slot.origin))
-        self._commit_all(events, *([lambda: self.store.add(row)] if row is not None else []))
+        self._commit_all(events, *self._stored(row))
         self._learner.close()
         self._learner = None

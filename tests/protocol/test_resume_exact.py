@@ -12,12 +12,13 @@ import signal
 import sqlite3
 import subprocess
 import sys
-import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 from support.engine import drive_until, new_engine
 from support.store import assert_same_outcome, event_count, session_outcome
+from support.waiting import CEILING_S, tail, wait_for
 
 from app.learning.config import LearnerConfig
 from app.learning.learner import PreferenceLearner
@@ -57,33 +58,45 @@ def test_a_restored_learner_is_the_stored_learner():
 KILLS = 20
 
 
+def wait_inside_session(process: subprocess.Popen, database: Path, before: int) -> None:
+    """Wait until ``process`` has written an event past the ``before`` there were (it created or
+    resumed the session), or has ended."""
+    wait_for(lambda: event_count(database) > before or process.poll() is not None,
+             f"pid {process.pid} to write its first event (or end)",
+             seen=lambda: f"{event_count(database)} events, exit code {process.poll()}")
+
+
 @pytest.mark.slow
 def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_path):
     command = [sys.executable, "-m", "app.cli", "run-session", "--participant", "K1", "--scenario",
                "perturbed", "--auto", "--seed", "11", "--no-progress"]
+    # The uninterrupted session; the timeout is a ceiling for a hung one, not a measurement.
     subprocess.run([*command, "--study", str(tmp_path / "whole")], check=True,
-                   capture_output=True, timeout=300)
+                   capture_output=True, timeout=CEILING_S * 15)
     database = tmp_path / "killed" / "K1.sqlite"
     rng, kills = random.Random(2026), 0
+    log = tmp_path / "run.log"
     while True:
         before = event_count(database)
-        process = subprocess.Popen([*command, "--study", str(tmp_path / "killed"), "--resume"],
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        with log.open("w") as err:  # a file, not a pipe nobody reads while the session runs
+            process = subprocess.Popen([*command, "--study", str(tmp_path / "killed"), "--resume"],
+                                       stdout=subprocess.DEVNULL, stderr=err)
         if kills < KILLS:
             # Kill inside the session, whatever the machine's load: once this run has written an
-            # event (created or resumed the session), after a random further 0–2.5 s of trials,
-            # learner updates and writes.
-            while event_count(database) <= before and process.poll() is None:
-                time.sleep(0.02)
+            # event (created or resumed the session) ...
+            wait_inside_session(process, database, before)
             try:
+                # ... then at a random moment of its trials, learner updates and writes: this wait
+                # is the kill's random moment (any moment is valid), not a wait for a state.
                 process.wait(timeout=rng.uniform(0.0, 2.5))
             except subprocess.TimeoutExpired:
-                process.send_signal(signal.SIGKILL)
+                process.send_signal(signal.SIGKILL)  # the writer itself: Popen runs no shell
                 process.wait()
                 kills += 1
                 continue
-        process.wait(timeout=300)
-        assert process.returncode == 0, process.stderr.read().decode()[-2000:]
+        # A ceiling for a hung session, not a measurement.
+        code = process.wait(timeout=CEILING_S * 15)
+        assert code == 0, tail(log.read_text())
         break
     assert kills == KILLS
     assert_same_outcome(database, tmp_path / "whole" / "K1.sqlite")
@@ -115,7 +128,9 @@ def test_a_kill_in_the_middle_of_a_write_leaves_the_database_as_before(tmp_path)
     engine.close()
     child = mp.get_context("fork").Process(target=_place_and_die_mid_write, args=(tmp_path,))
     child.start()
-    child.join(60)
+    # exitcode is None until the child has been reaped: wait for its end, never read it early.
+    wait_for(lambda: child.exitcode is not None, "the child to die mid-write and be reaped",
+             seen=lambda: f"pid {child.pid}, alive {child.is_alive()}")
     assert child.exitcode == -signal.SIGKILL
     resumed = SessionEngine.resume(tmp_path, "S01")
     try:

@@ -201,3 +201,25 @@ def test_the_engine_hands_the_dashboard_the_posterior_slices(engine):
         low, high = engine.config.theta_bounds[s.parameter]
         assert (s.values[0], s.values[-1]) == (low, high)
         assert all(np.isfinite(s.mean))
+
+
+def test_a_first_theta_the_learner_is_late_with_is_a_flagged_fallback_and_the_session_resumes(tmp_path):
+    """A fresh learner that has not replied yet (its process still starting: under load it took
+    over a minute) gives a flagged fallback θ for interaction 1. Planning it once crashed the
+    engine (the learner had no state to store: AttributeError) and left a session stuck at 'plan'.
+    With no snapshot stored, a resume starts the learner fresh, as the live one was."""
+    engine = new_engine(tmp_path)
+    try:
+        planned = engine.plan_next(timeout=0.0)  # no wait: the learner cannot have replied
+        assert engine.state.step is Step.READY and planned.fallback
+        assert engine.store.rows("learner_snapshots") == []
+        drive_until(engine, Step.PLACE)
+        engine.place(position=0.5)
+    finally:
+        engine.close()
+    resumed = SessionEngine.resume(tmp_path, "S01")
+    try:
+        drive_until(resumed, Step.PLACE)  # interaction 2's θ from the restored (fresh) learner
+        assert resumed.state.planned[2].theta is not None
+    finally:
+        resumed.close()

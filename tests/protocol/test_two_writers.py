@@ -10,11 +10,12 @@ import signal
 import sqlite3
 import subprocess
 import sys
-import time
+from pathlib import Path
 
 import pytest
 from support.browser import free_port
 from support.store import event_count
+from support.waiting import CEILING_S, tail, wait_for
 
 from app.cli import main
 
@@ -26,26 +27,42 @@ def _serve(study, *extra: str) -> list[str]:
             "--dashboard-port", str(free_port()), "--token", "t", *extra]
 
 
+def running(process: subprocess.Popen, log: Path) -> bool:
+    """True while ``process`` runs; its end is an error naming its exit code and its log's tail
+    (a dead writer is not a slow one: the wait ends at once)."""
+    if (code := process.poll()) is not None:
+        raise AssertionError(f"pid {process.pid} ended (exit code {code}) before the awaited "
+                             f"state; its log: {tail(log.read_text())}")
+    return True
+
+
 @pytest.mark.slow
 def test_a_second_writer_is_refused_and_the_first_finishes_34_interactions(tmp_path, capsys):
     study, database = tmp_path / "study", tmp_path / "study" / "P09.sqlite"
-    first = subprocess.Popen([*HANDOVER, "run-session", "--study", str(study), "--participant",
-                              "P09", "--scenario", "perturbed", "--auto", "--seed", "7",
-                              "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             text=True)
-    while event_count(database) < 3:
-        assert first.poll() is None, first.stderr.read()
-        time.sleep(0.05)
-    for second in ([*HANDOVER, "run-session", "--study", str(study), "--participant", "P09",
-                    "--auto", "--resume", "--no-progress"],
-                   _serve(study, "--participant", "P09")):
-        refused = subprocess.run(second, capture_output=True, text=True, timeout=120)
-        assert refused.returncode == 2, refused.stderr
-        assert f"participant 'P09' is open for writing by pid {first.pid} on " in refused.stderr
-        assert "run-session --study" in refused.stderr and "refused before writing" in refused.stderr
-        assert "Traceback" not in refused.stderr
-    _, err = first.communicate(timeout=900)
-    assert first.returncode == 0, err[-2000:]
+    log = tmp_path / "first.log"
+    with log.open("w") as out:  # a file, not a pipe nobody reads while the session runs
+        first = subprocess.Popen([*HANDOVER, "run-session", "--study", str(study), "--participant",
+                                  "P09", "--scenario", "perturbed", "--auto", "--seed", "7",
+                                  "--no-progress"], stdout=out, stderr=subprocess.STDOUT, text=True)
+    try:
+        wait_for(lambda: running(first, log) and event_count(database) >= 3,
+                 "the first writer to have stored 3 events", seen=lambda: event_count(database))
+        for second in ([*HANDOVER, "run-session", "--study", str(study), "--participant", "P09",
+                        "--auto", "--resume", "--no-progress"],
+                       _serve(study, "--participant", "P09")):
+            refused = subprocess.run(second, capture_output=True, text=True, timeout=120)
+            assert refused.returncode == 2, (refused.stderr, f"the first writer: exit code "
+                                             f"{first.poll()} (None: running)")
+            assert f"participant 'P09' is open for writing by pid {first.pid} on " in refused.stderr
+            assert "run-session --study" in refused.stderr
+            assert "refused before writing" in refused.stderr
+            assert "Traceback" not in refused.stderr
+        # A ceiling for a hung session (it takes about a minute idle), not a measurement.
+        assert first.wait(timeout=900) == 0, tail(log.read_text())
+    finally:
+        if first.poll() is None:  # the test failed: end the writer it started, by its own pid
+            first.kill()
+            first.wait()
     with sqlite3.connect(database) as conn:
         completed = conn.execute("SELECT interaction FROM trials WHERE outcome = 'completed'"
                                  ).fetchall()
@@ -65,10 +82,9 @@ def test_serve_holding_a_participant_refuses_run_session(tmp_path):
         serve = subprocess.Popen(_serve(study, "--participant", "P10", "--scenario", "perturbed",
                                         "--seed", "8"), stdout=out, stderr=subprocess.STDOUT)
     try:
-        deadline = time.monotonic() + 120
-        while "dashboard token" not in log.read_text():
-            assert serve.poll() is None and time.monotonic() < deadline, log.read_text()
-            time.sleep(0.1)
+        wait_for(lambda: running(serve, log) and "dashboard token" in log.read_text(),
+                 "serve to print its dashboard token (participant P10 open)",
+                 seen=lambda: tail(log.read_text()))
         events = event_count(study / "P10.sqlite")
         refused = subprocess.run([*HANDOVER, "run-session", "--study", str(study), "--participant",
                                   "P10", "--auto", "--resume", "--no-progress"],
@@ -79,5 +95,5 @@ def test_serve_holding_a_participant_refuses_run_session(tmp_path):
         assert event_count(study / "P10.sqlite") == events
     finally:
         serve.send_signal(signal.SIGINT)
-        serve.wait(60)
-    assert serve.returncode == 0, log.read_text()
+        code = serve.wait(CEILING_S)  # a ceiling for a hung shutdown; raises rather than read None
+    assert code == 0, log.read_text()

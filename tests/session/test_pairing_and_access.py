@@ -11,12 +11,13 @@ from pathlib import Path
 import pytest
 from support.engine import SHORT_PROTOCOL
 from support.runner import Probe
+from support.waiting import CEILING_S
 
 from app.protocol.errors import RefusedAction
 from app.session.access import TOKEN_FILE, dashboard_token
 from app.session.config import LabConfig
 from app.session.pairing import TabletPairing
-from app.session.runner import SessionRunner
+from app.session.runner import PLAN_TIMEOUT_S, SessionRunner
 from robot_io.simulated_hand import Scenario
 
 
@@ -71,7 +72,8 @@ def test_start_needs_one_paired_tablet_and_after_a_stop_a_rearm(tmp_path: Path):
     try:
         pairing = runner.attach_tablet()
         runner.open("P01", Scenario.STRAIGHTFORWARD)
-        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ")
+        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ",
+                   timeout=PLAN_TIMEOUT_S + CEILING_S)  # above the product's fallback to a Sobol θ
         with pytest.raises(RefusedAction, match="no tablet is connected"):
             runner.start_trial()
         runner.tablet_connected(7, "127.0.0.1")

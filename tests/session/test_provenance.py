@@ -19,6 +19,10 @@ from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
 from session_store.export import export_study, read_table
 
+# The module's tests share one expensive study (a module fixture): under pytest-xdist's
+# --dist loadgroup they run on one worker, which builds it once.
+pytestmark = pytest.mark.xdist_group("session-provenance")
+
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
@@ -26,13 +30,17 @@ def study(tmp_path_factory):
     lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
     runner = SessionRunner(study, lab, realtime=False, auto_experimenter=True)
     probe = Probe(runner)
+    # The waits' ceilings are for a hung session (a rig process to start, learner fits on a loaded
+    # machine), not measurements.
     try:
         runner.open("H01", Scenario.PERTURBED, seed=4)
-        for position in (0.2, 0.8, 0.5):  # the person's placements, as the tablet sends them
-            view = probe.wait(lambda v: v.step is Step.PLACE, 300, "a placement")
-            runner.place(view.state.slot.interaction, position=position)
+        for interaction, position in enumerate((0.2, 0.8, 0.5), 1):  # the person's, from the tablet
+            probe.wait(lambda v, i=interaction: v.step is Step.PLACE and v.state.slot.interaction == i,
+                       what=f"interaction {interaction}'s placement", timeout=300)
+            runner.place(interaction, position=position)
         runner.set_auto(True)  # "Simulated participant rates" switched on
-        view = probe.wait(lambda v: v.step is Step.DONE or v.failed is not None, 600, "the end")
+        view = probe.wait(lambda v: v.step is Step.DONE or v.failed is not None,
+                          what="the session's end (or its failure)", timeout=600)
         assert view.failed is None and view.state.completed == 9
     finally:
         runner.close()

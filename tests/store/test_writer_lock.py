@@ -3,11 +3,13 @@ writes, with the holder named; readers keep working; a killed holder never block
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
 import subprocess
 import sys
+from collections.abc import Iterator
 
 import pytest
 from support.engine import new_engine
@@ -18,9 +20,12 @@ from session_store.export import load_study
 from session_store.lock import holder_of, lock_path
 from session_store.store import ParticipantStore
 
-HOLD = ("import sys, time; from session_store.store import ParticipantStore; "
+#: A child that holds the participant's writer lock until it is killed: it waits for stdin to close
+#: (never, until the test kills it; and if the test process itself dies, the pipe closes and the
+#: child ends instead of holding the lock for a fixed time).
+HOLD = ("import sys; from session_store.store import ParticipantStore; "
         "store = ParticipantStore.open_for_writing(sys.argv[1], 'S01'); print('held', flush=True); "
-        "time.sleep(600)")
+        "sys.stdin.read()")
 
 
 @pytest.fixture
@@ -29,11 +34,21 @@ def study(tmp_path):
     return tmp_path
 
 
-def _hold_in_child(study) -> subprocess.Popen:
-    child = subprocess.Popen([sys.executable, "-c", HOLD, str(study)], stdout=subprocess.PIPE,
-                             text=True)
-    assert child.stdout.readline().strip() == "held"
-    return child
+@contextlib.contextmanager
+def held_in_child(study) -> Iterator[subprocess.Popen]:
+    """A child process holding S01's writer lock; killed (SIGKILL, by its own pid) and reaped on
+    leaving, whatever happened inside."""
+    child = subprocess.Popen([sys.executable, "-c", HOLD, str(study)], stdin=subprocess.PIPE,
+                             stdout=subprocess.PIPE, text=True)
+    try:
+        said = child.stdout.readline().strip()  # blocks until it holds the lock, or has ended
+        assert said == "held", f"the holder said {said!r} (exit code {child.poll()})"
+        yield child
+    finally:
+        child.send_signal(signal.SIGKILL)
+        child.wait()  # reaped: its returncode is set, its lock released by the kernel
+        child.stdin.close()
+        child.stdout.close()
 
 
 def test_a_second_writer_in_this_process_is_refused_and_writes_nothing(study):
@@ -52,8 +67,7 @@ def test_a_second_writer_in_this_process_is_refused_and_writes_nothing(study):
 
 
 def test_another_process_is_named_readers_work_and_its_kill_frees_the_participant(study):
-    child = _hold_in_child(study)
-    try:
+    with held_in_child(study) as child:
         holder = holder_of(study / "S01.sqlite")
         assert holder is not None and holder.pid == child.pid
         events = ParticipantStore.open(study, "S01").counts()["events"]
@@ -64,9 +78,7 @@ def test_another_process_is_named_readers_work_and_its_kill_frees_the_participan
         assert len(tables["events"]) == events
         with pytest.raises(ParticipantLocked):
             ParticipantStore.open_for_writing(study, "S01")
-    finally:
-        child.send_signal(signal.SIGKILL)
-        child.wait()
+    assert child.returncode == -signal.SIGKILL
     # The lock file still names the killed process, but nobody holds the lock.
     assert json.loads(lock_path(study / "S01.sqlite").read_text())["pid"] == child.pid
     assert holder_of(study / "S01.sqlite") is None

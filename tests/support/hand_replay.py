@@ -10,6 +10,7 @@ import numpy as np
 
 from robot_io.frame import FrameTransform
 from robot_io.simulated_hand import SimulatedHand
+from support.waiting import CEILING_S, WaitTimeout
 
 #: A tracker frame as a lab might have it: turned 90° about z, offset, in millimetres.
 TRACKER = FrameTransform(np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
@@ -43,8 +44,15 @@ class Replay:
             self.send(to_tracker(position))
             self.sent.append(position)
             next_at += self.period
+            # Pacing, not waiting: a tracker streams at its rate, so the replay sleeps to the next
+            # sample's moment (on a loaded machine it sends late, as a real network may deliver).
             time.sleep(max(0.0, next_at - time.monotonic()))
 
     def stop(self) -> None:
+        """Stop sending and wait for the thread's end (within one period, unless ``send`` hangs:
+        the ceiling is for that, and the replay then says so)."""
         self._running = False
-        self.thread.join(2.0)
+        self.thread.join(CEILING_S)
+        if self.thread.is_alive():
+            raise WaitTimeout(f"the replay's thread did not end within {CEILING_S:g} s of stop(): "
+                              f"its send is stuck after {len(self.sent)} samples")

@@ -4,8 +4,12 @@ rig process and its learner process behind, which are to end by themselves when 
 
 from __future__ import annotations
 
-import time
+import logging
 from pathlib import Path
+
+from support.waiting import WaitTimeout, wait_for
+
+log = logging.getLogger(__name__)
 
 PROC = Path("/proc")
 
@@ -40,9 +44,26 @@ def alive(pid: int) -> bool:
     return stat is not None and stat[0] not in ("Z", "X")
 
 
+def describe(pid: int) -> str:
+    """``pid``, its command line and its state letter, for a wait's message."""
+    try:
+        command = (PROC / str(pid) / "cmdline").read_bytes().replace(b"\0", b" ").decode().strip()
+    except OSError:
+        command = "?"
+    stat = _stat(pid)
+    return f"{pid} [{'gone' if stat is None else stat[0]}] {command[:200]}"
+
+
 def still_alive(pids: list[int], timeout_s: float) -> list[int]:
-    """Wait up to ``timeout_s`` for every one of ``pids`` to end; those still running then."""
-    deadline = time.monotonic() + timeout_s
-    while (running := [p for p in pids if alive(p)]) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    return running
+    """Wait for every one of ``pids`` to end (the state "all of them gone"); those still running
+    after ``timeout_s`` — a ceiling for processes that never end, not a measurement — are returned
+    and logged with their command lines, so that the caller's ``assert still_alive(...) == []``
+    says which process stayed."""
+    try:
+        wait_for(lambda: not any(alive(p) for p in pids), f"processes {pids} to end",
+                 timeout=timeout_s, poll=0.1)
+    except WaitTimeout:
+        running = [p for p in pids if alive(p)]
+        log.error("still running after %g s: %s", timeout_s, "; ".join(map(describe, running)))
+        return running
+    return []

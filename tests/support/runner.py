@@ -7,6 +7,19 @@ import time
 from collections.abc import Callable
 
 from app.session.runner import RunnerView, SessionRunner
+from support.waiting import CEILING_S, WaitTimeout
+
+
+def describe(view: RunnerView) -> str:
+    """What a screen would show of ``view``, for a wait that gave up: the step and stage, the
+    trials so far (index, interaction, attempt, outcome, reason), why the hand is not ready, the
+    faults, the last messages."""
+    trials = [(t.trial_index, t.interaction, t.attempt, t.outcome and t.outcome.value, t.reason)
+              for t in view.trials]
+    return (f"step {view.step}, stage {view.stage}, stop {view.stop}, waiting for "
+            f"{view.waiting_for}, ready_wait {view.ready_wait!r}, arm fault {view.arm_fault!r}, "
+            f"learner {view.learner} (fault {view.learner_fault!r}), failed {view.failed!r}, "
+            f"trials {trials}, messages {view.messages}")
 
 
 class Probe:
@@ -23,8 +36,11 @@ class Probe:
             self.views.append(view)
             self._changed.notify_all()
 
-    def wait(self, condition: Callable[[RunnerView], bool], timeout: float = 60.0,
+    def wait(self, condition: Callable[[RunnerView], bool], timeout: float = CEILING_S,
              what: str = "the condition") -> RunnerView:
+        """The first published view that satisfies ``condition`` (woken by each new view).
+        ``timeout`` is a ceiling for a hung session, not a measurement; when it passes, the
+        :class:`WaitTimeout` names ``what`` and describes the last view."""
         deadline = time.monotonic() + timeout
         with self._changed:
             while True:
@@ -33,7 +49,6 @@ class Probe:
                     return view
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise AssertionError(f"timed out waiting for {what}; last view: step "
-                                         f"{view.step}, stage {view.stage}, messages "
-                                         f"{view.messages}, fault {view.arm_fault}")
+                    raise WaitTimeout(f"gave up after {timeout:g} s waiting for {what}; last view: "
+                                      f"{describe(view)}")
                 self._changed.wait(min(left, 0.1))
