@@ -13,10 +13,6 @@ from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import QUESTION_BY_ID, Phase
 from robot_io.simulated_hand import Scenario
 
-# The module's tests share one expensive study (a module fixture): under pytest-xdist's
-# --dist loadgroup they run on one worker, which builds it once.
-pytestmark = pytest.mark.xdist_group("protocol-session-full")
-
 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):

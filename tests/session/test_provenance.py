@@ -19,10 +19,6 @@ from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
 from session_store.export import export_study, read_table
 
-# The module's tests share one expensive study (a module fixture): under pytest-xdist's
-# --dist loadgroup they run on one worker, which builds it once.
-pytestmark = pytest.mark.xdist_group("session-provenance")
-
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):

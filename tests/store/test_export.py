@@ -18,10 +18,6 @@ from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.export import DTYPES, data_dictionary, export_study, read_table
 
-# The module's tests share one expensive study (a module fixture): under pytest-xdist's
-# --dist loadgroup they run on one worker, which builds it once.
-pytestmark = pytest.mark.xdist_group("store-export")
-
 ROOT = Path(__file__).resolve().parents[2]
 
 

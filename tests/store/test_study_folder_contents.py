@@ -22,10 +22,6 @@ from session_store.errors import MisnamedStoreError
 from session_store.export import DTYPES, LEFT_OUT_FILE, export_study, load_study, read_table
 from session_store.store import ParticipantStore
 
-# The module's tests share one expensive study (a module fixture): under pytest-xdist's
-# --dist loadgroup they run on one worker, which builds it once.
-pytestmark = pytest.mark.xdist_group("store-study-folder")
-
 
 @pytest.fixture(scope="module")
 def original(tmp_path_factory) -> Path:
