@@ -35,7 +35,6 @@ sys.path.insert(0, str(Path(__file__).parent))
 from support.browser import (
     TOKEN,
     chromium,
-    free_port,
     open_page,
     pair_tablet,
     tap_point,
@@ -112,8 +111,8 @@ def both_variants(study: Path, browser, priority: bool, trials: int) -> None:
     lab = LabConfig.model_validate({"protocol": PROTOCOL})
     runner = SessionRunner(study, lab, rehearsal=Rehearsal(lab, series="e"),
                            realtime_priority=priority)
-    servers = HandoverServers(runner, ServeOptions(tablet_port=free_port(),
-                                                   dashboard_port=free_port(), token=TOKEN))
+    servers = HandoverServers(runner, ServeOptions(tablet_port=0, dashboard_port=0,
+                                                   token=TOKEN))
     try:
         tablet_url, dashboard_url = servers.urls()
         tablet = open_page(browser, tablet_url, touch=True)

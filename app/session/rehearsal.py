@@ -33,6 +33,10 @@ from robot_io.ur_standin.standin import RTDE_PORT
 log = logging.getLogger(__name__)
 
 HandKind = Literal["lsl", "udp"]
+#: How long the rig waits to resolve the rehearsal's own hand stream [s]. The stream is known to be
+#: up (its publisher runs): the lab's resolve_timeout_s (5 s) is for a tracker that may be off, and
+#: on a loaded machine the rig's resolve of a running stream took longer than that.
+PUBLISHED_RESOLVE_S = 30.0
 
 
 def free_loopback_host() -> str:
@@ -81,7 +85,9 @@ class Rehearsal:
             if line.strip() != f"ready {self.host}":
                 raise OSError(f"the stand-in controller did not start ({line.strip()!r})")
             stream = f"handover-rehearsal-{os.getpid()}-{self.host}"
-            source = lab.hand_source.model_copy(update={"kind": hand, "lsl_stream_name": stream})
+            source = lab.hand_source.model_copy(update={
+                "kind": hand, "lsl_stream_name": stream,
+                "resolve_timeout_s": max(lab.hand_source.resolve_timeout_s, PUBLISHED_RESOLVE_S)})
             if hand == "udp":
                 source = source.model_copy(update={"udp_host": "127.0.0.1",
                                                    "udp_port": free_udp_port("127.0.0.1")})

@@ -13,7 +13,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from support.browser import free_port
 from support.store import event_count
 from support.waiting import CEILING_S, tail, wait_for
 
@@ -23,8 +22,8 @@ HANDOVER = [sys.executable, "-m", "app.cli"]
 
 
 def _serve(study, *extra: str) -> list[str]:
-    return [*HANDOVER, "serve", "--study", str(study), "--tablet-port", str(free_port()),
-            "--dashboard-port", str(free_port()), "--token", "t", *extra]
+    return [*HANDOVER, "serve", "--study", str(study), "--tablet-port", "0",
+            "--dashboard-port", "0", "--token", "t", *extra]
 
 
 def running(process: subprocess.Popen, log: Path) -> bool:

@@ -18,7 +18,6 @@ import os
 import re
 import shutil
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -228,15 +227,6 @@ def dashboard_state(dashboard: Page) -> str:
 
     return wait_for(state, "the dashboard's token prompt or its participant Code field",
                     seen=lambda: what_it_showed(dashboard))
-
-
-def free_port() -> int:
-    """A port that was free a moment ago. Racy (another program may bind it before the caller
-    does): tests let the server bind port 0 and read the port it reports instead; kept for the
-    benchmarks and tests outside tests/ui that still use it."""
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 @dataclass
