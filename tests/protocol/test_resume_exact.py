@@ -67,6 +67,7 @@ def wait_inside_session(process: subprocess.Popen, database: Path, before: int) 
 
 
 @pytest.mark.slow
+@pytest.mark.soak
 def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_path):
     command = [sys.executable, "-m", "app.cli", "run-session", "--participant", "K1", "--scenario",
                "perturbed", "--auto", "--seed", "11", "--no-progress"]
@@ -119,6 +120,7 @@ def _place_and_die_mid_write(study) -> None:  # runs in a forked child
     engine.place(position=0.9)
 
 
+@pytest.mark.soak
 def test_a_kill_in_the_middle_of_a_write_leaves_the_database_as_before(tmp_path):
     engine = new_engine(tmp_path)
     drive_until(engine, Step.PLACE)

@@ -36,6 +36,7 @@ def running(process: subprocess.Popen, log: Path) -> bool:
 
 
 @pytest.mark.slow
+@pytest.mark.soak
 def test_a_second_writer_is_refused_and_the_first_finishes_34_interactions(tmp_path, capsys):
     study, database = tmp_path / "study", tmp_path / "study" / "P09.sqlite"
     log = tmp_path / "first.log"
@@ -74,6 +75,7 @@ def test_a_second_writer_is_refused_and_the_first_finishes_34_interactions(tmp_p
 
 
 @pytest.mark.slow
+@pytest.mark.soak
 def test_serve_holding_a_participant_refuses_run_session(tmp_path):
     study = tmp_path / "study"
     log = tmp_path / "serve.log"

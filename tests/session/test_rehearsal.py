@@ -26,7 +26,7 @@ from robot_io.stages import SAMPLE_CODE, Stage
 from robot_io.ur_kinematics import forward
 from session_store.store import ParticipantStore
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.soak]
 
 
 def handover(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:

@@ -66,6 +66,7 @@ def test_a_second_writer_in_this_process_is_refused_and_writes_nothing(study):
     SessionEngine.resume(study, "S01").close()  # released on close
 
 
+@pytest.mark.soak
 def test_another_process_is_named_readers_work_and_its_kill_frees_the_participant(study):
     with held_in_child(study) as child:
         holder = holder_of(study / "S01.sqlite")
