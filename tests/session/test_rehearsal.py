@@ -34,13 +34,22 @@ def handover(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
                           timeout=timeout)
 
 
-def test_run_session_rehearse_completes_the_papers_34_interactions_through_the_standin(tmp_path):
+def test_run_session_rehearse_completes_a_session_through_the_standin(tmp_path):
+    """`run-session --rehearse` through ur_rtde, LSL and the tool output of the stand-in, on the
+    short protocol's 9 interactions (3 initial, a learning batch, best, a validation pair: every
+    phase). The paper's 34 were run here until the suite had to fit in 12 minutes (5 min of real
+    time per run): the protocol's length is the engine's (tests/protocol/test_session_full.py) and
+    the 34 run end to end in tests/protocol/test_two_writers.py and tests/ui/test_serve_kill.py."""
+    config = tmp_path / "lab.toml"
+    config.write_text("[protocol]\n" + "".join(f"{key} = {value}\n"
+                                               for key, value in SHORT_PROTOCOL.items()))
     done = handover("run-session", "--study", str(tmp_path), "--participant", "R01", "--scenario",
                     "perturbed", "--seed", "5", "--auto", "--rehearse", "--realtime-priority",
-                    "--json", "--no-progress")
+                    "--config", str(config), "--json", "--no-progress")
     assert done.returncode == 0, done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
-    assert summary["completed"] == 34 and "PolyScope 3.15" in summary["rig"]
+    n = 9  # SHORT_PROTOCOL: 3 initial, a learning batch of 3, 1 best, a validation pair
+    assert summary["completed"] == n and "PolyScope 3.15" in summary["rig"]
     assert "LSL stream" in summary["hand"]
     with sqlite3.connect(tmp_path / "R01.sqlite") as db:
         db.row_factory = sqlite3.Row
@@ -49,7 +58,7 @@ def test_run_session_rehearse_completes_the_papers_34_interactions_through_the_s
         released_pull = {row["trial_index"]: row["pull"] for row in db.execute(
             "SELECT trial_index, max(pull) AS pull FROM samples WHERE stage = 3 GROUP BY trial_index")}
         sampled = {row[0] for row in db.execute("SELECT DISTINCT trial_index FROM samples")}
-    assert len(completed) == 34
+    assert len(completed) == n
     for trial in completed:
         assert trial["go_at"] is not None, trial["trial_index"]
         assert 0 < trial["robot_arrival_s"] <= trial["hold_s"] < trial["release_s"] \
@@ -59,11 +68,11 @@ def test_run_session_rehearse_completes_the_papers_34_interactions_through_the_s
         assert released_pull[trial["trial_index"]] >= 10.0
         assert trial["trial_index"] in sampled
     seen = [json.loads(row[0])["stage"] for row in stages]
-    assert seen.count("release") >= 34 and seen.count("done") >= 34
+    assert seen.count("release") >= n and seen.count("done") >= n
     # what the stand-in controller itself saw: the tool output switched, the robot went back to R
     stand_in = summary["rehearsal"]
-    assert stand_in["gripper_opened"] >= 34 and stand_in["gripper_closed"] >= 34
-    assert stand_in["moves_to_R"] >= 2 * 34  # prepare and retract, every trial
+    assert stand_in["gripper_opened"] >= n and stand_in["gripper_closed"] >= n
+    assert stand_in["moves_to_R"] >= 2 * n  # prepare and retract, every trial
     assert stand_in["tcp_to_R_m"] < 1e-3
 
 
