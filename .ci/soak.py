@@ -57,12 +57,13 @@ def main() -> int:
             for i in range(args.runs):
                 junit = Path(folder) / f"run-{i}.xml"
                 seconds.append(run_once(junit, args.workers, args.pytest_args))
-                for name, outcome in outcomes(junit).items():
+                run = outcomes(junit)
+                for name, outcome in run.items():
                     if outcome != "skipped":
                         ran[name] += 1
                         passed[name] += outcome == "passed"
                 print(f"soak run {i + 1}/{args.runs}: {seconds[-1]:.0f} s, "
-                      f"{sum(o == 'passed' for o in outcomes(junit).values())} passed", flush=True)
+                      f"{sum(o == 'passed' for o in run.values())} passed", flush=True)
     finally:
         for hog in hogs:
             hog.kill()
