@@ -258,6 +258,7 @@ class HandoverLoop:
             log.exception("handover loop failed")
             outcome, reason = Outcome.ERROR, f"{type(exc).__name__}: {exc}"
         finally:
+            recorder.finish()  # no row follows while the arm is stopped (a rig's watcher knows)
             stop_at = self._halt()
             clock.stop()
         samples = recorder.columns()

@@ -55,6 +55,9 @@ class TrialRecorder:
         self.count += 1
         return row
 
+    def finish(self) -> None:
+        """The loop has written its last row and now stops the arm (nothing to do in memory)."""
+
     def columns(self) -> dict[str, np.ndarray]:
         """Named columns of the rows written so far; a group of width w > 1 has shape (n, w)."""
         return self._named(self._rows[: self.count])

@@ -51,6 +51,12 @@ OPEN_TIMEOUT_S = 30.0
 STOP_ACK_S = 0.3
 #: While streaming, no new sample row for this long means the rig hangs [s].
 HANG_S = 0.5
+#: Before a trial's first row and after its last one, the rig waits on the arm with timeouts of its
+#: own: starting the stream may re-upload the control script ([ur] connect_timeout_s), and the stop
+#: sends servoStop and stopScript (1 s each), then waits up to 1 s for the arm to rest: 3 s at
+#: most, and 2 s of margin. Silence longer than this (after connect_timeout_s, when starting) means
+#: the rig hangs [s]. A UR's own watchdog stops the arm 0.1 s after the last servo target anyway.
+SETTLE_S = 5.0
 #: How long the application waits to see a dead or killed rig's exit code [s] (1 s was too short under load).
 REAP_S = 5.0
 #: How long a hung rig gets to print its threads' stacks before it is killed [s].
@@ -244,17 +250,28 @@ class RigClient:
         except Exception:
             log.exception("handling a rig report failed")
 
+    def _silence_limit(self) -> tuple[float, str] | None:
+        """How long the rig may write no sample row before it counts as hung, and what it is doing
+        meanwhile; None while it is not watched (outside the streaming stages, simulated time)."""
+        if self.stage not in STREAMING or not self.spec.realtime:
+            return None
+        if self.stream.count == 0:
+            return self.spec.config.ur.connect_timeout_s + SETTLE_S, "starting the stream"
+        if self.stream.finished:
+            return SETTLE_S, "stopping the arm"
+        return HANG_S, "streaming"
+
     def _watch(self) -> None:
-        """Fire the backstop when the rig stops writing samples while it streams."""
+        """Fire the backstop when the rig writes no sample row for longer than
+        :meth:`_silence_limit` allows."""
         last_count, last_change = -1, time.monotonic()
         while self.alive and not self._closing:
             time.sleep(HANG_S / 5)
-            count = self.stream.count if self.stream.header is not None else 0
-            now = time.monotonic()
-            if count != last_count or self.stage not in STREAMING or not self.spec.realtime:
+            count, limit, now = self.stream.count, self._silence_limit(), time.monotonic()
+            if count != last_count or limit is None:
                 last_count, last_change = count, now
-            elif now - last_change > HANG_S:
-                self.backstop(f"the rig wrote no sample for {HANG_S} s while streaming "
+            elif now - last_change > limit[0]:
+                self.backstop(f"the rig wrote no sample for {limit[0]:g} s while {limit[1]} "
                               f"({self.stage.value})")
                 return
 

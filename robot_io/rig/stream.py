@@ -1,6 +1,7 @@
 """Per-cycle samples from the rig process to the application, through shared memory.
 
-The application creates one block per rig process: a header row ``[rows written, trial index]`` and
+The application creates one block per rig process: a header row ``[rows written, trial index,
+finished]`` (finished: 1 once the loop has written its last row and stops the arm) and
 ``capacity`` sample rows of :data:`robot_io.recorder.COLUMNS`. The rig's :class:`StreamRecorder`
 writes each row in place, then bumps the count, so a reader never sees a row before it is written and
 reads cost the loop nothing. If the rig process dies, what it wrote is still there.
@@ -56,9 +57,14 @@ class SampleStream:
     def count(self) -> int:
         return int(self.header[0])
 
+    @property
+    def finished(self) -> bool:
+        """The trial's loop has written its last row (it is stopping the arm, or has stopped it)."""
+        return bool(self.header[2] == 1.0)
+
     def close(self, unlink: bool = False) -> None:
         """Release the block; a closed stream reads as empty (a screen may still ask)."""
-        self.header, self.rows = np.array([0.0, -1.0]), np.empty((0, WIDTH))
+        self.header, self.rows = np.array([0.0, -1.0, 0.0]), np.empty((0, WIDTH))
         self.shm.close()
         if unlink:
             self.shm.unlink()
@@ -71,6 +77,7 @@ class StreamRecorder(TrialRecorder):
         self._rows, self._header = stream.rows, stream.header
         self._header[0] = 0
         self._header[1] = trial_index
+        self._header[2] = 0.0
         self._rows[:] = np.nan
         self.count = 0
 
@@ -82,3 +89,6 @@ class StreamRecorder(TrialRecorder):
         self.count += 1
         self._header[0] = self.count
         return row
+
+    def finish(self) -> None:
+        self._header[2] = 1.0

@@ -26,7 +26,7 @@ from robot_io.stages import SAMPLE_CODE, Stage
 from robot_io.ur_kinematics import forward
 from session_store.store import ParticipantStore
 
-pytestmark = [pytest.mark.slow, pytest.mark.soak]
+pytestmark = [pytest.mark.slow, pytest.mark.soak, pytest.mark.standin]
 
 
 def handover(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
@@ -61,6 +61,7 @@ def test_run_session_rehearse_completes_a_session_through_the_standin(tmp_path):
     assert len(completed) == n
     for trial in completed:
         assert trial["go_at"] is not None, trial["trial_index"]
+        assert trial["retract_end_s"] is not None, (dict(trial), done.stderr[-3000:])
         assert 0 < trial["robot_arrival_s"] <= trial["hold_s"] < trial["release_s"] \
             < trial["retract_end_s"]
         assert trial["hand_arrival_s"] is not None
@@ -185,6 +186,23 @@ def test_a_protective_stop_during_hold_aborts_and_the_trial_completes_after_reco
     view = probe.wait(lambda v: any(t.outcome and t.outcome.value == "completed"
                                     for t in v.trials), what="a completed trial")
     assert next(t for t in view.trials if t.outcome.value == "completed").interaction == 1
+
+
+def test_a_controller_that_stalls_mid_reach_ends_the_trial_and_the_rig_lives_through_the_stop(
+        rehearsed):
+    """The stand-in sends nothing for 3 s: the rig sees the silence, ends the trial and stops the arm,
+    each stop command waiting its own 1 s for an answer that does not come. Those waits are the stop
+    path, not a hung rig: the backstop must not kill it (it did, 0.5 s into the stop, under load)."""
+    runner, probe = rehearsed
+    runner.open("F05", Scenario.STRAIGHTFORWARD, seed=5)
+    start_until(runner, probe, Stage.REACH)
+    rig = runner.rig.pid
+    runner.rehearsal.control("stall", seconds=3.0)
+    view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
+    first = ended(view, 1)
+    assert first.outcome.value == "aborted" and "no new state" in first.reason, first.reason
+    assert "rig process ended" not in (view.arm_fault or ""), view.arm_fault
+    assert runner.rig.alive and runner.rig.pid == rig
 
 
 def test_no_pull_ends_the_trial_not_taken_and_it_is_repeated_not_rated(rehearsed):
