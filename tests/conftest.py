@@ -30,15 +30,32 @@ settings.register_profile("handover", derandomize=True, database=None, deadline=
 settings.load_profile("handover")
 
 
+#: The xdist group of the tests marked ``standin``. A rehearsal rig (the stand-in controller at
+#: 500 Hz, the rig and its ur_rtde worker, the LSL hand) keeps most of a core busy in real time:
+#: two or three of them on a 2-core machine starved each other past the product's 0.1 s silence
+#: checks (CI, stop 26: "no new state for more than 0.1 s", tracker lost after 0.107 s). One at a
+#: time, on one worker, they run beside the other workers' tests, which their SCHED_FIFO preempts.
+STANDIN_GROUP = "ur-standin"
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Tests that use a module-scoped fixture (a whole session run once, a study folder, a learner
-    worker) share one xdist worker, so the fixture is built once, not once per worker that happens
-    to draw one of them (``make test`` runs ``--dist loadgroup``). Runs before xdist reads the
+    """Tests marked ``standin`` share the :data:`STANDIN_GROUP` worker. Tests that use a
+    module-scoped fixture (a whole session run once, a study folder, a learner worker) share one
+    xdist worker, so the fixture is built once, not once per worker that happens to draw one of them
+    (``make test`` runs ``--dist loadgroup``). Slow tests go first. Runs before xdist reads the
     groups."""
     for item in items:
         info = getattr(item, "_fixtureinfo", None)
+        if item.get_closest_marker("standin"):
+            item.add_marker(pytest.mark.xdist_group(STANDIN_GROUP))
+            continue
         if info is None or item.get_closest_marker("xdist_group"):
             continue
         if any(defs[-1].scope == "module" for defs in info.name2fixturedefs.values() if defs):
             item.add_marker(pytest.mark.xdist_group(item.module.__name__))
+    # The slow tests first, slow browser tests (the longest) before them (a stable sort keeps each
+    # module's order): xdist hands out tests in this order, so the longest ones start at once
+    # instead of running alone at the end of a run.
+    items.sort(key=lambda item: (item.get_closest_marker("slow") is None,
+                                 item.get_closest_marker("browser") is None))

@@ -19,6 +19,8 @@ from robot_io.mock_arm import MockArm
 from robot_io.safety import SafetyLimiter
 from robot_io.ur_arm import URArm
 
+pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
+
 NAN_POSE = [math.nan, 0.1, 0.3, 0.0, 3.14, 0.0]
 
 

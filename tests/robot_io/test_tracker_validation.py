@@ -22,6 +22,8 @@ from robot_io.devices import tracker_transform
 from robot_io.hand import HandSample
 from robot_io.udp_hand import UDPHand
 
+pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
+
 HOST = "127.0.0.1"  # the UDP tests' address (their ports are the kernel's: bound to 0)
 HAND_MM = [950.0, 100.0, 50.0]  # A, the hand start, in millimetres
 

@@ -42,7 +42,8 @@ from robot_io.udp_hand import UDPHand
 from robot_io.ur_arm import EMERGENCY_STOPPED_BITS, URArm
 from robot_io.ur_standin.control import ControlClient
 
-pytestmark = pytest.mark.soak  # real processes and sockets on the clock: `make soak` repeats them
+# real processes and sockets on the clock: `make soak` repeats them
+pytestmark = [pytest.mark.soak, pytest.mark.standin]
 
 THETA = Theta(a=5.0, delta=-0.2, k=1.0)
 STEP = np.array([0.0002, 0.0, 0.0])

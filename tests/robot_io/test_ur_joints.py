@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from support.ur import standin
 from support.waiting import wait_for
 
@@ -14,6 +15,8 @@ from robot_io.arm import ArmState
 from robot_io.config import ControllerConfig
 from robot_io.ur_arm import URArm
 from robot_io.ur_kinematics import forward, pose_to_transform
+
+pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
 
 
 def _fk_matches_the_tcp(arm: URArm) -> np.ndarray:

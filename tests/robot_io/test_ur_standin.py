@@ -17,6 +17,8 @@ from robot_io.ur_standin import rtde_protocol as rtde
 from robot_io.ur_standin.dashboard import reply
 from robot_io.ur_standin.model import Controller, Safety, Series
 
+pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
+
 
 def request(sock: socket.socket, message_type: int, payload: bytes = b"") -> tuple[int, bytes]:
     sock.sendall(rtde.frame(message_type, payload))

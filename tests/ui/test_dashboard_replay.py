@@ -68,7 +68,7 @@ def drawn_joints(segments: np.ndarray) -> np.ndarray:
     return np.concatenate([segments[:, 0], segments[-1:, 1]]).reshape(-1)
 
 
-@pytest.mark.parametrize("rig", ["mock", "rehearsal"])
+@pytest.mark.parametrize("rig", ["mock", pytest.param("rehearsal", marks=pytest.mark.standin)])
 def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
     rehearsal = Rehearsal(LAB) if rig == "rehearsal" else None
     runner = SessionRunner(tmp_path / "study", LAB, rehearsal=rehearsal,

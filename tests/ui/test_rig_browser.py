@@ -28,7 +28,7 @@ from support.waiting import wait_for
 
 from session_store.store import ParticipantStore
 
-pytestmark = [pytest.mark.browser, pytest.mark.slow]
+pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.standin]
 
 #: The cycle's stages as the dashboard shows the current one: "[stage]" in bold. Only stages that
 #: wait for someone are watched for on the page: prepare and ready wait for the experimenter, and
