@@ -1,5 +1,9 @@
-"""Exact resume at every step boundary of the paper's protocol (Sect. V-C: 5 initial, 4 batches of 5,
-1 best, the questionnaire, 4 validation pairs).
+"""Exact resume at every step boundary of the protocol: the short one with two validation pairs (3
+initial, a learning batch of 3, 1 best, the questionnaire, 2 validation pairs: a rating followed by
+a next trial) has every kind of boundary of the paper's (Sect. V-C: 5 initial, 4 batches of 5, 1
+best, the questionnaire, 4 validation pairs), in a third of its interactions. The paper's 34 ran
+here until the suite had to fit in 12 minutes (195 s of a 3-worker run); they run end to end in
+tests/protocol/test_two_writers.py.
 
 One session runs uninterrupted. A second, with the same seed, crashes and resumes after every engine
 action (:func:`_crashes_here` says which two boundaries alternate): between plan and start, between
@@ -22,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support.engine import SHORT_PROTOCOL
 
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
@@ -130,25 +135,24 @@ def _planned_and_snapshots(study: Path) -> tuple[np.ndarray, list[tuple]]:
 
 
 @pytest.mark.slow
-def test_a_crash_at_every_step_boundary_of_the_paper_protocol_gives_the_uninterrupted_thetas(
-        tmp_path):
-    config = StudyConfig(scenario=Scenario.PERTURBED, seed=21)  # the paper's protocol (defaults)
-    assert config.interactions == 34
+def test_a_crash_at_every_step_boundary_of_the_protocol_gives_the_uninterrupted_thetas(tmp_path):
+    config = StudyConfig(scenario=Scenario.PERTURBED, seed=21,
+                         **SHORT_PROTOCOL | {"validation_batches": 2})
     _run(tmp_path / "whole", config, crash=False)
     crashed = _run(tmp_path / "crashed", config, crash=True)
     assert crashed >= {("plan", "ready"), ("start", "running"), ("end", "place"), ("place", "plan"),
                        ("end", "answer"), ("answer", "answer"), ("answer", "ready"), ("end", "ready"),
                        ("end", "rate"), ("rate", "ready")}, crashed
-    assert_same_thetas_and_snapshots(tmp_path / "whole", tmp_path / "crashed")
+    assert_same_thetas_and_snapshots(tmp_path / "whole", tmp_path / "crashed", config.interactions)
 
 
-def assert_same_thetas_and_snapshots(whole: Path, crashed: Path) -> None:
+def assert_same_thetas_and_snapshots(whole: Path, crashed: Path, interactions: int) -> None:
     """Bit for bit: every learner process runs the same code on the same data in the same order.
     (Fed its comparisons in key order after a resume, the learner differed from interaction 9 on:
     by 8e-15 relative there, 9e-9 at interaction 23.)"""
     whole_theta, whole_snapshots = _planned_and_snapshots(whole)
     theta, snapshots = _planned_and_snapshots(crashed)
-    assert len(whole_theta) == len(theta) == 34
+    assert len(whole_theta) == len(theta) == interactions
     differing = [int(row[0]) for row, other in zip(theta, whole_theta, strict=True)
                  if not np.array_equal(row, other)]
     assert differing == [], f"θ planned differently for interactions {differing}"

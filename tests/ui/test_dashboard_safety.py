@@ -25,6 +25,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Page
 from support.browser import (
+    BRIEF_TOML,
     NEVER_TAKES,
     button,
     chromium,
@@ -151,7 +152,7 @@ def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
 
 
 def run_participant(dashboard: Page, code: str) -> None:
-    """Create ``code`` and run the whole short protocol with the simulated participant rating;
+    """Create ``code`` and run its whole protocol with the simulated participant rating;
     the experimenter presses Start for every trial."""
     open_participant(dashboard, code)
     tick(dashboard, "Simulated participant rates", "simulated participant on")
@@ -160,7 +161,7 @@ def run_participant(dashboard: Page, code: str) -> None:
 
 def test_two_participants_in_one_server_and_the_token_kept(tmp_path: Path) -> None:
     screens = tmp_path / "screens"
-    with serve(tmp_path, token=None) as served, chromium() as browser:
+    with serve(tmp_path, token=None, protocol_toml=BRIEF_TOML) as served, chromium() as browser:
         token = re.search(r"dashboard token:\s+(\S+)", served.log.read_text()).group(1)
         dashboard = open_page(browser, served.dashboard_url, size=LAPTOP)
         unlock_dashboard(dashboard, token)
@@ -173,8 +174,8 @@ def test_two_participants_in_one_server_and_the_token_kept(tmp_path: Path) -> No
         click(dashboard, "End session")
         wait_text(dashboard, "No participant open")
         rows = dashboard.locator("table").first.inner_text()
-        assert re.search(r"P01\s+perturbed\s+9 of 9\s+complete", rows), rows
-        assert re.search(r"P02\s+perturbed\s+9 of 9\s+complete", rows), rows
+        assert re.search(r"P01\s+perturbed\s+3 of 3\s+complete", rows), rows
+        assert re.search(r"P02\s+perturbed\s+3 of 3\s+complete", rows), rows
         shot(dashboard, screens, "dashboard-overview")
         ports = ports_of(served)  # the restart binds the same ports: the open page reconnects
         served.process.send_signal(signal.SIGKILL)  # the server dies: the page says so
@@ -182,7 +183,7 @@ def test_two_participants_in_one_server_and_the_token_kept(tmp_path: Path) -> No
         wait_function(dashboard, "() => getComputedStyle(document.body, '::after').content"
                                  ".includes('SERVER UNREACHABLE')", "the unreachable banner")
         shot(dashboard, screens, "dashboard-unreachable")
-        with serve(tmp_path, token=None, ports=ports) as again:
+        with serve(tmp_path, token=None, protocol_toml=BRIEF_TOML, ports=ports) as again:
             assert re.search(r"dashboard token:\s+(\S+)", again.log.read_text()).group(1) == token
             wait_ready(dashboard)  # the same page reconnects by itself
             wait_function(dashboard, "() => !getComputedStyle(document.body, '::after').content"
@@ -196,5 +197,5 @@ def test_two_participants_in_one_server_and_the_token_kept(tmp_path: Path) -> No
             trials = store.rows("trials")
         finally:
             store.close()
-        assert sum(t.outcome.value == "completed" for t in trials) == 9
+        assert sum(t.outcome.value == "completed" for t in trials) == 3
     assert (served.study / ".dashboard-token").read_text().strip() == token
