@@ -25,7 +25,7 @@ from app.learning.config import AcquisitionName
 from app.learning.figures import draw_figure3
 from app.learning.models import RecommendationName
 from app.learning.simulation import StudyCondition
-from app.learning.study import TrialStore, run_condition
+from app.learning.study import TrialStore, run_condition, t_half_width
 
 NOISES = (0.05, 0.03, 0.0)  # the noisy conditions first: they decide the default
 METHODS = ((AcquisitionName.QNEI, 5), (AcquisitionName.EUBO, 2), (AcquisitionName.SOBOL, 5))
@@ -34,8 +34,7 @@ TODAY = RecommendationName.IN_SAMPLE_MEAN
 
 def mean_ci(values: np.ndarray) -> tuple[float, float, float]:
     """Mean and Student-t 95 % CI."""
-    mean = float(values.mean())
-    half = float(stats.t.ppf(0.975, len(values) - 1) * values.std(ddof=1) / len(values) ** 0.5)
+    mean, half = float(values.mean()), t_half_width(values.tolist())
     return mean, mean - half, mean + half
 
 

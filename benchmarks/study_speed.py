@@ -26,7 +26,6 @@ import time
 from pathlib import Path
 
 import torch
-from scipy import stats
 
 from app.learning.cli import PAPER_CONDITIONS
 from app.learning.cluster import dask_client
@@ -38,7 +37,7 @@ from app.learning.config import (
     RecommendationName,
 )
 from app.learning.simulation import StudyCondition, TrialResult, run_trial
-from app.learning.study import run_condition, summarise
+from app.learning.study import run_condition, summarise, t_half_width
 
 BASELINE_MODEL = ModelConfig(warm_start=False, lazy_fit=False, lazy_kernels=True)
 BASELINE_OPTIMIZER = OptimizerConfig(num_restarts=10, raw_samples=512, mc_samples=512)
@@ -103,8 +102,7 @@ def main() -> None:
     # same targets and noise per trial: the paired difference is the sharper comparison
     diffs = [o.distances[-1] - b.distances[-1]
              for o, b in zip(our_results, base_results, strict=True)]
-    half = stats.t.ppf(0.975, len(diffs) - 1) * statistics.stdev(diffs) / len(diffs) ** 0.5
-    mean = statistics.fmean(diffs)
+    half, mean = t_half_width(diffs), statistics.fmean(diffs)
     print(f"{'final distance, ours - baseline':>34}: {mean:+.3f} [{mean - half:+.3f}, "
           f"{mean + half:+.3f}] (paired, 95 % CI)")
     with tempfile.TemporaryDirectory() as out:
