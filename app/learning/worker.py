@@ -1,8 +1,10 @@
 """The learner in its own process, with a request/response interface (DESIGN.md §1).
 
 A GP fit holds the GIL for tens to hundreds of milliseconds, which would starve a 500 Hz control
-loop in the same process, so the learner runs in a worker process started with the ``spawn``
-method (torch lives only in the child, single-threaded). The caller's side,
+loop in the same process, so the learner runs in a worker process (torch lives only there,
+single-threaded). Workers are forked from a ``forkserver`` that has imported the learner (torch,
+GPyTorch, BoTorch) once: a participant's learner, a resumed one or a restarted one starts in a
+fraction of a second instead of importing them afresh (about 3 s of CPU each). The caller's side,
 :class:`LearnerClient`, imports no torch::
 
     client = LearnerClient(LearnerConfig(box=ParameterBox.from_bounds(THETA_BOUNDS), seed=7))
@@ -51,6 +53,11 @@ logger = logging.getLogger(__name__)
 
 #: How often a waiting ``get`` checks that the worker is still alive (s).
 _LIVENESS_PERIOD = 0.2
+#: How workers are started: forked from a server process that imported :data:`PRELOAD` once.
+START_METHOD = "forkserver"
+#: What the forkserver imports before it forks the first worker: the learner and, through it,
+#: torch, GPyTorch and BoTorch. The server computes nothing, so no thread pool exists to be forked.
+PRELOAD = ["app.learning.learner"]
 
 
 class ObserveRequest(BaseModel):
@@ -123,7 +130,7 @@ class LearnerClient:
     """Caller-side handle of a learner running in a worker process."""
 
     def __init__(self, config: LearnerConfig, *, snapshot: LearnerSnapshot | None = None,
-                 max_restarts: int = 3, start_method: str = "spawn") -> None:
+                 max_restarts: int = 3, start_method: str = START_METHOD) -> None:
         self.config = config
         self.max_restarts = max_restarts
         self.restarts = 0
@@ -136,6 +143,8 @@ class LearnerClient:
         self.slices: list[PosteriorSlice] = []
         self._snapshot = snapshot
         self._context = mp.get_context(start_method)
+        if start_method == "forkserver":  # effective until this process's server has started
+            self._context.set_forkserver_preload(PRELOAD)
         self._history: list[ObserveRequest] = []  # answered requests, replayed after a crash
         self._pending: ObserveRequest | None = None
         self._next_id = 0
