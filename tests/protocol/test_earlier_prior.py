@@ -4,7 +4,7 @@ session and survives a resume, and that the configured strategy reaches the lear
 
 from __future__ import annotations
 
-from support.engine import SHORT_PROTOCOL, drive_until
+from support.engine import SHORT_PROTOCOL, drive_until, study_config
 
 from app.learning.config import LearnerSnapshot
 from app.learning.learner import PreferenceLearner
@@ -19,7 +19,7 @@ from session_store.store import ParticipantStore
 
 
 def config(seed: int, scenario: Scenario = Scenario.STRAIGHTFORWARD, **learner) -> StudyConfig:
-    return StudyConfig(scenario=scenario, seed=seed, population_prior=True, **SHORT_PROTOCOL, **learner)
+    return study_config(seed, scenario, population_prior=True, **SHORT_PROTOCOL, **learner)
 
 
 def complete(study, code: str, seed: int, scenario: Scenario = Scenario.STRAIGHTFORWARD) -> None:

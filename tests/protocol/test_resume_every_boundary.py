@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support.engine import SHORT_PROTOCOL
+from support.engine import SHORT_PROTOCOL, study_config
 
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
@@ -136,8 +136,7 @@ def _planned_and_snapshots(study: Path) -> tuple[np.ndarray, list[tuple]]:
 
 @pytest.mark.slow
 def test_a_crash_at_every_step_boundary_of_the_protocol_gives_the_uninterrupted_thetas(tmp_path):
-    config = StudyConfig(scenario=Scenario.PERTURBED, seed=21,
-                         **SHORT_PROTOCOL | {"validation_batches": 2})
+    config = study_config(21, Scenario.PERTURBED, **SHORT_PROTOCOL | {"validation_batches": 2})
     _run(tmp_path / "whole", config, crash=False)
     crashed = _run(tmp_path / "crashed", config, crash=True)
     assert crashed >= {("plan", "ready"), ("start", "running"), ("end", "place"), ("place", "plan"),

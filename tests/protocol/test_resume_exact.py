@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support.engine import drive_until, new_engine
+from support.engine import SESSION_LOOP_TOML, drive_until, new_engine
 from support.store import assert_same_outcome, event_count, session_outcome
 from support.waiting import CEILING_S, tail, wait_for
 
@@ -69,8 +69,10 @@ def wait_inside_session(process: subprocess.Popen, database: Path, before: int) 
 @pytest.mark.slow
 @pytest.mark.soak
 def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_path):
+    lab = tmp_path / "lab.toml"
+    lab.write_text(SESSION_LOOP_TOML)
     command = [sys.executable, "-m", "app.cli", "run-session", "--participant", "K1", "--scenario",
-               "perturbed", "--auto", "--seed", "11", "--no-progress"]
+               "perturbed", "--auto", "--seed", "11", "--no-progress", "--config", str(lab)]
     # The uninterrupted session; the timeout is a ceiling for a hung one, not a measurement.
     subprocess.run([*command, "--study", str(tmp_path / "whole")], check=True,
                    capture_output=True, timeout=CEILING_S * 15)

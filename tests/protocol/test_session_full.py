@@ -4,12 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from support.engine import drive_until
+from support.engine import drive_until, study_config
 
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
-from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import QUESTION_BY_ID, Phase
 from robot_io.simulated_hand import Scenario
 
@@ -17,7 +16,7 @@ from robot_io.simulated_hand import Scenario
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     study = tmp_path_factory.mktemp("study")
-    engine = SessionEngine.create(study, "P01", StudyConfig(scenario=Scenario.PERTURBED, seed=3))
+    engine = SessionEngine.create(study, "P01", study_config(3, Scenario.PERTURBED))
     drive_until(engine, Step.DONE, SimulatedParticipant(3))
     yield engine
     engine.close()

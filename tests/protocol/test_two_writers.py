@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from support.engine import SESSION_LOOP_TOML
 from support.store import event_count
 from support.waiting import CEILING_S, tail, wait_for
 
@@ -39,11 +40,13 @@ def running(process: subprocess.Popen, log: Path) -> bool:
 @pytest.mark.soak
 def test_a_second_writer_is_refused_and_the_first_finishes_34_interactions(tmp_path, capsys):
     study, database = tmp_path / "study", tmp_path / "study" / "P09.sqlite"
-    log = tmp_path / "first.log"
+    log, lab = tmp_path / "first.log", tmp_path / "lab.toml"
+    lab.write_text(SESSION_LOOP_TOML)
     with log.open("w") as out:  # a file, not a pipe nobody reads while the session runs
         first = subprocess.Popen([*HANDOVER, "run-session", "--study", str(study), "--participant",
                                   "P09", "--scenario", "perturbed", "--auto", "--seed", "7",
-                                  "--no-progress"], stdout=out, stderr=subprocess.STDOUT, text=True)
+                                  "--no-progress", "--config", str(lab)],
+                                 stdout=out, stderr=subprocess.STDOUT, text=True)
     try:
         wait_for(lambda: running(first, log) and event_count(database) >= 3,
                  "the first writer to have stored 3 events", seen=lambda: event_count(database))

@@ -9,16 +9,43 @@ from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
+from robot_io.config import ControllerConfig, LoopConfig
 from robot_io.simulated_hand import Scenario
 from robot_io.trial import simulate_trial
 
 #: 3 initial + 1 learning batch of 3 + 1 best + 1 validation pair = 9 interactions
 SHORT_PROTOCOL = {"initial_trials": 3, "batch_size": 3, "learning_batches": 1, "best_trials": 1,
          "validation_batches": 1}
+#: The briefest protocol a session can end: 2 initial interactions (one comparison), the learned
+#: best, the questionnaire; no batch, no pair (3 interactions). For tests about what happens around
+#: whole sessions (several participants, the overview, the rig), not about their phases.
+BRIEF_PROTOCOL = {"initial_trials": 2, "learning_batches": 0, "best_trials": 1,
+                  "validation_batches": 0}
+
+
+def protocol_toml(protocol: dict[str, int]) -> str:
+    """``protocol``'s counts as the body of a lab config's [protocol] table."""
+    return "".join(f"{key} = {value}\n" for key, value in protocol.items())
+
+
+#: The controller of the sessions that tests drive: the CB-series rate, 125 Hz, a rate a lab
+#: configures. A simulated trial then has a quarter of the cycles to compute and of the sample rows
+#: to store; nothing the engine, the store, the export or the report does depends on the rate. The
+#: 500 Hz loop is tested in tests/robot_io (the loop, the UR) and in the rehearsals.
+SESSION_CONTROLLER = ControllerConfig(loop=LoopConfig(rate_hz=125))
+#: The same as a lab config file's table, for sessions that tests run as commands (``--config``).
+SESSION_LOOP_TOML = "[loop]\nrate_hz = 125\n"
+
+
+def study_config(seed: int = 1, scenario: Scenario = Scenario.STRAIGHTFORWARD,
+                 **fields: object) -> StudyConfig:
+    """A participant's session plan on :data:`SESSION_CONTROLLER`: the paper's protocol, or what
+    ``fields`` set."""
+    return StudyConfig(scenario=scenario, seed=seed, controller=SESSION_CONTROLLER, **fields)
 
 
 def short_config(seed: int = 1, scenario: Scenario = Scenario.STRAIGHTFORWARD) -> StudyConfig:
-    return StudyConfig(scenario=scenario, seed=seed, **SHORT_PROTOCOL)
+    return study_config(seed, scenario, **SHORT_PROTOCOL)
 
 
 def step_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
