@@ -11,7 +11,7 @@ import sys
 
 import numpy as np
 import pytest
-from support.engine import SHORT_PROTOCOL
+from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
 from support.runner import Probe
 from support.waiting import CEILING_S, wait_for
 
@@ -36,19 +36,20 @@ def handover(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
 
 def test_run_session_rehearse_completes_a_session_through_the_standin(tmp_path):
     """`run-session --rehearse` through ur_rtde, LSL and the tool output of the stand-in, on the
-    short protocol's 9 interactions (3 initial, a learning batch, best, a validation pair: every
-    phase). The paper's 34 were run here until the suite had to fit in 12 minutes (5 min of real
-    time per run): the protocol's length is the engine's (tests/protocol/test_session_full.py) and
-    the 34 run end to end in tests/protocol/test_two_writers.py and tests/ui/test_serve_kill.py."""
+    briefest protocol that ends a session (2 initial interactions, their comparison, the learned
+    best, the questionnaire): every trial is the same cycle on the rig, whatever its phase. The
+    paper's 34 were run here until the suite had to fit in 12 minutes (5 min of real time per run):
+    the protocol's phases are the engine's (tests/protocol/test_session_full.py), they run end to
+    end through run-session in tests/protocol/test_two_writers.py and test_resume_exact.py, and
+    through serve --rehearse in tests/ui/test_rig_browser.py (three handovers placed by touch)."""
     config = tmp_path / "lab.toml"
-    config.write_text("[protocol]\n" + "".join(f"{key} = {value}\n"
-                                               for key, value in SHORT_PROTOCOL.items()))
+    config.write_text(f"[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")
     done = handover("run-session", "--study", str(tmp_path), "--participant", "R01", "--scenario",
                     "perturbed", "--seed", "5", "--auto", "--rehearse", "--realtime-priority",
                     "--config", str(config), "--json", "--no-progress")
     assert done.returncode == 0, done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
-    n = 9  # SHORT_PROTOCOL: 3 initial, a learning batch of 3, 1 best, a validation pair
+    n = 3  # BRIEF_PROTOCOL: 2 initial, 1 best
     assert summary["completed"] == n and "PolyScope 3.15" in summary["rig"]
     assert "LSL stream" in summary["hand"]
     with sqlite3.connect(tmp_path / "R01.sqlite") as db:

@@ -32,6 +32,7 @@ from playwright.sync_api import Error as PlaywrightError
 
 from app.protocol.vocabulary import QUESTIONS
 from app.ui.deliberate import SETTLE_S
+from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
 from support.waiting import CEILING_S, tail, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
@@ -39,13 +40,9 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
                  "--autoplay-policy=no-user-gesture-required"]
 TOKEN = "test-token"
-#: The short protocol of tests/support/engine.SHORT_PROTOCOL, as the [protocol] table of a lab config.
-SHORT_TOML = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 1\nbest_trials = 1\n"
-              "validation_batches = 1\n")
-#: The briefest protocol a session can end: 2 initial interactions (one comparison), the learned
-#: best, the questionnaire; no batch, no pair (3 interactions). For tests about what happens around
-#: whole sessions (several participants, the overview), not about their phases.
-BRIEF_TOML = "initial_trials = 2\nlearning_batches = 0\nbest_trials = 1\nvalidation_batches = 0\n"
+#: The short and the briefest protocol of tests/support/engine, as [protocol] tables of a lab config.
+SHORT_TOML = protocol_toml(SHORT_PROTOCOL)
+BRIEF_TOML = protocol_toml(BRIEF_PROTOCOL)
 #: Lab-config tables of a simulated participant who never takes the object (robot_io.simulated_pull:
 #: ``pull_n = 0``): once the arm holds the object out at H, the trial stays in its hold until the
 #: experimenter acts. Only [release] timeout_s (here its largest value, 60 s) of holding would end it

@@ -1,14 +1,17 @@
 """``handover serve`` killed mid-session with the simulated participant rating (issue 12): SIGKILL,
 restart, reopen the participant, run to the end — nothing lost, nothing repeated.
 
-One session of the paper's protocol (34 interactions) on the mock arm, on the wall clock, with the
+One session with every phase of the protocol, twice over where the paper has more (3 initial
+interactions, 2 learning batches of 3, the best, 2 validation pairs: 14 interactions; the paper's 34
+run end to end through ``run-session`` in tests/protocol/test_two_writers.py and
+tests/protocol/test_resume_exact.py) on the mock arm, on the wall clock, with the
 experimenter's part done on the dashboard in headless Chromium (Start trial; with the simulated
 participant rating, Object loaded and Go are given by themselves). The serve process — the Python
 interpreter itself, which holds the participant's writer lock — is killed three times, at moments
 chosen by polling the database read-only: while a trial is under way, while a placement is due, and
 while a validation rating is due. Each time serve is started again on the same study and the
 participant reopened as the experimenter would: twice with the dashboard's "Create or resume", once
-with ``--participant``. At the end the completed interactions are 1–34 once each, the trial that
+with ``--participant``. At the end the completed interactions are 1–14 once each, the trial that
 was running is recorded as interrupted and repeated with its θ, and the placements, comparisons,
 answers, ratings and θ are those of the session's uninterrupted twin (tests/support/twin.py); the
 event log replays, through the protocol, to what the dashboard showed live and to the tables.
@@ -49,11 +52,12 @@ from session_store.store import participant_path
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 CODE, SEED = "P01", 11
-#: The paper's protocol: an empty [protocol] table keeps every count at its default.
-PAPER = ""
-INTERACTIONS = 34
-#: The first validation interaction (5 initial + 4 × 5 learning + 1 best).
-FIRST_VALIDATION = 27
+#: Every phase, two learning batches and two validation pairs (the [protocol] table).
+PROTOCOL = ("initial_trials = 3\nbatch_size = 3\nlearning_batches = 2\nbest_trials = 1\n"
+            "validation_batches = 2\n")
+INTERACTIONS = 14
+#: The first validation interaction (after 3 initial, 2 × 3 learning and 1 best).
+FIRST_VALIDATION = 11
 #: How long the rig and learner processes of a killed serve may take to see it gone [s].
 ORPHANS_END_S = 30.0
 
@@ -69,11 +73,11 @@ class Kill(NamedTuple):
 
 KILLS = (
     # a trial under way (the robot reaching out or holding the object out; seconds each)
-    Kill("running", lambda p: p.completed >= 7 and p.kind == "trial_stage"
+    Kill("running", lambda p: p.completed >= 3 and p.kind == "trial_stage"
          and p.payload["stage"] in ("reach", "hold")),
     # a learning trial stored, its placement due (the simulated participant places AUTO_DELAY_S =
     # 0.6 s later)
-    Kill("place", lambda p: p.completed >= 13 and p.kind == "trial_ended"
+    Kill("place", lambda p: p.completed >= 8 and p.kind == "trial_ended"
          and p.payload["outcome"] == "completed"),
     # the second trial of a validation pair stored, its rating due (as long again)
     Kill("rate", lambda p: p.completed > FIRST_VALIDATION
@@ -126,7 +130,7 @@ def test_serve_killed_mid_session_resumes_and_loses_or_repeats_nothing(tmp_path:
             arguments = {"created": ("--participant", CODE, "--scenario", "perturbed", "--seed",
                                      str(SEED)),
                          "command line": ("--participant", CODE), "dashboard": ()}[opened]
-            with serve(tmp_path, "--auto-participant", *arguments, protocol_toml=PAPER,
+            with serve(tmp_path, "--auto-participant", *arguments, protocol_toml=PROTOCOL,
                        log_name=f"serve-{run}.log") as served:
                 dashboard = dashboard_of(browser, served)
                 if opened == "dashboard":
