@@ -69,13 +69,15 @@ def in_viewport(page: Page, name: str) -> bool:
 
 
 def scroll_panel_to_end(page: Page) -> None:
-    """Scroll every scrollable container of the page (the main panel) to its end, and wait until
-    each is there (a smooth scroll takes a few frames)."""
+    """Scroll every scrollable container of the page (the main panel) to its end, until each is
+    there in one frame. The panel grows while it is scrolled (an event line, a plot drawn): one
+    scroll, then a wait, left a container short of an end that had moved on (CI, twice)."""
     scrollables = """[...document.querySelectorAll('*')].filter(e => e.scrollHeight > e.clientHeight + 4
         && ['auto', 'scroll'].includes(getComputedStyle(e).overflowY))"""
-    page.evaluate(f"() => {{ for (const e of {scrollables}) e.scrollTop = e.scrollHeight; }}")
-    wait_function(page, f"() => {scrollables}.every(e => e.scrollTop + e.clientHeight >= "
-                        "e.scrollHeight - 4)", "every scrollable container at its end")
+    wait_function(page, f"""() => {{ const all = {scrollables};
+        for (const e of all) e.scrollTo({{top: e.scrollHeight, behavior: 'instant'}});
+        return all.every(e => e.scrollTop + e.clientHeight >= e.scrollHeight - 4); }}""",
+                  "every scrollable container at its end")
 
 
 def start_refused_because(dashboard: Page, reason: str) -> None:
