@@ -73,35 +73,44 @@ def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_pat
     lab.write_text(SESSION_LOOP_TOML)
     command = [sys.executable, "-m", "app.cli", "run-session", "--participant", "K1", "--scenario",
                "perturbed", "--auto", "--seed", "11", "--no-progress", "--config", str(lab)]
-    # The uninterrupted session; the timeout is a ceiling for a hung one, not a measurement.
-    subprocess.run([*command, "--study", str(tmp_path / "whole")], check=True,
-                   capture_output=True, timeout=CEILING_S * 15)
-    database = tmp_path / "killed" / "K1.sqlite"
-    rng, kills = random.Random(2026), 0
-    log = tmp_path / "run.log"
-    while True:
-        before = event_count(database)
-        with log.open("w") as err:  # a file, not a pipe nobody reads while the session runs
-            process = subprocess.Popen([*command, "--study", str(tmp_path / "killed"), "--resume"],
-                                       stdout=subprocess.DEVNULL, stderr=err)
-        if kills < KILLS:
-            # Kill inside the session, whatever the machine's load: once this run has written an
-            # event (created or resumed the session) ...
-            wait_inside_session(process, database, before)
-            try:
-                # ... then at a random moment of its trials, learner updates and writes: this wait
-                # is the kill's random moment (any moment is valid), not a wait for a state.
-                process.wait(timeout=rng.uniform(0.0, 2.5))
-            except subprocess.TimeoutExpired:
-                process.send_signal(signal.SIGKILL)  # the writer itself: Popen runs no shell
-                process.wait()
-                kills += 1
-                continue
+    # The uninterrupted session runs beside the killed ones (another study folder, another writer).
+    whole_log = tmp_path / "whole.log"
+    with whole_log.open("w") as out:
+        whole = subprocess.Popen([*command, "--study", str(tmp_path / "whole")],
+                                 stdout=subprocess.DEVNULL, stderr=out)
+    try:
+        database = tmp_path / "killed" / "K1.sqlite"
+        rng, kills = random.Random(2026), 0
+        log = tmp_path / "run.log"
+        while True:
+            before = event_count(database)
+            with log.open("w") as err:  # a file, not a pipe nobody reads while the session runs
+                process = subprocess.Popen([*command, "--study", str(tmp_path / "killed"), "--resume"],
+                                           stdout=subprocess.DEVNULL, stderr=err)
+            if kills < KILLS:
+                # Kill inside the session, whatever the machine's load: once this run has written an
+                # event (created or resumed the session) ...
+                wait_inside_session(process, database, before)
+                try:
+                    # ... then at a random moment of its trials, learner updates and writes: this wait
+                    # is the kill's random moment (any moment is valid), not a wait for a state.
+                    process.wait(timeout=rng.uniform(0.0, 2.5))
+                except subprocess.TimeoutExpired:
+                    process.send_signal(signal.SIGKILL)  # the writer itself: Popen runs no shell
+                    process.wait()
+                    kills += 1
+                    continue
+            # A ceiling for a hung session, not a measurement.
+            code = process.wait(timeout=CEILING_S * 15)
+            assert code == 0, tail(log.read_text())
+            break
+        assert kills == KILLS
         # A ceiling for a hung session, not a measurement.
-        code = process.wait(timeout=CEILING_S * 15)
-        assert code == 0, tail(log.read_text())
-        break
-    assert kills == KILLS
+        assert whole.wait(timeout=CEILING_S * 15) == 0, tail(whole_log.read_text())
+    finally:  # a failure above: end the uninterrupted writer too, by its own pid
+        if whole.poll() is None:
+            whole.kill()
+            whole.wait()
     assert_same_outcome(database, tmp_path / "whole" / "K1.sqlite")
     assert len(session_outcome(database)["completed trials"]) == 34
     with sqlite3.connect(database) as conn:
