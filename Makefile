@@ -8,7 +8,7 @@ BIN := $(VENV)/bin
 
 # The suite runs on PYTEST_WORKERS xdist workers (`--dist loadgroup`: tests marked
 # xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run.
-PYTEST_WORKERS ?= 4
+PYTEST_WORKERS ?= 3
 PYTEST_ARGS ?=
 # `make soak`: the browser, rehearsal, rig-process and kill tests SOAK_RUNS times beside
 # SOAK_HOGS busy cores (not in CI).
