@@ -40,7 +40,8 @@ def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int
                     "force": list(controller.force), "safety": controller.safety.name,
                     "program": program and program.name, "tool_outputs": controller.tool_outputs,
                     "events": controller.events[-50:],
-                    "speed": float(np.linalg.norm(controller.arm.velocity))}
+                    "speed": float(np.linalg.norm(controller.arm.velocity)),
+                    "stalled": time.monotonic() < controller.stalled_until}
         if op == "events":
             return {"ok": True, "events": list(controller.events)}
         if op == "received":
