@@ -5,8 +5,9 @@ This starts ``--learners`` learners one after another in one process (as ``serve
 participants) with each start method — ``spawn`` (a fresh interpreter imports torch, GPyTorch and
 BoTorch every time; the method before the forkserver) and ``forkserver`` (``app.learning.worker``'s
 default: the server imports them once, every worker is forked from it) — and prints, per method,
-the first learner's time, the median and max of the others, the CPU time of the process tree, and
-the ratio of the medians (spawn / forkserver) of this run.
+the first learner's time, the median and max of the others, and the ratio of the medians
+(spawn / forkserver) of this run. (No CPU time: the forkserver's workers are not this process's
+children, so the process's own counters cannot see them.)
 
 Usage: ``.venv/bin/python benchmarks/learner_start.py [--learners 6]``
 """
@@ -14,7 +15,6 @@ Usage: ``.venv/bin/python benchmarks/learner_start.py [--learners 6]``
 from __future__ import annotations
 
 import argparse
-import os
 import statistics
 import time
 
@@ -23,12 +23,6 @@ from app.learning.models import ParameterBox
 from app.learning.worker import LearnerClient
 
 TABLE_I = {"a": (1.0, 10.0), "delta": (-1.0, 1.0), "k": (0.01, 15.0)}
-
-
-def cpu_seconds() -> float:
-    """CPU time of this process and of its children that have ended [s]."""
-    times = os.times()
-    return times.user + times.system + times.children_user + times.children_system
 
 
 def first_reply_s(config: LearnerConfig, start_method: str) -> float:
@@ -47,12 +41,10 @@ def main() -> None:
     config = LearnerConfig(box=ParameterBox.from_bounds(TABLE_I), seed=1)
     medians = {}
     for method in ("spawn", "forkserver"):
-        cpu = cpu_seconds()
         times = [first_reply_s(config, method) for _ in range(args.learners)]
         medians[method] = statistics.median(times[1:])
         print(f"{method:>10}: first {times[0]:.2f} s, then median {medians[method]:.2f} s, "
-              f"max {max(times[1:]):.2f} s ({args.learners - 1} learners); CPU "
-              f"{cpu_seconds() - cpu:.1f} s for all {args.learners}")
+              f"max {max(times[1:]):.2f} s ({args.learners - 1} learners)")
     print(f"median after the first, spawn / forkserver: {medians['spawn'] / medians['forkserver']:.1f}x")
 
 
