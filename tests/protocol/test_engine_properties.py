@@ -40,12 +40,6 @@ STEPS = 100
 CODE = "H01"
 
 
-def forked_learner(config, snapshot):
-    """The real learner client and worker, started from a forkserver that has BoTorch imported
-    (a fresh interpreter per reopen would cost seconds)."""
-    return LearnerClient(config, snapshot=snapshot, start_method="forkserver")
-
-
 class SessionMachine(RuleBasedStateMachine):
     def __init__(self) -> None:
         super().__init__()
@@ -56,7 +50,7 @@ class SessionMachine(RuleBasedStateMachine):
     @initialize(seed=st.integers(0, 3))
     def create(self, seed: int) -> None:
         self.engine = SessionEngine.create(self.folder, CODE, short_config(seed=seed),
-                                           forked_learner)
+                                           LearnerClient.for_session)
 
     # -- the protocol's actions -----------------------------------------------------------------
     def _at(self, step: Step) -> bool:
@@ -168,7 +162,7 @@ class SessionMachine(RuleBasedStateMachine):
     def second_writer(self) -> None:
         before = self._written()
         with pytest.raises(ParticipantLocked, match="open for writing by pid"):
-            SessionEngine.resume(self.folder, CODE, forked_learner)
+            SessionEngine.resume(self.folder, CODE, LearnerClient.for_session)
         assert self._written() == before
 
     @precondition(lambda self: self.engine is not None)
@@ -181,7 +175,7 @@ class SessionMachine(RuleBasedStateMachine):
             os.kill(learner.pid, signal.SIGKILL)
         self.engine.close()
         self.plan = None
-        self.engine = SessionEngine.resume(self.folder, CODE, forked_learner)
+        self.engine = SessionEngine.resume(self.folder, CODE, LearnerClient.for_session)
 
     # -- after every step ------------------------------------------------------------------------
     @invariant()

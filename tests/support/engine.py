@@ -34,7 +34,7 @@ def protocol_toml(protocol: dict[str, int]) -> str:
 #: 500 Hz loop is tested in tests/robot_io (the loop, the UR) and in the rehearsals.
 SESSION_CONTROLLER = ControllerConfig(loop=LoopConfig(rate_hz=125))
 #: The same as a lab config file's table, for sessions that tests run as commands (``--config``).
-SESSION_LOOP_TOML = "[loop]\nrate_hz = 125\n"
+SESSION_LOOP_TOML = f"[loop]\nrate_hz = {SESSION_CONTROLLER.loop.rate_hz}\n"
 
 
 def study_config(seed: int = 1, scenario: Scenario = Scenario.STRAIGHTFORWARD,
