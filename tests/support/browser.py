@@ -336,11 +336,13 @@ def chromium() -> Iterator[Browser]:
 #: the CPU. Viser renders on demand, but every live-view update (10 Hz, app/ui/server.py TICK_S)
 #: opens a 250 ms window of continuous frames, so during a trial the scene took all the CPU it could
 #: get: 25–30 CPU-seconds of a 40 s dashboard test, out of 40 for all of Chromium (8 with the view
-#: hidden). Hidden, the view's container leaves the viewport and viser's IntersectionObserver stops
-#: its rendering (App.tsx ``DisableRender``); the scene's nodes are still created from every message.
+#: hidden). Hidden, the view's container is moved out of the viewport and viser's IntersectionObserver
+#: stops its rendering (App.tsx ``DisableRender``); the scene's nodes are still created from every
+#: message. Moved, not ``display: none``: at size 0 a remounted canvas (a reconnect) never starts its
+#: frame loop, which also drains viser's messages, and the page stays without its GUI.
 LAPTOP_CSS = (".mantine-Notification-root{display:none!important}"
               + ("" if os.environ.get("HANDOVER_DOC_FIGURES") == "1"
-                 else " div:has(> div > div > canvas[data-engine]){display:none!important}"))
+                 else " div:has(> div > div > canvas[data-engine]){transform:translateX(-300vw)!important}"))
 
 
 def open_page(browser: Browser, url: str, touch: bool = False,
