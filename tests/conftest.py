@@ -15,6 +15,9 @@ from hypothesis import HealthCheck, settings
 
 from robot_io.config import ControllerConfig
 
+#: The CPU time of each test (with the processes it started), its most hungry printed at the end.
+pytest_plugins = ["support.cpu"]
+
 
 @pytest.fixture
 def config() -> ControllerConfig:
