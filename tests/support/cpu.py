@@ -7,7 +7,10 @@ core. A test's CPU is the user + system time that the process running it and eve
 tree (a server, a run-session, a learner, Chromium and its renderers) used from the test's setup to
 its teardown. A thread samples the tree every :data:`PERIOD_S`, so a process that starts and ends
 between two samples, or the last period of one that ends, is not seen. Off by default: the thread
-holds the GIL while it reads /proc, which a test's real-time loop in the same process would feel.
+holds the GIL while it reads /proc, and a test's real-time threads in the same process wait for it
+while the machine's load keeps the (normal-priority) sampler off the CPU: in the one full run with
+it on, the in-process LSL handover of test_hand_sources went 0.24 s without a hand sample (a
+failure not seen in the runs without it).
 """
 
 from __future__ import annotations
