@@ -183,7 +183,9 @@ class LoopConfig(_Frozen):
 class URConfig(_Frozen):
     """The UR5 over RTDE (``robot_io.ur_arm``); see ``docs/hardware.md``."""
 
-    host: str = Field("192.168.1.10", description="controller address (a stand-in: 127.0.0.x)")
+    host: str | None = Field(
+        None, description="controller address, required by [arm] kind = \"ur\"; never assumed "
+                          "(a stand-in: 127.0.0.x)")
     servo_lookahead_s: float = Field(
         0.1, ge=0.03, le=0.2, description="servoL lookahead time [s] (ur_rtde's range [0.03, 0.2])")
     servo_gain: float = Field(300.0, ge=100, le=2000,
@@ -284,6 +286,20 @@ class ControllerConfig(_Frozen):
     hand_source: HandSourceConfig = HandSourceConfig()
     gripper: GripperConfig = GripperConfig()
     release: ReleaseConfig = ReleaseConfig()
+
+    @model_validator(mode="after")
+    def _devices_complete(self) -> ControllerConfig:
+        """Device tables that cannot work are refused when the file is read, before anything is
+        written or opened. A device's address is never assumed: on a lab network another robot may
+        sit at any address, so a UR without ``[ur] host`` is refused, naming the key."""
+        if self.gripper.kind == "tool_output" and self.arm.kind != "ur":
+            raise ConfigError("gripper.kind = 'tool_output' needs arm.kind = 'ur' (the output is the "
+                              f"UR's), not {self.arm.kind!r}")
+        if self.arm.kind == "ur" and self.ur.host is None:
+            raise ConfigError('[ur] host is not set; [arm] kind = "ur" needs the UR controller\'s '
+                              'address. Set it (e.g. host = "192.168.1.10"): it has no default, so no '
+                              "robot at an assumed address is ever driven")
+        return self
 
     @model_validator(mode="after")
     def _scene_in_workspace(self) -> ControllerConfig:

@@ -36,10 +36,7 @@ SLOW_CLOSE_S = 1.0
 
 def check_spec(spec: RigSpec) -> None:
     """Refuse combinations that cannot work, before anything is opened."""
-    config = spec.config
-    if config.gripper.kind == "tool_output" and config.arm.kind != "ur":
-        raise ConfigError("gripper.kind = 'tool_output' needs arm.kind = 'ur' (the output is the "
-                          f"UR's), not {config.arm.kind!r}")
+    config = spec.config  # its device tables are whole (ControllerConfig._devices_complete)
     if config.hand_source.kind == "simulated" and spec.scenario is None:
         raise ConfigError("hand_source.kind = 'simulated' needs the session's scenario")
     if not spec.realtime and (config.arm.kind != "mock" or config.hand_source.kind != "simulated"):

@@ -68,15 +68,36 @@ def test_a_bad_file_is_refused_naming_the_field(tmp_path, text, message):
         load_lab_config(write(tmp_path, text))
 
 
-def test_every_command_reads_the_same_file_and_refuses_it_before_writing(tmp_path, capsys):
-    path = write(tmp_path, "[protocol]\nbatch_size = 30\n")
+def refused_by_every_command(tmp_path, capsys, text: str, message: str) -> None:
+    """Each command that reads a lab config exits 2 on ``text``, says ``message``, and writes no
+    study folder."""
+    path = write(tmp_path, text)
     study = tmp_path / "study"
     for command in (["run-session", "--study", str(study), "--participant", "P1", "--scenario",
                      "perturbed", "--auto"], ["simulate-trial", "--scenario", "perturbed",
                                               "--theta", "5,-0.2,5"], ["check-devices"]):
         assert main([*command, "--config", str(path)]) == 2
-        assert "protocol.batch_size = 30" in capsys.readouterr().err
+        assert message in capsys.readouterr().err
     assert not study.exists()
+
+
+def test_every_command_reads_the_same_file_and_refuses_it_before_writing(tmp_path, capsys):
+    refused_by_every_command(tmp_path, capsys, "[protocol]\nbatch_size = 30\n",
+                             "protocol.batch_size = 30")
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("[arm]\nkind = \"ur\"\n", '[ur] host is not set; [arm] kind = "ur" needs the UR'),
+    ("[arm]\nkind = \"ur\"\n[gripper]\nkind = \"tool_output\"\n", "[ur] host is not set"),
+    ("[gripper]\nkind = \"tool_output\"\n", "gripper.kind = 'tool_output' needs arm.kind = 'ur'"),
+])
+def test_a_ur_without_a_host_is_refused_never_assumed(tmp_path, capsys, text, message):
+    """A device's address has no default: a UR (or its tool output) with no [ur] host is refused by
+    every command, naming the key, before anything is written or any address is tried (before, it
+    drove 192.168.1.10, where a lab's network may have another robot); so is a tool output without
+    the UR it belongs to (before, only once the rig process had started)."""
+    refused_by_every_command(tmp_path, capsys, text, message)
+    assert LabConfig().ur.host is None
 
 
 def test_serve_takes_no_protocol_file_any_more(capsys):
