@@ -16,7 +16,7 @@ import math
 from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, model_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
 
 from robot_io.errors import ConfigError
 
@@ -63,6 +63,9 @@ ScenePoint = tuple[SceneCoordinate, SceneCoordinate, SceneCoordinate]
 #: One row of the tracker → robot rotation matrix (each entry of a rotation is within ±1).
 RotationEntry = in_range(-1.0, 1.0, low_open=False)
 RotationRow = tuple[RotationEntry, RotationEntry, RotationEntry]
+#: How far a configured rotation may be from orthonormal (largest entry of |RᵀR − I|):
+#: `handover calibrate-tracker` prints its entries to 6 decimals, a few 1e-6 off.
+ROTATION_TOLERANCE = 1e-3
 
 
 class _Frozen(BaseModel):
@@ -224,6 +227,19 @@ class HandSourceConfig(_Frozen):
         (0.0, 0.0, 0.0), description="tracker → robot base translation [m]")
     resolve_timeout_s: in_range(0, 60, "s") = Field(
         5.0, description="LSL: give up resolving the stream after [s]")
+    @field_validator("rotation")
+    @classmethod
+    def _proper_rotation(cls, rotation: tuple) -> tuple:
+        """A rotation, not any matrix: orthonormal within :data:`ROTATION_TOLERANCE` and det +1. A
+        singular matrix would squash the hand onto a plane, a reflection mirror it."""
+        matrix = np.array(rotation, dtype=float)
+        error, det = float(np.max(np.abs(matrix.T @ matrix - np.eye(3)))), float(np.linalg.det(matrix))
+        if error > ROTATION_TOLERANCE or det < 0:
+            # (no "rotation" in the words: robot_io.errors.explain then prefixes the field and value)
+            raise ValueError(f"must be orthonormal (|RᵀR − I| ≤ {ROTATION_TOLERANCE:g}, here {error:.3g}) "
+                             f"with determinant +1 (here {det:.3g}): it turns, never squashes or "
+                             "mirrors; paste the rows `handover calibrate-tracker` prints")
+        return rotation
 
 
 class GripperConfig(_Frozen):

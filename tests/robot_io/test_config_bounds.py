@@ -4,9 +4,14 @@ anything runs — not accepted, not a traceback."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
 
 from app.cli import main
+from robot_io.config import HandSourceConfig
 
 CASES = [
     ("[safety]\nmax_speed = inf", "safety.max_speed = inf: must be a finite number in (0, 1.5] m/s"),
@@ -26,6 +31,13 @@ CASES = [
     ("[ur]\nconnect_timeout_s = inf", "ur.connect_timeout_s = inf: must be a finite number in (0, 120] s"),
     ("[scene]\nbox = [1e308, 0.25, 0.15]", "scene.box.0 = 1e+308: must be a finite number in [-3, 3] m"),
     ("[dmp]\ntau0 = nan", "dmp.tau0 = nan: Input should be a finite number"),
+    # a singular rotation squashes the hand onto a plane, a reflection mirrors it
+    ("[hand_source]\nrotation = [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]",
+     "hand_source.rotation = [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]: must be "
+     "orthonormal (|RᵀR − I| ≤ 0.001, here 1) with determinant +1 (here 0)"),
+    ("[hand_source]\nrotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]",
+     "hand_source.rotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]: must be "
+     "orthonormal (|RᵀR − I| ≤ 0.001, here 0) with determinant +1 (here -1)"),
 ]
 
 
@@ -40,3 +52,16 @@ def test_an_unbounded_or_non_finite_config_value_is_refused_with_field_value_and
     assert code == 2 and captured.out == ""  # nothing ran
     assert message in captured.err and "Traceback" not in captured.err
 
+
+
+@settings(max_examples=50)
+@given(st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1))
+def test_every_rotation_to_six_decimals_is_a_proper_rotation(quaternion):
+    """Whatever the rotation, its entries as `handover calibrate-tracker` prints them (6 decimals)
+    pass the check; so do they with the third row negated and the first two swapped, and never
+    with one row negated (a reflection)."""
+    rows = Rotation.from_quat(quaternion).as_matrix().round(6)
+    HandSourceConfig(rotation=rows.tolist())
+    HandSourceConfig(rotation=rows[[1, 0, 2]] * [[1], [1], [-1]])
+    with pytest.raises(ValueError, match="determinant"):
+        HandSourceConfig(rotation=(rows * [[1], [1], [-1]]).tolist())

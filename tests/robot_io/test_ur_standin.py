@@ -13,6 +13,7 @@ from support.hand_replay import TRACKER, to_tracker
 from support.ur import standin
 
 from app.cli import main
+from robot_io.cli import load_config
 from robot_io.ur_standin import rtde_protocol as rtde
 from robot_io.ur_standin.dashboard import reply
 from robot_io.ur_standin.model import Controller, Safety, Series
@@ -80,3 +81,7 @@ def test_calibrate_tracker_prints_the_transform_that_maps_the_pairs(tmp_path, ca
     out = capsys.readouterr().out
     assert "units_to_m = 0.001" in out and "RMS residual 0.00 mm" in out
     assert f"translation = [{', '.join(f'{v:.5f}' for v in TRACKER.translation)}]" in out
+    # what it prints is a [hand_source] table a lab config takes (its rotation is a proper one)
+    config = tmp_path / "lab.toml"
+    config.write_text(out)
+    assert np.allclose(load_config(config).hand_source.rotation, TRACKER.rotation, atol=1e-6)
