@@ -67,8 +67,18 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def tolerate_any_encoding() -> None:
+    """Output never fails a command that did its work: on a terminal or pipe whose encoding lacks a
+    character (``LANG=C``, ``PYTHONIOENCODING=ascii``: no θ, δ, τ), it is written as an escape
+    (``\\u03b8``) instead of raising UnicodeEncodeError after the session was stored."""
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    tolerate_any_encoding()
     try:
         reserve_participant(argv)
     except StoreError as exc:

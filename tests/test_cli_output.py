@@ -1,0 +1,33 @@
+"""Output never fails a command that did its work: with stdout and stderr in ASCII (``LANG=C``,
+``PYTHONIOENCODING=ascii``), a completed session exits 0 and says θ* as an escape, and ``report``
+writes its report (before, both exited 2 on "θ" and "–" once their work was done)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+from support.engine import BRIEF_PROTOCOL, SESSION_LOOP_TOML, protocol_toml
+from support.waiting import CEILING_S
+
+ASCII = {**os.environ, "LANG": "C", "LC_ALL": "C", "PYTHONIOENCODING": "ascii"}
+
+
+def handover(*arguments: str) -> subprocess.CompletedProcess:
+    # A ceiling for a hung command, not a measurement.
+    return subprocess.run([sys.executable, "-m", "app.cli", *arguments], env=ASCII, text=True,
+                          encoding="ascii", capture_output=True, timeout=CEILING_S * 5)
+
+
+def test_an_ascii_terminal_gets_escapes_not_a_failed_command(tmp_path):
+    lab = tmp_path / "lab.toml"
+    lab.write_text(f"{SESSION_LOOP_TOML}\n[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")
+    study = tmp_path / "study"
+    session = handover("run-session", "--study", str(study), "--participant", "A1", "--scenario",
+                       "perturbed", "--auto", "--seed", "3", "--no-progress", "--config", str(lab))
+    assert session.returncode == 0, session.stderr
+    assert "\\u03b8* = (a " in session.stdout  # θ*, escaped
+    report = handover("report", str(study), "--out", str(tmp_path / "report"))
+    assert report.returncode == 0, report.stderr
+    assert (tmp_path / "report" / "report.html").is_file()
