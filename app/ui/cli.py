@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import logging
 import signal
+import socket
 import threading
 from pathlib import Path
 
@@ -32,8 +34,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     serve.add_argument("--config", type=Path,
                        help="the lab configuration file (TOML, docs/hardware.md); the defaults "
                             "without it (mock arm, simulated hand, the paper's protocol)")
-    serve.add_argument("--host", default="127.0.0.1",
-                       help="address to bind (default 127.0.0.1; 0.0.0.0 for a tablet on the LAN)")
+    serve.add_argument("--host", type=argument_type(host_address), default="127.0.0.1",
+                       help="address to bind (default 127.0.0.1; 0.0.0.0 for a tablet on the LAN); "
+                            "one this computer has")
     serve.add_argument("--tablet-port", type=argument_type(port_number), default=8080,
                        help="the tablet's port (default 8080; 0: any free port, the one bound is "
                             "printed)")
@@ -58,6 +61,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     serve.add_argument("--reuse-seed", action="store_true",
                        help="confirm a --seed that another participant of the study has")
     serve.set_defaults(func=serve_command)
+
+
+def host_address(text: str) -> str:
+    """An address of this computer to serve on: an IP address (or 0.0.0.0, every one) that a socket
+    binds here. Refused at once otherwise; before, an address this computer does not have left
+    ``serve`` hanging without a word. Host names are not resolved (a lookup can hang too)."""
+    try:
+        address = ipaddress.ip_address(text)
+    except ValueError:
+        raise ValueError(f"host = {text!r} is not an IP address (e.g. 127.0.0.1 for this computer "
+                         "only, 0.0.0.0 for every network it is on)") from None
+    family = socket.AF_INET6 if address.version == 6 else socket.AF_INET
+    with socket.socket(family, socket.SOCK_STREAM) as probe:
+        try:
+            probe.bind((text, 0))
+        except OSError as exc:
+            raise ValueError(f"host = {text!r}: this computer cannot serve on that address "
+                             f"({exc.strerror}); `ip address` lists the ones it has") from None
+    return text
 
 
 def port_number(text: str) -> int:

@@ -1,5 +1,5 @@
-"""``handover serve`` refuses an impossible port on its command line, before anything starts; port 0
-binds any free port and prints the one bound."""
+"""``handover serve`` refuses an impossible port or an address this computer does not have on its
+command line, before anything starts; port 0 binds any free port and prints the one bound."""
 
 from __future__ import annotations
 
@@ -16,6 +16,21 @@ def test_a_port_outside_1_to_65535_is_refused_with_its_range(tmp_path, capsys, p
     assert exited.value.code == 2
     assert (f"argument --tablet-port: port = '{port}' must be a whole number in [1, 65535], or 0 "
             "for any free port") in capsys.readouterr().err
+    assert not (tmp_path / "study").exists()
+
+
+@pytest.mark.parametrize(("host", "message"), [
+    ("192.0.2.1", "host = '192.0.2.1': this computer cannot serve on that address (Cannot assign "
+                  "requested address)"),  # TEST-NET-1: no computer has it
+    ("127.0.0.999", "host = '127.0.0.999' is not an IP address"),
+    ("tablet.local", "host = 'tablet.local' is not an IP address"),
+])
+def test_an_address_this_computer_lacks_is_refused_at_once(tmp_path, capsys, host, message):
+    """Before, ``serve --host`` with an address that is not this computer's hung without a word."""
+    with pytest.raises(SystemExit) as exited:
+        main(["serve", "--study", str(tmp_path / "study"), "--host", host])
+    assert exited.value.code == 2
+    assert f"argument --host: {message}" in capsys.readouterr().err
     assert not (tmp_path / "study").exists()
 
 
