@@ -34,3 +34,7 @@ class StoreWriteError(StoreError):
 
 class ParticipantLocked(StoreError):
     """Another writer holds the participant's database (names the holder); nothing was written."""
+
+
+class LockRefused(StoreError):
+    """A participant's lock file is not one (a symbolic link): refused before anything is written."""

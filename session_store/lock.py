@@ -15,6 +15,7 @@ imports, so that a second writer is refused at once) and then claimed by the sto
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import os
 import socket
@@ -25,7 +26,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from session_store.errors import ParticipantLocked
+from session_store.errors import LockRefused, ParticipantLocked
 
 #: A writer retries this long before it reports the lock as held: a reader's probe (doctor) holds a
 #: shared lock for microseconds and must never refuse a writer.
@@ -46,14 +47,49 @@ class Holder(BaseModel):
         return f"pid {self.pid} on {self.host} since {self.since}: {self.command}"
 
 
+#: The lock file is its owner's only: it names the holder's command line.
+LOCK_MODE = 0o600
+
+
+def _open_lock(path: Path, flags: int) -> int:
+    """Open a lock file, never through a symbolic link: a link planted in the study folder would
+    have the lock's holder record written over the file it points to."""
+    try:
+        return os.open(path, flags | os.O_NOFOLLOW | os.O_CLOEXEC, LOCK_MODE)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise LockRefused(f"{path} is a symbolic link, not a lock file; refused before writing "
+                              "anything (remove the link)") from None
+        raise
+
+
 def lock_path(database: Path) -> Path:
     """The lock file of a participant database: ``P09.sqlite`` → ``P09.sqlite.lock``."""
     database = Path(database)
     return database.with_name(database.name + ".lock")
 
 
+#: Options whose value is a secret: the lock file and every message that names the holder show
+#: the command line without it.
+SECRET_OPTIONS = ("--token",)
+
+
+def redacted(argv: list[str]) -> list[str]:
+    """``argv`` with the value of every :data:`SECRET_OPTIONS` option (``--token X``,
+    ``--token=X``) replaced by ``***``."""
+    shown: list[str] = []
+    for argument in argv:
+        option = argument.split("=", 1)[0]
+        if shown and shown[-1] in SECRET_OPTIONS:
+            argument = "***"
+        elif option in SECRET_OPTIONS and "=" in argument:
+            argument = f"{option}=***"
+        shown.append(argument)
+    return shown
+
+
 def _this_holder(command: str | None) -> Holder:
-    shown = command or " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
+    shown = command or " ".join(redacted([Path(sys.argv[0]).name, *sys.argv[1:]]))
     return Holder(pid=os.getpid(), host=socket.gethostname(), command=shown[:300],
                   since=datetime.now(UTC).isoformat(timespec="seconds"))
 
@@ -88,7 +124,8 @@ class WriterLock:
         this process as its holder."""
         path = lock_path(database)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        fd = _open_lock(path, os.O_RDWR | os.O_CREAT)
+        os.fchmod(fd, LOCK_MODE)  # a lock file of an earlier version may be 644
         deadline = time.monotonic() + RETRY_S
         while True:
             try:
@@ -162,7 +199,7 @@ def holder_of(database: Path) -> Holder | None:
     if key in _HELD:
         return _HELD[key].holder
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+        fd = _open_lock(path, os.O_RDONLY)
     except FileNotFoundError:
         return None
     try:

@@ -15,9 +15,9 @@ import pytest
 from support.engine import new_engine
 
 from app.protocol.engine import SessionEngine
-from session_store.errors import ParticipantLocked
+from session_store.errors import LockRefused, ParticipantLocked
 from session_store.export import load_study
-from session_store.lock import holder_of, lock_path
+from session_store.lock import LOCK_MODE, holder_of, lock_path, redacted
 from session_store.store import ParticipantStore
 
 #: A child that holds the participant's writer lock until it is killed: it waits for stdin to close
@@ -35,10 +35,10 @@ def study(tmp_path):
 
 
 @contextlib.contextmanager
-def held_in_child(study) -> Iterator[subprocess.Popen]:
-    """A child process holding S01's writer lock; killed (SIGKILL, by its own pid) and reaped on
-    leaving, whatever happened inside."""
-    child = subprocess.Popen([sys.executable, "-c", HOLD, str(study)], stdin=subprocess.PIPE,
+def held_in_child(study, *arguments: str) -> Iterator[subprocess.Popen]:
+    """A child process holding S01's writer lock (``arguments``: more of its command line); killed
+    (SIGKILL, by its own pid) and reaped on leaving, whatever happened inside."""
+    child = subprocess.Popen([sys.executable, "-c", HOLD, str(study), *arguments], stdin=subprocess.PIPE,
                              stdout=subprocess.PIPE, text=True)
     try:
         said = child.stdout.readline().strip()  # blocks until it holds the lock, or has ended
@@ -86,3 +86,38 @@ def test_another_process_is_named_readers_work_and_its_kill_frees_the_participan
     engine = SessionEngine.resume(study, "S01")
     assert engine.store.counts()["events"] == events + 1  # its own session_resumed
     engine.close()
+
+
+def test_a_lock_file_that_is_a_symlink_is_refused_and_its_target_kept(study):
+    """Before, the link was followed and the holder record written over its target."""
+    victim = study / "victim.txt"
+    victim.write_text("not a lock")
+    lock = lock_path(study / "S01.sqlite")
+    lock.unlink(missing_ok=True)
+    lock.symlink_to(victim)
+    events = ParticipantStore.open(study, "S01").counts()["events"]
+    for attempt in (lambda: SessionEngine.resume(study, "S01"), lambda: holder_of(study / "S01.sqlite")):
+        with pytest.raises(LockRefused, match=r"S01\.sqlite\.lock is a symbolic link"):
+            attempt()
+    assert victim.read_text() == "not a lock"
+    assert ParticipantStore.open(study, "S01").counts()["events"] == events
+
+
+@pytest.mark.parametrize("argv", [["serve", "--token", "s3cret", "--participant", "P1"],
+                                  ["serve", "--token=s3cret", "--participant", "P1"]])
+def test_a_token_on_the_command_line_is_never_shown(argv):
+    shown = redacted(argv)
+    assert "s3cret" not in " ".join(shown) and shown[-2:] == ["--participant", "P1"]
+
+
+def test_the_lock_file_is_its_owners_only_and_names_no_token(study):
+    """Before, the lock file was 644, kept after exit, and held the whole command line with the
+    dashboard token; refusals and ``doctor`` printed it."""
+    lock = lock_path(study / "S01.sqlite")
+    os.chmod(lock, 0o644)  # as an earlier version left it
+    with held_in_child(study, "--token", "s3cret") as child:
+        assert lock.stat().st_mode & 0o777 == LOCK_MODE
+        assert "s3cret" not in lock.read_text() and "--token ***" in lock.read_text()
+        with pytest.raises(ParticipantLocked) as refused:
+            SessionEngine.resume(study, "S01")
+        assert f"pid {child.pid}" in str(refused.value) and "s3cret" not in str(refused.value)
