@@ -26,12 +26,25 @@ log = logging.getLogger(__name__)
 TOKEN_FILE = ".dashboard-token"
 
 
+class UnsafeTokenFile(ValueError):
+    """The study's token file could have been written by someone else: refused, not read."""
+
+
 def dashboard_token(study: Path, override: str | None = None) -> str:
-    """``override`` if given; else the study's stored token, created (random) on first use."""
+    """``override`` if given; else the study's stored token, created (random) on first use. A token
+    file that is a symbolic link, or that others may write, is refused (:class:`UnsafeTokenFile`):
+    whoever can write it chooses the token of the dashboard that moves the arm."""
     if override:
         return override
     path = Path(study) / TOKEN_FILE
+    if path.is_symlink():
+        raise UnsafeTokenFile(f"{path} is a symbolic link: refused (delete it; serve makes a new "
+                              "token)")
     if path.exists():
+        if (mode := path.stat().st_mode & 0o777) & 0o022:
+            raise UnsafeTokenFile(f"{path} is writable by others (mode {mode:o}): refused, as anyone "
+                                  "could choose the dashboard's token (chmod 600 it, or delete it and "
+                                  "serve makes a new one)")
         token = path.read_text().strip()
         if token:
             return token

@@ -14,7 +14,7 @@ from support.runner import Probe
 from support.waiting import CEILING_S
 
 from app.protocol.errors import RefusedAction
-from app.session.access import TOKEN_FILE, dashboard_token
+from app.session.access import TOKEN_FILE, UnsafeTokenFile, dashboard_token
 from app.session.config import LabConfig
 from app.session.pairing import TabletPairing
 from app.session.runner import PLAN_TIMEOUT_S, SessionRunner
@@ -105,3 +105,26 @@ def test_start_needs_one_paired_tablet_and_after_a_stop_a_rearm(tmp_path: Path):
             "P01", "paused", "ended by the experimenter")
     finally:
         runner.close()
+
+
+def test_a_token_file_others_could_write_is_refused(tmp_path: Path):
+    """Whoever can write the token file chooses the token: a world- or group-writable file or a
+    symbolic link is refused, naming it (before, any was read)."""
+    study = tmp_path / "study"
+    token = dashboard_token(study)
+    path = study / TOKEN_FILE
+    assert path.stat().st_mode & 0o777 == 0o600
+    for mode in (0o666, 0o620):
+        path.chmod(mode)
+        with pytest.raises(UnsafeTokenFile, match=rf"{TOKEN_FILE} is writable by others \(mode {mode:o}\)"):
+            dashboard_token(study)
+    assert dashboard_token(study, "given") == "given"  # --token reads no file
+    path.chmod(0o600)
+    assert dashboard_token(study) == token
+    chosen = tmp_path / "chosen"
+    chosen.write_text("attacker\n")
+    chosen.chmod(0o600)
+    path.unlink()
+    path.symlink_to(chosen)
+    with pytest.raises(UnsafeTokenFile, match="is a symbolic link"):
+        dashboard_token(study)
