@@ -68,8 +68,13 @@ RIG_TABLES = ("arm", "ur", "hand_source", "gripper")
 
 
 def rig_of(config: dict) -> dict:
-    """The rig tables of a configuration (as JSON)."""
-    return {table: config.get(table) for table in RIG_TABLES}
+    """The rig tables of a configuration or of a recorded rig (as JSON). The ``[ur]`` table is part
+    of a rig only when its arm is a UR: a mock arm's says nothing about the rig (and a session
+    recorded before ``[ur] host`` lost its default holds 192.168.1.10 there)."""
+    rig = {table: config.get(table) for table in RIG_TABLES}
+    if (rig["arm"] or {}).get("kind") != "ur":
+        rig["ur"] = None
+    return rig
 
 
 def learner_config(config: StudyConfig, prior: PopulationPrior | None = None) -> LearnerConfig:

@@ -836,7 +836,7 @@ def recorded_session(study: Path, code: str) -> RecordedSession:
     rig = rig_of(config.controller.model_dump(mode="json"))
     for event in reversed(events):
         if event.kind == "devices_recorded":
-            rig = event.payload.get("rig") or rig_of(event.payload["config"])
+            rig = rig_of(event.payload.get("rig") or event.payload["config"])
             break
     return RecordedSession(config, rig, state)
 

@@ -17,8 +17,10 @@ from pathlib import Path
 import pytest
 from support.engine import new_engine
 
-from app.protocol.engine import SessionEngine
+from app.protocol.engine import SessionEngine, rig_of
 from app.protocol.state import Step
+from app.session.config import LabConfig
+from app.session.runner import recorded_session
 from session_store.schema import (
     SCHEMA_VERSION,
     TABLES,
@@ -130,3 +132,15 @@ def test_the_log_of_an_old_session_replays_as_typed_events(tmp_path):
         assert engine.state.answers.keys() == {"Q1", "Q2", "Q3"}
     finally:
         engine.close()
+
+
+@pytest.mark.parametrize(("stored", "code"), [(MAIN_FILE, "M01"), (MAIN_V3_FILE, "M03")])
+def test_an_old_mock_arm_session_is_on_the_same_rig_after_the_ur_host_lost_its_default(
+        tmp_path, stored, code):
+    """These sessions recorded [ur] host = 192.168.1.10 on the mock arm, the old default. The host
+    has no default any more, and a mock arm's [ur] table is no part of its rig: a resume on the
+    default lab config is not a rig change (before, it was refused as one: ur.host → None)."""
+    shutil.copy(stored, tmp_path / f"{code}.sqlite")
+    recorded = recorded_session(tmp_path, code).rig
+    assert recorded["arm"] == {"kind": "mock"} and recorded["ur"] is None
+    assert recorded == rig_of(LabConfig().model_dump(mode="json"))  # the runner's _rig_identity
