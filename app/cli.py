@@ -53,7 +53,7 @@ def reserve_participant(argv: Sequence[str]) -> writer_lock.WriterLock | None:
         return None
     if not database.exists():
         return None  # a new participant: its creation takes the lock, after the arguments are valid
-    return writer_lock.reserve(database, command=" ".join(["handover", *argv]))
+    return writer_lock.reserve(database, argv=["handover", *argv])
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -227,6 +227,7 @@ class HandSourceConfig(_Frozen):
         (0.0, 0.0, 0.0), description="tracker → robot base translation [m]")
     resolve_timeout_s: in_range(0, 60, "s") = Field(
         5.0, description="LSL: give up resolving the stream after [s]")
+
     @field_validator("rotation")
     @classmethod
     def _proper_rotation(cls, rotation: tuple) -> tuple:

@@ -21,6 +21,7 @@ import os
 import socket
 import sys
 import time
+from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -74,7 +75,7 @@ def lock_path(database: Path) -> Path:
 SECRET_OPTIONS = ("--token",)
 
 
-def redacted(argv: list[str]) -> list[str]:
+def redacted(argv: Sequence[str]) -> list[str]:
     """``argv`` with the value of every :data:`SECRET_OPTIONS` option (``--token X``,
     ``--token=X``) replaced by ``***``."""
     shown: list[str] = []
@@ -88,8 +89,10 @@ def redacted(argv: list[str]) -> list[str]:
     return shown
 
 
-def _this_holder(command: str | None) -> Holder:
-    shown = command or " ".join(redacted([Path(sys.argv[0]).name, *sys.argv[1:]]))
+def _this_holder(argv: Sequence[str] | None) -> Holder:
+    """This process as the holder; its command line is ``argv`` (default: its own), redacted."""
+    argv = argv or [Path(sys.argv[0]).name, *sys.argv[1:]]
+    shown = " ".join(redacted(argv))
     return Holder(pid=os.getpid(), host=socket.gethostname(), command=shown[:300],
                   since=datetime.now(UTC).isoformat(timespec="seconds"))
 
@@ -119,7 +122,7 @@ class WriterLock:
         self.claimed = False
 
     @classmethod
-    def acquire(cls, database: Path, command: str | None = None) -> WriterLock:
+    def acquire(cls, database: Path, argv: Sequence[str] | None = None) -> WriterLock:
         """Take the lock (refusing with the holder named if another writer has it) and record
         this process as its holder."""
         path = lock_path(database)
@@ -137,7 +140,7 @@ class WriterLock:
                     os.close(fd)
                     raise _refusal(database, holder) from None
                 time.sleep(0.01)
-        holder = _this_holder(command)
+        holder = _this_holder(argv)
         os.ftruncate(fd, 0)
         os.pwrite(fd, holder.model_dump_json().encode(), 0)
         return cls(database, fd, holder)
@@ -161,12 +164,12 @@ class WriterLock:
 _HELD: dict[Path, WriterLock] = {}
 
 
-def reserve(database: Path, command: str | None = None) -> WriterLock:
+def reserve(database: Path, argv: Sequence[str] | None = None) -> WriterLock:
     """Take the lock early for a writer this process will open (kept until released or exit)."""
     key = Path(database).resolve()
     lock = _HELD.get(key)
     if lock is None:
-        lock = _HELD[key] = WriterLock.acquire(database, command)
+        lock = _HELD[key] = WriterLock.acquire(database, argv)
     lock.reserved = True
     return lock
 

@@ -14,6 +14,7 @@ from collections.abc import Iterator
 import pytest
 from support.engine import new_engine
 
+from app.cli import reserve_participant
 from app.protocol.engine import SessionEngine
 from session_store.errors import LockRefused, ParticipantLocked
 from session_store.export import load_study
@@ -121,3 +122,15 @@ def test_the_lock_file_is_its_owners_only_and_names_no_token(study):
         with pytest.raises(ParticipantLocked) as refused:
             SessionEngine.resume(study, "S01")
         assert f"pid {child.pid}" in str(refused.value) and "s3cret" not in str(refused.value)
+
+
+def test_a_writer_reserved_from_its_command_line_names_no_token(study):
+    """``serve --participant S01 --token …`` takes the lock from its command line, before its slow
+    imports: that command line is redacted too."""
+    lock = reserve_participant(["serve", "--study", str(study), "--participant", "S01",
+                                "--token", "s3cret"])
+    try:
+        text = lock_path(study / "S01.sqlite").read_text()
+        assert "--token ***" in text and "s3cret" not in text
+    finally:
+        lock.release()
