@@ -15,7 +15,8 @@ from hypothesis import HealthCheck, settings
 
 from robot_io.config import ControllerConfig
 
-#: The CPU time of each test (with the processes it started), its most hungry printed at the end.
+#: With HANDOVER_TEST_CPU=1, the CPU time of each test (with the processes it started), the most
+#: CPU-hungry listed at the end of the run.
 pytest_plugins = ["support.cpu"]
 
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import os
 import threading
+import time
 
 import psutil
 import pytest
@@ -60,7 +61,7 @@ class TreeCpu:
     def _run(self) -> None:
         while True:
             self.sample()
-            threading.Event().wait(PERIOD_S)
+            time.sleep(PERIOD_S)  # a sampling period, not a wait for a state
 
 
 _tree = TreeCpu()
