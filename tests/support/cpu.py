@@ -93,7 +93,7 @@ def pytest_terminal_summary(terminalreporter) -> None:
     if not _measured:
         return
     total = sum(seconds for seconds, _ in _measured)
-    terminalreporter.write_sep("=", f"most CPU: {LISTED} of {len(_measured)} tests, "
+    terminalreporter.write_sep("=", f"most CPU: {min(LISTED, len(_measured))} of {len(_measured)} tests, "
                                     f"{total:.0f} CPU-s in all (with the processes each started)")
     for seconds, nodeid in sorted(_measured, reverse=True)[:LISTED]:
         terminalreporter.write_line(f"{seconds:8.2f}s  {nodeid}")
