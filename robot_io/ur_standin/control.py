@@ -3,7 +3,8 @@
 Each request is one JSON object with ``"op"``; each reply one JSON object (``{"ok": true, ...}``, or
 ``{"ok": false, "error": ...}``). Operations:
 
-``ping``; ``state`` (pose, joint angles q, force, safety, program, tool outputs, the last 50 events);
+``ping``; ``state`` (pose, joint angles q, force, safety, program, tool outputs, the last 50 events,
+the longest gap between two cycles);
 ``events`` (all of them); ``received`` (every command
 data package: ``[t, command id, doubles]``, ``t`` in the stand-in's ``time.monotonic``);
 ``protective_stop``; ``emergency_stop``; ``release_emergency_stop``; ``drop_sockets`` (close every
@@ -41,7 +42,8 @@ def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int
                     "program": program and program.name, "tool_outputs": controller.tool_outputs,
                     "events": controller.events[-50:],
                     "speed": float(np.linalg.norm(controller.arm.velocity)),
-                    "stalled": time.monotonic() < controller.stalled_until}
+                    "stalled": time.monotonic() < controller.stalled_until,
+                    "longest_gap_s": controller.longest_gap_s}
         if op == "events":
             return {"ok": True, "events": list(controller.events)}
         if op == "received":

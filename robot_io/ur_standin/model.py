@@ -168,6 +168,9 @@ class Controller:
         self.events: list[str] = []
         self.last_script = ""
         self.stalled_until = 0.0
+        #: The longest time between two cycles [s] (injected stalls aside): this machine's load on
+        #: a stand-in, which a real controller's hardware does not have.
+        self.longest_gap_s = 0.0
         self.time = 0.0
         # the rehearsal's simulated participant: where their hand is, and their pull once holding
         self.hand: np.ndarray | None = None

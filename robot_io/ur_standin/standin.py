@@ -46,7 +46,7 @@ class StandinController:
 
     def _cycle(self) -> None:
         controller, period = self.controller, self.controller.period
-        cycle, deadline = 0, time.monotonic()
+        cycle, deadline, last = 0, time.monotonic(), None
         while self._running:
             deadline += period
             delay = deadline - time.monotonic()
@@ -54,10 +54,15 @@ class StandinController:
                 time.sleep(delay)
             elif delay < -10 * period:
                 deadline = time.monotonic()  # far behind (machine busy): resync, no burst
-            if time.monotonic() < controller.stalled_until:
+            now = time.monotonic()
+            if now < controller.stalled_until:
+                last = None  # an injected stall is no late cycle
                 continue
             with controller.lock:
+                if last is not None:
+                    controller.longest_gap_s = max(controller.longest_gap_s, now - last)
                 controller.tick()
+            last = now
             self.rtde.broadcast(cycle)
             cycle += 1
 

@@ -46,8 +46,8 @@ def standin(series: str = "cb3") -> Iterator[Standin]:
         with tempfile.TemporaryFile("w+") as stderr:
             process = subprocess.Popen(
                 [sys.executable, "-m", "robot_io.ur_standin", "--host", host, "--series", series,
-                 "--exit-with-stdin"], stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr,
-                text=True)
+                 "--exit-with-stdin", "--realtime-priority"],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, text=True)
             try:
                 line = process.stdout.readline()  # "ready <host>", or EOF if it could not start
                 if line.strip() == f"ready {host}":
