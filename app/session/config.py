@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Annotated, Any
 
 import annotated_types
-from pydantic import BaseModel, BeforeValidator, ConfigDict, create_model
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, create_model, model_validator
 from pydantic.fields import FieldInfo
 
 from app.protocol.study import StudyConfig
@@ -60,8 +60,31 @@ def _settings(name: str, fields: tuple[str, ...], doc: str) -> type[BaseModel]:
     return create_model(name, __config__=_FROZEN, __doc__=doc, **definitions)
 
 
-ProtocolSettings = _settings("ProtocolSettings", PROTOCOL_FIELDS,
-                             "[protocol]: the counts of the study's phases (the paper's by default).")
+class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS, "")):
+    """[protocol]: the counts of the study's phases (the paper's by default)."""
+
+    without_learning: bool = Field(
+        False, description="say so to run learning_batches = 0: sessions in which θ is never "
+                           "learned (no learning batch), e.g. to pilot the tablet or the rig")
+
+    @model_validator(mode="after")
+    def _learns_unless_told_not_to(self) -> ProtocolSettings:
+        """A protocol without learning batches never learns θ (Sect. III-C: the GP is fitted on
+        the comparisons of the batches); it runs only when the lab says so."""
+        if self.learning_batches == 0 and not self.without_learning:
+            raise ValueError("learning_batches = 0 runs sessions that never learn θ (no learning "
+                             "batch): set learning_batches in [1, 50], or without_learning = true "
+                             "to run them anyway")
+        if self.learning_batches > 0 and self.without_learning:
+            raise ValueError(f"without_learning = true contradicts learning_batches = "
+                             f"{self.learning_batches}: it goes with learning_batches = 0 only")
+        return self
+
+    def counts(self) -> dict[str, int]:
+        """The phase counts of a participant's :class:`StudyConfig`."""
+        return self.model_dump(include=set(PROTOCOL_FIELDS))
+
+
 LearnerSettings = _settings("LearnerSettings", LEARNER_FIELDS,
                             "[learner]: the acquisition function, the θ box (Table I), how θ* is "
                             "recommended and the opt-in prior from earlier participants.")
@@ -81,7 +104,7 @@ class LabConfig(ControllerConfig):
     def study_config(self, scenario: Scenario, seed: int) -> StudyConfig:
         """A new participant's session plan under this configuration."""
         return StudyConfig(scenario=scenario, seed=seed, controller=self.controller,
-                           **self.protocol.model_dump(), **self.learner.model_dump())
+                           **self.protocol.counts(), **self.learner.model_dump())
 
     def with_rig(self, **tables: BaseModel) -> LabConfig:
         """A copy with some controller tables replaced (rehearsal, ``--ur-host``)."""

@@ -100,6 +100,23 @@ def test_a_ur_without_a_host_is_refused_never_assumed(tmp_path, capsys, text, me
     assert LabConfig().ur.host is None
 
 
+@pytest.mark.parametrize(("text", "message"), [
+    ("[protocol]\nlearning_batches = 0\n",
+     "learning_batches = 0 runs sessions that never learn θ (no learning batch): set "
+     "learning_batches in [1, 50], or without_learning = true"),
+    ("[protocol]\nwithout_learning = true\n",
+     "without_learning = true contradicts learning_batches = 4"),
+])
+def test_a_protocol_that_cannot_learn_is_refused_unless_the_lab_says_so(tmp_path, capsys, text,
+                                                                        message):
+    """``learning_batches = 0`` ran a "study" that never learned θ, with no word (issue 25, item
+    10): every command refuses it, naming the key that allows it; said explicitly, it runs."""
+    refused_by_every_command(tmp_path, capsys, text, message)
+    lab = load_lab_config(write(tmp_path, "[protocol]\nlearning_batches = 0\nwithout_learning = true\n"))
+    study = lab.study_config(Scenario.PERTURBED, seed=9)
+    assert study.learning_batches == 0 and study.interactions == 5 + 1 + 8
+
+
 def test_serve_takes_no_protocol_file_any_more(capsys):
     with pytest.raises(SystemExit):
         main(["serve", "--protocol", "short.toml"])

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from app.protocol.auto import rate_once
@@ -19,13 +20,13 @@ SHORT_PROTOCOL = {"initial_trials": 3, "batch_size": 3, "learning_batches": 1, "
 #: The briefest protocol a session can end: 2 initial interactions (one comparison), the learned
 #: best, the questionnaire; no batch, no pair (3 interactions). For tests about what happens around
 #: whole sessions (several participants, the overview, the rig), not about their phases.
-BRIEF_PROTOCOL = {"initial_trials": 2, "learning_batches": 0, "best_trials": 1,
-                  "validation_batches": 0}
+BRIEF_PROTOCOL = {"initial_trials": 2, "learning_batches": 0, "without_learning": True,
+                  "best_trials": 1, "validation_batches": 0}
 
 
-def protocol_toml(protocol: dict[str, int]) -> str:
-    """``protocol``'s counts as the body of a lab config's [protocol] table."""
-    return "".join(f"{key} = {value}\n" for key, value in protocol.items())
+def protocol_toml(protocol: dict[str, int | bool]) -> str:
+    """``protocol``'s settings as the body of a lab config's [protocol] table."""
+    return "".join(f"{key} = {json.dumps(value)}\n" for key, value in protocol.items())
 
 
 #: The controller of the sessions that tests drive: the CB-series rate, 125 Hz, a rate a lab

@@ -33,7 +33,8 @@ from session_store.store import ParticipantStore
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 #: Two placed handovers, the best one, the questionnaire, one validation pair.
-PROTOCOL = ("initial_trials = 2\nbatch_size = 2\nlearning_batches = 0\nbest_trials = 1\n"
+PROTOCOL = ("initial_trials = 2\nbatch_size = 2\nlearning_batches = 0\nwithout_learning = true\n"
+            "best_trials = 1\n"
             "validation_batches = 1\n")
 
 

@@ -33,8 +33,8 @@ from support.waiting import wait_for
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 #: One batch of five placed handovers.
-FIVE = ("initial_trials = 5\nbatch_size = 2\nlearning_batches = 0\nbest_trials = 0\n"
-        "validation_batches = 0\n")
+FIVE = ("initial_trials = 5\nbatch_size = 2\nlearning_batches = 0\nwithout_learning = true\n"
+        "best_trials = 0\nvalidation_batches = 0\n")
 SIZES = {"landscape": (1180, 820), "portrait": (820, 1180), "phone": (390, 844)}
 #: viser's own chrome: panel handles and « arrow, header with the connection badge and the
 #: settings gear, the settings themselves, notifications.

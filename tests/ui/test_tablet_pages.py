@@ -36,7 +36,7 @@ from robot_io.simulated_hand import Scenario
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 LAB = LabConfig.model_validate({"loop": {"rate_hz": 125}, "protocol": {
-    "initial_trials": 2, "batch_size": 2, "learning_batches": 0, "best_trials": 0,
+    "initial_trials": 2, "batch_size": 2, "learning_batches": 0, "without_learning": True, "best_trials": 0,
     "validation_batches": 0}})
 
 
