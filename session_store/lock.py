@@ -21,7 +21,7 @@ import os
 import socket
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -192,6 +192,27 @@ def unclaim(lock: WriterLock) -> None:
     lock.claimed = False
     if not lock.reserved:
         lock.release()
+
+
+#: The study folder's lock for creating participants (see :func:`creating_participant`).
+CREATION_LOCK = ".new-participant.lock"
+
+
+@contextlib.contextmanager
+def creating_participant(study_dir: Path) -> Iterator[None]:
+    """Held while a new participant's seed is checked and its session created, so that the check
+    and the creation are one step for the study folder: two creations (two processes, or two in
+    one ``serve``) run one after the other, and the second sees the first's seed. Waits for the
+    creation in progress, which its rig's connect timeouts bound; the kernel drops the lock of a
+    process that dies."""
+    study_dir = Path(study_dir)
+    study_dir.mkdir(parents=True, exist_ok=True)
+    fd = _open_lock(study_dir / CREATION_LOCK, os.O_RDWR | os.O_CREAT)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        yield
+    finally:
+        os.close(fd)  # closing the only descriptor releases the lock
 
 
 def holder_of(database: Path) -> Holder | None:

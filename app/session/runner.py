@@ -16,6 +16,7 @@ going on.
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import logging
 import threading
@@ -472,28 +473,33 @@ class SessionRunner:
             raise RefusedAction(f"participant {code!r} has no session yet: choose a scenario "
                                 "to create one")
         lab = self.lab.model_dump(mode="json")
-        if exists:
-            config, recorded, _ = recorded_session(self.study, code)
-            changed = recorded if recorded != self._rig_identity() else None
-            if changed is not None and not confirm:
-                raise RefusedAction(
-                    f"participant {code!r} was recorded on a different rig "
-                    f"({describe_change(recorded, self._rig_identity())}); to continue on this one, confirm "
-                    "the rig change (dashboard: 'Confirm a rig change'; run-session: "
-                    "--accept-rig-change)")
-        else:
-            seed = choose_seed(self.study, seed, confirm_seed)
-            config, changed = self.lab.study_config(scenario, seed), None
-        self._lock = writer_lock.reserve(participant_path(self.study, code))
-        try:
-            self._open_rig(config)
+        with contextlib.ExitStack() as creation:
             if exists:
-                engine = SessionEngine.resume(self.study, code)
+                config, recorded, _ = recorded_session(self.study, code)
+                changed = recorded if recorded != self._rig_identity() else None
+                if changed is not None and not confirm:
+                    raise RefusedAction(
+                        f"participant {code!r} was recorded on a different rig "
+                        f"({describe_change(recorded, self._rig_identity())}); to continue on this "
+                        "one, confirm the rig change (dashboard: 'Confirm a rig change'; "
+                        "run-session: --accept-rig-change)")
             else:
-                engine = SessionEngine.create(self.study, code, config)
-        except BaseException:
-            self._release_lock()
-            raise
+                # the plan is validated before anything is written (with the seed asked for, or
+                # 0); the seed is checked and the session created in one step for the study folder
+                config, changed = self.lab.study_config(scenario, seed or 0), None
+                creation.enter_context(writer_lock.creating_participant(self.study))
+                config = config.model_copy(
+                    update={"seed": choose_seed(self.study, seed, confirm_seed)})
+            self._lock = writer_lock.reserve(participant_path(self.study, code))
+            try:
+                self._open_rig(config)
+                if exists:
+                    engine = SessionEngine.resume(self.study, code)
+                else:
+                    engine = SessionEngine.create(self.study, code, config)
+            except BaseException:
+                self._release_lock()
+                raise
         used = {**self._trial_config(config).model_dump(mode="json"),
                 **{table: lab[table] for table in ("protocol", "learner")}}
         engine.record_devices(used, self._devices.model_dump(mode="json"), self._rig_identity(),

@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 from pydantic import ValidationError
-from support.engine import new_engine, short_config
+from support.engine import BRIEF_PROTOCOL, SESSION_LOOP_TOML, new_engine, protocol_toml, short_config
+from support.store import event_count
+from support.waiting import CEILING_S, wait_for
 
 from app.cli import main
 from app.protocol.errors import RefusedAction
@@ -55,3 +60,43 @@ def test_run_session_refuses_a_reused_seed_before_creating_anything(tmp_path, ca
                  "perturbed", "--auto", "--seed", "5", "--no-progress"]) == 2
     assert "seed = 5 is already used" in capsys.readouterr().err
     assert not [p.name for p in tmp_path.iterdir() if p.name.startswith("P02")]
+
+
+@pytest.mark.slow
+def test_two_new_participants_started_together_with_one_seed_are_not_both_created(tmp_path):
+    """Two run-session processes create P01 and P02 with ``--seed 7`` at once: the seed's check
+    and the session's creation are one step for the study folder, so one is created and the other
+    refused, naming the seed and the participant that has it. (Before, each checked the seed before
+    either had stored it, and both were created: issue 25, item 7.)"""
+    lab, study = tmp_path / "lab.toml", tmp_path / "study"
+    lab.write_text(f"{SESSION_LOOP_TOML}[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")
+    runs, logs = {}, {}
+    for code in ("P01", "P02"):
+        logs[code] = tmp_path / f"{code}.log"
+        with logs[code].open("w") as err:
+            runs[code] = subprocess.Popen(
+                [sys.executable, "-m", "app.cli", "run-session", "--study", str(study),
+                 "--participant", code, "--scenario", "perturbed", "--auto", "--seed", "7",
+                 "--no-progress", "--config", str(lab)], stdout=subprocess.DEVNULL, stderr=err)
+    try:
+        def created(code: str) -> bool:
+            return event_count(study / f"{code}.sqlite") > 0
+
+        def settled() -> str:
+            return {code: "created" if created(code) else f"exit {run.poll()}"
+                    for code, run in runs.items()}
+
+        wait_for(lambda: all(created(code) or run.poll() is not None
+                             for code, run in runs.items()),
+                 "each run-session to create its participant or to exit", timeout=CEILING_S * 3,
+                 seen=settled)
+        assert sorted(settled().values()) == ["created", "exit 2"], settled()
+        refused = next(code for code, run in runs.items() if run.poll() == 2)
+        other = "P01" if refused == "P02" else "P02"
+        assert f"seed = 7 is already used in {study} by {other}" in logs[refused].read_text()
+        assert not (study / f"{refused}.sqlite").exists()
+    finally:
+        for run in runs.values():  # the created session's writer, by its own pid
+            if run.poll() is None:
+                run.kill()
+                run.wait()
