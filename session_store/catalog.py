@@ -11,16 +11,17 @@ from pathlib import Path
 from typing import Any
 
 from session_store.errors import StoreError
+from session_store.inspection import connect_read_only
 from session_store.paths import participant_codes, participant_path
 
 
 def stored_config(database: Path) -> dict[str, Any] | None:
     """The session plan stored in one participant database (None if it has none or is unreadable)."""
     try:
-        with closing(sqlite3.connect(f"file:{database}?mode=ro", uri=True)) as conn:
+        with closing(connect_read_only(database)) as conn:
             row = conn.execute("SELECT config FROM participant").fetchone()
         return None if row is None else json.loads(row[0])
-    except (sqlite3.Error, json.JSONDecodeError, TypeError):
+    except (sqlite3.Error, StoreError, json.JSONDecodeError, TypeError):
         return None
 
 

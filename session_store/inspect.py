@@ -11,6 +11,8 @@ from pathlib import Path
 
 from pydantic import BaseModel, ValidationError
 
+from session_store.errors import CorruptStoreError
+from session_store.inspection import connect_read_only
 from session_store.models import Event, Participant
 from session_store.schema import SCHEMA_VERSION
 
@@ -60,7 +62,7 @@ def inspect_database(path: Path) -> FileInspection:
         report.problems.append("empty file (0 bytes): not a handover-lab database")
         return report
     try:
-        with closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True)) as conn:
+        with closing(connect_read_only(path)) as conn:
             result = conn.execute("PRAGMA integrity_check").fetchall()
             if [r[0] for r in result] != ["ok"]:
                 report.problems.append("fails SQLite's integrity check: "
@@ -91,6 +93,8 @@ def inspect_database(path: Path) -> FileInspection:
             report.problems += _table_problems(conn)
     except sqlite3.DatabaseError as exc:
         report.problems.append(f"not a readable SQLite database: {exc}")
+    except CorruptStoreError as exc:  # connect_read_only says why it cannot be read
+        report.problems.append(str(exc))
     except (ValidationError, json.JSONDecodeError) as exc:
         report.problems.append(f"participant row unreadable: {exc}")
     return report

@@ -1,14 +1,18 @@
 """One SQLite file per participant (``<study>/<code>.sqlite``), written through sqlite-utils.
 
 Durability: WAL journal with ``synchronous=FULL``, so a committed transaction survives a crash, a kill
-or a power cut. Every user action is written in one :meth:`ParticipantStore.transaction` (its event and
-its rows together) before it is acknowledged; a kill mid-write leaves the file as it was before.
+or a power cut. A writer that closes cleanly leaves the file in rollback-journal mode, its WAL folded
+in: a plain file that readers open read-only without writing beside it (a reader of a WAL database
+creates ``-wal`` and ``-shm``, and cannot remove them). Every user action is written in one
+:meth:`ParticipantStore.transaction` (its event and its rows together) before it is acknowledged; a
+kill mid-write leaves the file as it was before.
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import sqlite3
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,7 +24,12 @@ from sqlite_utils import Database
 
 from session_store import lock as writer_lock
 from session_store.errors import CorruptStoreError, SchemaVersionError, StoreError
-from session_store.inspection import check_participant_file, explained_writes, write_failure
+from session_store.inspection import (
+    check_participant_file,
+    connect_read_only,
+    explained_writes,
+    write_failure,
+)
 from session_store.models import (
     Answer,
     Comparison,
@@ -35,6 +44,8 @@ from session_store.paths import SUFFIX, participant_codes, participant_path
 from session_store.schema import MIGRATIONS, SCHEMA_VERSION, TABLES, sample_column_names
 
 __all__ = ["SUFFIX", "ParticipantStore", "participant_codes", "participant_path"]
+
+log = logging.getLogger(__name__)
 
 class ParticipantStore:
     """The database of one participant. :meth:`create` and :meth:`open_for_writing` hold the
@@ -124,9 +135,9 @@ class ParticipantStore:
         if not path.exists():
             return False
         try:
-            with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as conn:
+            with contextlib.closing(connect_read_only(path)) as conn:
                 return conn.execute("SELECT count(*) FROM participant").fetchone()[0] == 1
-        except sqlite3.DatabaseError:
+        except (sqlite3.DatabaseError, StoreError):
             return True  # unreadable: let open() say what is wrong with it
 
     def _migrate(self) -> None:
@@ -144,10 +155,21 @@ class ParticipantStore:
                 self.db.execute(f"PRAGMA user_version = {target}")
 
     def close(self) -> None:
+        if self.lock is not None:
+            self._leave_plain_file()
         self.db.close()
         if self.lock is not None:
             writer_lock.unclaim(self.lock)
             self.lock = None
+
+    def _leave_plain_file(self) -> None:
+        """The writer's clean close: fold the WAL in and switch to rollback-journal mode, which
+        removes ``-wal`` and ``-shm`` (the next writer turns WAL on again). While a reader has the
+        file open the switch is refused (busy) and the file stays in WAL mode: nothing is lost."""
+        try:
+            self.db.execute("PRAGMA journal_mode=DELETE")
+        except sqlite3.OperationalError as exc:
+            log.info("%s stays in WAL mode (%s): a reader has it open", self.path, exc)
 
     @contextlib.contextmanager
     def transaction(self) -> Iterator[None]:

@@ -20,6 +20,7 @@ from robot_io.cli import argument_type
 from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.export import FORMATS, LEFT_OUT_FILE, export_study
+from session_store.reading import reading
 from session_store.store import ParticipantStore, participant_path
 
 
@@ -115,12 +116,9 @@ def run_session(args: argparse.Namespace) -> int:
         observed = None if runner.rehearsal is None else runner.rehearsal.observed()
     if view.failed is not None:
         raise StoreError(f"the session stopped: {view.failed}")
-    store = ParticipantStore.open(args.study, args.participant)
-    try:
+    with reading(args.study, args.participant) as store:  # read, never written: a plain file stays
         counts = store.counts()
         snapshot = store.rows("learner_snapshots")[-1]
-    finally:
-        store.close()
     summary = {"participant": args.participant, "seed": view.seed, "completed": view.state.completed,
                "rig": view.arm, "hand": view.hand,
                "theta_star": {"a": snapshot.theta_star_a, "delta": snapshot.theta_star_delta,

@@ -170,3 +170,33 @@ def test_export_and_report_never_write_to_the_study_folder(study, tmp_path):
     trials = read_table(tmp_path / "out", "trials")
     assert trials.loc[trials["participant"] == "P01", "go_at"].isna().all()  # v2 columns, empty
     assert len(trials[trials["participant"] == "P01"]) == stored_rows(path, "trials")
+
+
+def test_doctor_export_and_report_leave_the_study_folder_as_the_writer_left_it(tmp_path):
+    """Run on a study as its writer closed it, the reading commands add no file and change none
+    (before, each left a -wal and a -shm beside every database: a reader of a WAL database creates
+    both and cannot remove them; issue 25, item 6)."""
+    study = tmp_path / "study"
+    engine = new_engine(study, "P01", seed=3)
+    drive_until(engine, Step.PLACE)
+    engine.close()
+
+    def contents() -> dict[str, object]:
+        return {p.name: fingerprint(p) if p.suffix == ".sqlite" else p.read_bytes()
+                for p in sorted(study.iterdir())}
+
+    before = contents()
+    assert set(before) == {"P01.sqlite", "P01.sqlite.lock"}
+    assert main(["doctor", str(study)]) == 0
+    assert main(["export", str(study), "--out", str(tmp_path / "out")]) == 0
+    assert main(["report", str(study), "--out", str(tmp_path / "report")]) == 0
+    assert contents() == before
+
+
+def test_doctor_reads_a_read_only_folder_as_export_does(study, capsys):
+    """The files as an earlier version left them (WAL mode, no -wal or -shm): in a read-only
+    folder doctor called them BAD while export read them (issue 25, item 6)."""
+    with read_only(study) as view:
+        assert main(["doctor", str(view)]) == 0
+    out = capsys.readouterr().out
+    assert "P01.sqlite: OK" in out and "P02.sqlite: OK" in out and "0 bad" in out
