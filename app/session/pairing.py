@@ -3,9 +3,13 @@
 The dashboard shows a short pairing code; a page on the tablet port becomes the study's tablet when
 the code is typed on it. The pairing belongs to the device's address, so the paired tablet stays
 paired across a reload (a new page from the same address); a page from any other address must type
-the code, which moves the session to it (a tablet swapped mid-study). Of several open pages of the
-paired address, the one that connected first is the tablet; every other page is offered nothing to
-rate. Wrong codes are rate-limited per address (:class:`~app.session.access.AttemptLimit`).
+the code, which moves the session to it (a tablet swapped mid-study, or taken over: the dashboard's
+status line says so from then on). Of several open pages of the paired address, the one that
+connected first is the tablet; every other page is offered nothing to rate. Wrong codes are
+rate-limited per address (:class:`~app.session.access.AttemptLimit`), and after
+:data:`CODE_GUESSES` wrong codes from all addresses together the code is replaced by a new one (the
+dashboard shows it and says why): however many addresses guess, one code is guessed at most that
+many times, one chance in a thousand for four digits.
 """
 
 from __future__ import annotations
@@ -24,6 +28,12 @@ log = logging.getLogger(__name__)
 
 #: Digits of the pairing code.
 CODE_DIGITS = 4
+#: Wrong codes, from all addresses together, after which the code is replaced.
+CODE_GUESSES = 10
+
+
+def new_code() -> str:
+    return f"{secrets.randbelow(10 ** CODE_DIGITS):0{CODE_DIGITS}d}"
 
 
 class TabletStatus(BaseModel):
@@ -35,6 +45,24 @@ class TabletStatus(BaseModel):
     pages: int = 0  # pages open on the tablet port
     paired: bool = False  # one of them is the paired tablet
     address: str | None = None  # the paired device's address
+    taken_over_from: str | None = None  # the address a later pairing moved the session from
+    wrong_codes: int = 0  # wrong codes typed on the tablet port so far
+    guessers: int = 0  # the addresses they came from
+    code_changes: int = 0  # codes replaced after CODE_GUESSES wrong ones
+
+    def alert(self) -> str | None:
+        """What the experimenter must notice, for the dashboard's status line: a take-over of the
+        tablet, or wrong codes (None: neither)."""
+        alerts = []
+        if self.taken_over_from is not None:
+            alerts.append(f"the tablet was taken over: paired from {self.taken_over_from}, now "
+                          f"{self.address} (if that is not your tablet, Stop and re-pair)")
+        if self.wrong_codes:
+            alerts.append(f"{self.wrong_codes} wrong pairing code{'s' if self.wrong_codes > 1 else ''}"
+                          f" from {self.guessers} address{'es' if self.guessers > 1 else ''}"
+                          + (f"; the code was replaced {self.code_changes}×" if self.code_changes
+                             else ""))
+        return "; ".join(alerts) or None
 
     @property
     def ready(self) -> bool:
@@ -58,9 +86,12 @@ class TabletPairing:
     """The pages open on the tablet port and the paired address (thread-safe)."""
 
     def __init__(self, code: str | None = None, clock: Callable[[], float] | None = None) -> None:
-        self.code = code or f"{secrets.randbelow(10 ** CODE_DIGITS):0{CODE_DIGITS}d}"
+        self.code = code or new_code()
         self._pages: dict[int, str] = {}  # page → address, in the order they connected
         self._address: str | None = None
+        self._taken_over_from: str | None = None
+        self._guessed = 0  # wrong codes since the code was made
+        self._code_changes = 0
         self._lock = threading.Lock()
         self._limit = AttemptLimit(**({} if clock is None else {"clock": clock}))
 
@@ -78,8 +109,18 @@ class TabletPairing:
             address = self._pages.get(page)
             if address is None:
                 return "This page is no longer connected."
+            wrong_before = self._limit.wrong
             refusal = self._limit.check(address, code.strip(), self.code)
+            self._guessed += self._limit.wrong - wrong_before
+            if self._guessed >= CODE_GUESSES:
+                self.code, self._guessed = new_code(), 0
+                self._code_changes += 1
+                log.warning("tablet: %d wrong pairing codes: the code was replaced (the dashboard "
+                            "shows the new one)", CODE_GUESSES)
             if refusal is None:
+                if self._address is not None and self._address != address:
+                    self._taken_over_from = self._address
+                    log.warning("tablet taken over: from %s to %s", self._address, address)
                 self._address = address
                 # the page it was typed on is the tablet, ahead of older pages of that address
                 self._pages = {page: address} | {p: a for p, a in self._pages.items() if p != page}
@@ -99,4 +140,7 @@ class TabletPairing:
         with self._lock:
             paired = any(a == self._address for a in self._pages.values())
             return TabletStatus(code=self.code, pages=len(self._pages), paired=paired,
-                                address=self._address)
+                                address=self._address, taken_over_from=self._taken_over_from,
+                                wrong_codes=self._limit.wrong,
+                                guessers=len(self._limit.wrong_sources),
+                                code_changes=self._code_changes)

@@ -266,8 +266,18 @@ class SessionRunner:
 
     def pair_tablet(self, page: int, code: str) -> str | None:
         """The code typed on a tablet page: None if it is now the study's tablet, else why not."""
+        before = self._pairing.status()
         refusal = self._pairing.pair(page, code)
-        self._changed_now(None if refusal else "the tablet is paired")
+        after = self._pairing.status()
+        if refusal is None and before.address not in (None, after.address):
+            message = f"the tablet was taken over: from {before.address} to {after.address}"
+        elif refusal is None:
+            message = "the tablet is paired"
+        elif after.code != before.code:
+            message = f"{after.wrong_codes} wrong pairing codes: the code was replaced"
+        else:
+            message = None
+        self._changed_now(message)
         return refusal
 
     @property

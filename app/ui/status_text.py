@@ -59,7 +59,14 @@ def start_blocker(view: RunnerView) -> str | None:
 
 
 def status_line(view: RunnerView) -> str:
-    """One line: what the session waits for and what to do, e.g. "Paused — press Resume"."""
+    """One line: what the session waits for and what to do, e.g. "Paused — press Resume"; led by
+    what the experimenter must notice about the tablet (a take-over, wrong pairing codes)."""
+    alert = view.tablet.alert() if view.tablet is not None else None
+    line = _status(view)
+    return f"⚠ **{alert}** · {line}" if alert else line
+
+
+def _status(view: RunnerView) -> str:
     if (halted := _halted(view)) is not None:
         return halted[1]
     state = view.state

@@ -16,8 +16,9 @@ from support.waiting import CEILING_S
 from app.protocol.errors import RefusedAction
 from app.session.access import TOKEN_FILE, UnsafeTokenFile, dashboard_token
 from app.session.config import LabConfig
-from app.session.pairing import TabletPairing
+from app.session.pairing import CODE_GUESSES, TabletPairing
 from app.session.runner import PLAN_TIMEOUT_S, SessionRunner
+from app.ui.status_text import status_line
 from robot_io.simulated_hand import Scenario
 
 
@@ -51,6 +52,46 @@ def test_wrong_codes_are_rate_limited_per_address():
     assert pairing.pair(2, "4711") is None  # another address is not locked out
     now[0] = 61.0
     assert pairing.pair(1, "4711") is None
+
+
+def test_guesses_from_many_addresses_replace_the_code_and_the_dashboard_says_so():
+    """105 wrong codes from 21 addresses (5 each, within every address's limit) went unnoticed
+    (issue 25, item 14). Now every CODE_GUESSES wrong codes, from all addresses together, replace the
+    code: the old one pairs nobody, and the status line leads with what happened."""
+    pairing = TabletPairing(code="4711")
+    for n in range(21):
+        pairing.connected(n, f"10.0.1.{n}")
+        for guess in range(5):  # wrong whatever the code is (a digit guess could hit a new one)
+            assert pairing.pair(n, f"x{n:02d}{guess}") == "Wrong code."
+    status = pairing.status()
+    assert (status.wrong_codes, status.guessers) == (105, 21)
+    assert status.code_changes == 105 // CODE_GUESSES and status.code != "4711"
+    pairing.connected(99, "10.0.0.5")
+    assert pairing.pair(99, "4711") == "Wrong code."  # the code an attacker might have learned
+    assert pairing.pair(99, status.code) is None  # the one the dashboard shows
+    assert pairing.status().alert() == ("106 wrong pairing codes from 22 addresses; the code was "
+                                        "replaced 10×")
+
+
+def test_a_take_over_of_the_tablet_leads_the_dashboards_status_line(tmp_path: Path):
+    """Before, a second device that typed the code showed only "the tablet is paired" among the
+    recent events (issue 25, item 14)."""
+    runner = SessionRunner(tmp_path / "study", LabConfig(), realtime=False)
+    try:
+        pairing = runner.attach_tablet()
+        pairing.connected(1, "10.0.0.5")
+        runner.pair_tablet(1, pairing.code)
+        assert runner.view.tablet.alert() is None
+        pairing.connected(2, "10.0.0.66")
+        runner.pair_tablet(2, pairing.code)
+        view = runner.view
+        assert view.tablet.taken_over_from == "10.0.0.5"
+        assert status_line(view).startswith(
+            "⚠ **the tablet was taken over: paired from 10.0.0.5, now 10.0.0.66 (if that is not "
+            "your tablet, Stop and re-pair)** · ")
+        assert any("the tablet was taken over: from 10.0.0.5 to 10.0.0.66" in m for m in view.messages)
+    finally:
+        runner.close()
 
 
 def test_the_dashboard_token_is_kept_with_the_study_and_overridden_by_the_option(tmp_path: Path):
