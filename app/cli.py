@@ -37,13 +37,15 @@ def reserve_participant(argv: Sequence[str]) -> writer_lock.WriterLock | None:
     """For a command that writes an existing participant, take its writer lock first — before
     the command's slow imports (torch, BoTorch, viser) — so that a second writer is refused at once,
     naming the holder. The lock is kept for the command (its session claims it). Anything odd in
-    the arguments is left to the full parser, which reports it."""
+    the arguments, the lab configuration included, is left to the full command, which reports it
+    before anything is written (the lock file included)."""
     command = next((word for word in argv if not word.startswith("-")), None)
     if command not in WRITERS:
         return None
     early = argparse.ArgumentParser(add_help=False)
     early.add_argument("--study", type=Path, default=DEFAULT_STUDY)
     early.add_argument("--participant")
+    early.add_argument("--config", type=Path)
     known, _ = early.parse_known_args(argv)
     if known.participant is None:
         return None
@@ -53,6 +55,12 @@ def reserve_participant(argv: Sequence[str]) -> writer_lock.WriterLock | None:
         return None
     if not database.exists():
         return None  # a new participant: its creation takes the lock, after the arguments are valid
+    from app.session.config import load_lab_config
+
+    try:
+        load_lab_config(known.config)
+    except (ValidationError, RobotIOError):
+        return None
     return writer_lock.reserve(database, argv=["handover", *argv])
 
 

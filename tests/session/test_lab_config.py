@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 from pydantic import ValidationError
+from support.engine import new_engine
 
 from app.cli import main
 from app.protocol.engine import learner_config
@@ -115,6 +116,21 @@ def test_a_protocol_that_cannot_learn_is_refused_unless_the_lab_says_so(tmp_path
     lab = load_lab_config(write(tmp_path, "[protocol]\nlearning_batches = 0\nwithout_learning = true\n"))
     study = lab.study_config(Scenario.PERTURBED, seed=9)
     assert study.learning_batches == 0 and study.interactions == 5 + 1 + 8
+
+
+def test_resuming_with_a_bad_device_table_writes_not_even_the_lock_file(tmp_path, capsys):
+    """An existing participant's writer lock was taken (its file rewritten with the holder) before
+    the lab file was read; a [arm] kind = "ur" without [ur] host then refused the command after
+    that write (issue 25, item 2). Now the lab file is judged first."""
+    study = tmp_path / "study"
+    new_engine(study, "P1").close()
+    lock = study / "P1.sqlite.lock"
+    before = (lock.read_bytes(), lock.stat().st_mtime_ns)
+    bad = write(tmp_path, '[arm]\nkind = "ur"\n')
+    assert main(["run-session", "--study", str(study), "--participant", "P1", "--resume", "--auto",
+                 "--config", str(bad)]) == 2
+    assert "[ur] host is not set" in capsys.readouterr().err
+    assert (lock.read_bytes(), lock.stat().st_mtime_ns) == before
 
 
 def test_serve_takes_no_protocol_file_any_more(capsys):
