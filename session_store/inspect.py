@@ -8,6 +8,7 @@ import json
 import sqlite3
 from contextlib import closing
 from pathlib import Path
+from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
@@ -29,7 +30,12 @@ TABLE_CHECKS: tuple[tuple[str, str], ...] = (
     ("validation rating of a trial that is not a completed trial",
      "SELECT v.trial_index FROM validation_ratings v LEFT JOIN trials t USING (trial_index) "
      "WHERE t.outcome IS NOT 'completed'"),
+    ("samples of a trial that is not in the trials table, or that has not ended",
+     "SELECT DISTINCT s.trial_index FROM samples s LEFT JOIN trials t USING (trial_index) "
+     "WHERE t.outcome IS NULL"),
 )
+#: The tables derived from the event log, read whole for the doctor's comparison with it.
+DERIVED_TABLES = ("trials", "placements", "comparisons", "validation_ratings", "answers")
 
 
 class FileInspection(BaseModel):
@@ -39,6 +45,8 @@ class FileInspection(BaseModel):
     schema_version: int | None = None
     participant: Participant | None = None
     events: list[Event] = []
+    #: the rows of :data:`DERIVED_TABLES`, as stored
+    tables: dict[str, list[dict[str, Any]]] = {}
     problems: list[str] = []
 
     @property
@@ -90,6 +98,8 @@ def inspect_database(path: Path) -> FileInspection:
                         {**dict(event), "payload": json.loads(event["payload"])}))
                 except (ValidationError, json.JSONDecodeError) as exc:
                     report.problems.append(f"event {event['seq']} is not a stored event: {exc}")
+            report.tables = {table: [dict(r) for r in conn.execute(f'SELECT * FROM "{table}"')]
+                             for table in DERIVED_TABLES}
             report.problems += _table_problems(conn)
     except sqlite3.DatabaseError as exc:
         report.problems.append(f"not a readable SQLite database: {exc}")

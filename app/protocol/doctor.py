@@ -2,9 +2,11 @@
 
 Per file: SQLite's integrity check, the schema version, the participant's code against the file
 name, the event log replayed through the protocol (every event parsed and checked against the state
-before it: an interaction completed twice, a placement for an unknown trial, …), the derived
-tables' consistency, and who holds the writer's lock. Nothing is written: the files are opened
-read-only and nothing is migrated.
+before it: an interaction completed twice, a placement for an unknown trial, …), the stored plan
+(seed, counts) against the one the log's session_created records, every table derived from the log
+against what the log implies (:mod:`app.protocol.derived`: which rows differ, are missing or have
+no event), the derived tables' consistency, and who holds the writer's lock. Nothing is written:
+the files are opened read-only and nothing is migrated.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ValidationError
 
+from app.protocol.derived import differences
 from app.protocol.errors import EventLogError
 from app.protocol.plan import protocol_slots
 from app.protocol.state import Step, replay
@@ -65,6 +68,14 @@ def examine(path: Path) -> Verdict:
     except EventLogError as exc:
         verdict.problems.append(f"event log breaks the protocol: {exc}")
         return verdict
+    created = next((e for e in found.events if e.kind == "session_created"), None)
+    if created is not None and created.payload.get("config") != found.participant.config:
+        recorded = created.payload.get("config") or {}
+        changed = sorted(k for k in recorded.keys() | found.participant.config.keys()
+                         if recorded.get(k) != found.participant.config.get(k))
+        verdict.problems.append(f"the stored plan differs from the one the session_created event "
+                                f"records, in {', '.join(changed)}")
+    verdict.problems += differences(found.tables, found.events)
     where = "complete" if state.step is Step.DONE else f"waiting for '{state.step.value}'"
     verdict.notes.append(f"seed {config.seed}, {config.scenario.value}; {state.completed} of "
                          f"{config.interactions} interactions completed, {where}; "

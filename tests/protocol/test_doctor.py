@@ -118,3 +118,64 @@ def test_doctor_names_the_writer_of_a_session_in_progress(good, tmp_path, capsys
         engine.close()
     out = capsys.readouterr().out
     assert "G01.sqlite: OK" in out and "open for writing now: pid" in out
+
+
+@pytest.fixture(scope="module")
+def whole(tmp_path_factory) -> Path:
+    """A whole short session: placements, comparisons, the questionnaire, a validation pair."""
+    study = tmp_path_factory.mktemp("whole")
+    engine = new_engine(study, "W01", seed=3)
+    drive_until(engine, Step.DONE)
+    engine.close()
+    return study / "W01.sqlite"
+
+
+#: Edits of a copy that the event log contradicts (issue 25, item 5: doctor said OK to 11 of 13),
+#: and what doctor must say about each.
+EDITS = {
+    "a comparison deleted": (
+        "DELETE FROM comparisons WHERE rowid = (SELECT min(rowid) FROM comparisons)",
+        "is in the event log but not in the table"),
+    "a comparison reversed": (
+        "UPDATE comparisons SET winner = loser, loser = winner "
+        "WHERE rowid = (SELECT min(rowid) FROM comparisons)", "is in the table but no event records it"),
+    "a trial's θ changed": ("UPDATE trials SET theta_k = theta_k + 1 WHERE trial_index = 1",
+                            "trials: trial 1 has theta_k = "),
+    "a trial's outcome changed": (
+        "UPDATE trials SET outcome = 'aborted', reason = 'edited' WHERE trial_index = 2",
+        "trials: trial 2 has outcome = 'aborted' in the table, 'completed' in the event log"),
+    "a placement moved": ("UPDATE placements SET position = 0.99 WHERE interaction = 1",
+                          "placements: interaction 1 has position = 0.99 in the table"),
+    "an answer changed": ("UPDATE answers SET value = value || '?' WHERE question = 'Q1'",
+                          "answers: answer to Q1 has value = "),
+    "a validation rating changed": (
+        "UPDATE validation_ratings SET rating = CASE rating WHEN 'better' THEN 'worse' ELSE "
+        "'better' END", "validation_ratings: interaction "),
+    "a trial deleted": ("DELETE FROM trials WHERE trial_index = (SELECT max(trial_index) FROM "
+                        "trials)", "trials: trial "),
+    "the last event deleted": ("DELETE FROM events WHERE seq = (SELECT max(seq) FROM events)",
+                               "is in the table but no event records it"),
+    "the seed changed": ("UPDATE participant SET config = json_set(config, '$.seed', 4)",
+                         "the stored plan differs from the one the session_created event records, "
+                         "in seed"),
+    "samples of a trial that never was": ("UPDATE samples SET trial_index = 99 WHERE trial_index = 1",
+                                          "samples of a trial that is not in the trials table"),
+}
+
+
+@pytest.mark.parametrize("edit", EDITS)
+def test_doctor_finds_every_edit_the_event_log_contradicts(whole, tmp_path, capsys, edit):
+    statement, message = EDITS[edit]
+    path = tmp_path / "W01.sqlite"
+    shutil.copy(whole, path)
+    _sql(path, statement)
+    assert main(["doctor", str(tmp_path)]) == 1, capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "W01.sqlite: BAD" in out
+    assert message in out, out
+
+
+def test_doctor_says_ok_to_the_whole_session_it_checks_against(whole, tmp_path, capsys):
+    shutil.copy(whole, tmp_path / "W01.sqlite")
+    assert main(["doctor", str(tmp_path)]) == 0
+    assert "W01.sqlite: OK" in capsys.readouterr().out
