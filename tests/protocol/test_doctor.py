@@ -10,7 +10,7 @@ from contextlib import closing
 from pathlib import Path
 
 import pytest
-from support.engine import drive_until, new_engine
+from support.engine import closed_session, drive_until, new_engine
 
 from app.cli import main
 from app.protocol.engine import SessionEngine
@@ -123,11 +123,7 @@ def test_doctor_names_the_writer_of_a_session_in_progress(good, tmp_path, capsys
 @pytest.fixture(scope="module")
 def whole(tmp_path_factory) -> Path:
     """A whole short session: placements, comparisons, the questionnaire, a validation pair."""
-    study = tmp_path_factory.mktemp("whole")
-    engine = new_engine(study, "W01", seed=3)
-    drive_until(engine, Step.DONE)
-    engine.close()
-    return study / "W01.sqlite"
+    return closed_session(tmp_path_factory.mktemp("whole"), "W01", seed=3)
 
 
 #: Edits of a copy that the event log contradicts (issue 25, item 5: doctor said OK to 11 of 13),

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from support.engine import drive_until, new_engine
+from support.engine import closed_session, new_engine
 from support.study import as_version_1, checkpointed, fingerprint, read_only
 
 from app.analysis.report import build_report
@@ -27,12 +27,8 @@ from session_store.store import ParticipantStore
 def original(tmp_path_factory) -> Path:
     """P01's whole short session and P02's first placement, cleanly closed (no -wal, no -shm)."""
     study = tmp_path_factory.mktemp("original")
-    engine = new_engine(study, "P01", seed=3)
-    drive_until(engine, Step.DONE)
-    engine.close()
-    engine = new_engine(study, "P02", seed=4, scenario=Scenario.PERTURBED)
-    drive_until(engine, Step.PLACE)
-    engine.close()
+    closed_session(study, "P01", seed=3)
+    closed_session(study, "P02", Step.PLACE, seed=4, scenario=Scenario.PERTURBED)
     for path in study.glob("*.sqlite"):
         checkpointed(path)
     return study
@@ -177,9 +173,7 @@ def test_doctor_export_and_report_leave_the_study_folder_as_the_writer_left_it(t
     (before, each left a -wal and a -shm beside every database: a reader of a WAL database creates
     both and cannot remove them; issue 25, item 6)."""
     study = tmp_path / "study"
-    engine = new_engine(study, "P01", seed=3)
-    drive_until(engine, Step.PLACE)
-    engine.close()
+    closed_session(study, "P01", Step.PLACE, seed=3)
 
     def contents() -> dict[str, object]:
         return {p.name: fingerprint(p) if p.suffix == ".sqlite" else p.read_bytes()

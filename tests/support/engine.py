@@ -79,3 +79,12 @@ def drive_until(engine: SessionEngine, step: Step, participant: SimulatedPartici
 
 def new_engine(study: Path, code: str = "S01", **kwargs) -> SessionEngine:
     return SessionEngine.create(study, code, short_config(**kwargs))
+
+
+def closed_session(study: Path, code: str, until: Step = Step.DONE, **kwargs) -> Path:
+    """``code``'s short session (``kwargs``: :func:`short_config`'s), driven until it waits for
+    ``until`` and closed as a writer closes it; its database."""
+    engine = new_engine(study, code, **kwargs)
+    drive_until(engine, until)
+    engine.close()
+    return engine.store.path
