@@ -12,7 +12,7 @@ import contextlib
 import json
 import logging
 import sqlite3
-from collections.abc import Collection
+from collections.abc import Collection, Mapping
 from pathlib import Path
 from typing import NamedTuple
 
@@ -148,14 +148,20 @@ def _copy(store: ParticipantStore, target: Path) -> None:
 
 
 def _read_study(study_dir: Path, tables: Collection[str], sample_phases: Collection[str] | None,
-                skip_unreadable: bool, copies: Path | None = None
+                skip_unreadable: bool, copies: Path | None = None,
+                exclude: Mapping[Path, str] | None = None
                 ) -> tuple[list[dict[str, pd.DataFrame]], dict[Path, str]]:
     """Every participant's tables (and, with ``copies``, a copy of their database there), read
     without writing to the study folder. A file that cannot be read raises its StoreError, or with
-    ``skip_unreadable`` is left out and returned as path → why. Nothing readable raises."""
+    ``skip_unreadable`` is left out and returned as path → why; so is a file in ``exclude`` (path →
+    why the caller refuses it). Nothing readable raises."""
     parts, unreadable = [], {}
     for code in _study_codes(study_dir):
         path = Path(study_dir) / f"{code}{SUFFIX}"
+        if exclude and path in exclude:
+            log.warning("left out %s: %s", path, exclude[path])
+            unreadable[path] = exclude[path]
+            continue
         try:
             with reading(study_dir, code) as store:
                 try:
@@ -187,7 +193,8 @@ class StudyTables(NamedTuple):
 
 def load_study(study_dir: Path, tables: Collection[str] = tuple(DTYPES), *,
                sample_phases: Collection[str] | None = None,
-               skip_unreadable: bool = False) -> StudyTables:
+               skip_unreadable: bool = False, exclude: Mapping[Path, str] | None = None
+               ) -> StudyTables:
     """The tidy tables of a study folder in memory, as :func:`export_study` writes them and
     :func:`read_table` reads them back. Nothing is written to the study folder (a read-only one
     is read as it is).
@@ -195,12 +202,14 @@ def load_study(study_dir: Path, tables: Collection[str] = tuple(DTYPES), *,
     A database that cannot be read (empty, another schema version, corrupt, not ours, or holding
     another participant's session than its name says) raises its :class:`StoreError`; with
     ``skip_unreadable`` it is left out and listed in ``unreadable`` with the error's message
-    instead. An empty folder, or one in which nothing is readable, raises.
+    instead; so is a database in ``exclude`` (path → why the caller refuses it: ``handover doctor``
+    found it BAD). An empty folder, or one in which nothing is readable, raises.
     """
     unknown = set(tables) - set(DTYPES)
     if unknown:
         raise StoreError(f"tables = {sorted(unknown)} are not among {list(DTYPES)}")
-    parts, unreadable = _read_study(study_dir, tables, sample_phases, skip_unreadable)
+    parts, unreadable = _read_study(study_dir, tables, sample_phases, skip_unreadable,
+                                    exclude=exclude)
     return StudyTables(_merged(parts, tables), unreadable)
 
 
@@ -216,10 +225,12 @@ class Export(NamedTuple):
 LEFT_OUT_FILE = "left_out.csv"
 
 
-def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv") -> Export:
+def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv",
+                 exclude: Mapping[Path, str] | None = None) -> Export:
     """Write every table of :data:`DTYPES` for all readable participants of ``study_dir`` into
-    ``out_dir`` (plus ``sqlite/<code>.sqlite`` copies). A database that cannot be read is left out
-    and listed (in the result and in ``left_out.csv``); the others are exported all the same.
+    ``out_dir`` (plus ``sqlite/<code>.sqlite`` copies). A database that cannot be read, or that is
+    in ``exclude`` (path → why), is left out and listed (in the result and in ``left_out.csv``);
+    the others are exported all the same.
     Nothing is written when nothing is readable, and nothing ever to the study folder."""
     if fmt not in FORMATS:
         raise StoreError(f"format = {fmt!r} is not one of {FORMATS}")
@@ -228,7 +239,7 @@ def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv") -> Export:
         raise StoreError(f"--out {out_dir} would write the copies into the study folder "
                          f"{study_dir} itself: choose another output folder")
     parts, left_out = _read_study(study_dir, DTYPES, None, skip_unreadable=True,
-                                  copies=out_dir / "sqlite")
+                                  copies=out_dir / "sqlite", exclude=exclude)
     written = {}
     for table, frame in _merged(parts, DTYPES).items():
         path = out_dir / f"{table}.{fmt}"

@@ -22,15 +22,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--include-simulated", action="store_true",
                         help="count the simulated participant's validation ratings and answers "
                              "too (by default only the participants' own count)")
+    parser.add_argument("--force", action="store_true",
+                        help="report participants that `handover doctor` finds BAD too (they are "
+                             "left out by default), with a warning for each")
     parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from app.analysis.report import build_report
     from app.analysis.report_page import unreadable_text
+    from app.protocol.doctor import contradicted
 
+    bad = contradicted(args.study) if args.study.is_dir() else {}
+    for path, reason in bad.items() if args.force else ():
+        print(f"warning: reported although {path.name}: {reason}", file=sys.stderr)
     report = build_report(args.study, args.out, args.benchmark,
-                          include_simulated=args.include_simulated)
+                          include_simulated=args.include_simulated,
+                          exclude=None if args.force else bad)
     print(report.ratings_counted)
     for path, reason in report.unreadable.items():
         print(f"warning: {unreadable_text(path, reason)}", file=sys.stderr)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import logging
+from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -122,14 +123,16 @@ def draw_participant_figures(analysis: StudyAnalysis, directory: Path) -> dict[s
 
 
 def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = None,
-                 include_simulated: bool = False) -> Report:
+                 include_simulated: bool = False, exclude: Mapping[Path, str] | None = None
+                 ) -> Report:
     """Analyse ``study_dir`` and write ``report.html``, ``tables/*.csv`` and ``figures/*`` under
     ``out_dir`` (plus Fig. 3 when ``benchmark_dir`` is a benchmark-pl result folder). Both inputs
     are read before anything is written: a refusal leaves ``out_dir`` as it was. Only the
-    participants' own ratings and answers count unless ``include_simulated``."""
+    participants' own ratings and answers count unless ``include_simulated``. The databases in
+    ``exclude`` (path → why) are left out and listed as the unreadable ones are."""
     out_dir = Path(out_dir)
     loaded = load_study(study_dir, REPORT_TABLES, sample_phases=("validation",),
-                        skip_unreadable=True)
+                        skip_unreadable=True, exclude=exclude)
     benchmark = None if benchmark_dir is None else load_benchmark(benchmark_dir)
     tables, counted = counted_ratings(loaded.tables, include_simulated)
     analysis = StudyAnalysis.of(tables)

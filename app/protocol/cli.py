@@ -67,6 +67,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export.add_argument("study", type=Path, help="study folder")
     export.add_argument("--format", choices=FORMATS, default="csv")
     export.add_argument("--out", type=Path, required=True, help="output folder")
+    export.add_argument("--force", action="store_true",
+                        help="export participants that `handover doctor` finds BAD too (they are "
+                             "left out by default), with a warning for each")
     export.set_defaults(func=export_command)
 
     doctor = subparsers.add_parser(
@@ -162,7 +165,12 @@ def wait_until_done(runner: SessionRunner, progress: bool) -> RunnerView:
 
 
 def export_command(args: argparse.Namespace) -> int:
-    export = export_study(args.study, args.out, args.format)
+    from app.protocol.doctor import contradicted
+
+    bad = contradicted(args.study) if Path(args.study).is_dir() else {}
+    for path, reason in bad.items() if args.force else ():
+        print(f"warning: exported although {path.name}: {reason}", file=sys.stderr)
+    export = export_study(args.study, args.out, args.format, exclude=None if args.force else bad)
     for path, reason in export.left_out.items():
         print(f"warning: left out {path}: {reason}", file=sys.stderr)
     for table, (path, rows) in export.written.items():

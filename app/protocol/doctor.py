@@ -31,6 +31,10 @@ class Verdict(BaseModel):
 
     path: Path
     problems: list[str] = []
+    #: the problems the event log shows (a log that breaks the protocol, a plan or a table that
+    #: differs from it): a file that reads as a database all the same, which export and report
+    #: would take as it is
+    contradictions: list[str] = []
     notes: list[str] = []
 
     @property
@@ -66,16 +70,18 @@ def examine(path: Path) -> Verdict:
     try:
         state = replay(protocol_slots(config), found.events)
     except EventLogError as exc:
-        verdict.problems.append(f"event log breaks the protocol: {exc}")
+        verdict.contradictions.append(f"event log breaks the protocol: {exc}")
+        verdict.problems += verdict.contradictions
         return verdict
     created = next((e for e in found.events if e.kind == "session_created"), None)
     if created is not None and created.payload.get("config") != found.participant.config:
         recorded = created.payload.get("config") or {}
         changed = sorted(k for k in recorded.keys() | found.participant.config.keys()
                          if recorded.get(k) != found.participant.config.get(k))
-        verdict.problems.append(f"the stored plan differs from the one the session_created event "
-                                f"records, in {', '.join(changed)}")
-    verdict.problems += differences(found.tables, found.events)
+        verdict.contradictions.append(f"the stored plan differs from the one the session_created "
+                                      f"event records, in {', '.join(changed)}")
+    verdict.contradictions += differences(found.tables, found.events)
+    verdict.problems += verdict.contradictions
     where = "complete" if state.step is Step.DONE else f"waiting for '{state.step.value}'"
     verdict.notes.append(f"seed {config.seed}, {config.scenario.value}; {state.completed} of "
                          f"{config.interactions} interactions completed, {where}; "
@@ -86,3 +92,14 @@ def examine(path: Path) -> Verdict:
 def examine_study(study_dir: Path) -> list[Verdict]:
     """Verdicts on every ``*.sqlite`` file of ``study_dir``, by name."""
     return [examine(path) for path in sorted(Path(study_dir).glob(f"*{SUFFIX}"))]
+
+
+def contradicted(study_dir: Path) -> dict[Path, str]:
+    """path → why, for every participant whose event log contradicts its file (doctor's BAD for a
+    file that reads as a database all the same): what ``export`` and ``report`` leave out unless
+    told ``--force``. A file that cannot be read at all they leave out themselves."""
+    return {verdict.path: (f"handover doctor finds it BAD: {verdict.contradictions[0]}"
+                           + (f" (and {len(verdict.contradictions) - 1} more)"
+                              if len(verdict.contradictions) > 1 else "")
+                           + "; --force includes it")
+            for verdict in examine_study(study_dir) if verdict.contradictions}

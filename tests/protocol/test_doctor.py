@@ -9,6 +9,7 @@ import sqlite3
 from contextlib import closing
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from support.engine import closed_session, drive_until, new_engine
 
@@ -16,6 +17,7 @@ from app.cli import main
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import EventLogError
 from app.protocol.state import Step
+from session_store.export import read_table
 
 
 def _sql(path: Path, *statements: str) -> None:
@@ -175,3 +177,27 @@ def test_doctor_says_ok_to_the_whole_session_it_checks_against(whole, tmp_path, 
     shutil.copy(whole, tmp_path / "W01.sqlite")
     assert main(["doctor", str(tmp_path)]) == 0
     assert "W01.sqlite: OK" in capsys.readouterr().out
+
+
+def test_export_and_report_leave_out_what_doctor_finds_bad_unless_forced(whole, tmp_path, capsys):
+    """A participant whose tables contradict its event log was exported and reported as it was
+    (issue 25, item 5): now both leave it out, saying why, and ``--force`` includes it with a
+    warning."""
+    study = tmp_path / "study"
+    study.mkdir()
+    shutil.copy(whole, study / "W01.sqlite")
+    closed_session(study, "W02", seed=4)
+    _sql(study / "W01.sqlite", "UPDATE trials SET theta_k = theta_k + 1 WHERE trial_index = 1")
+    why = "W01.sqlite: handover doctor finds it BAD: trials: trial 1 has theta_k = "
+
+    assert main(["export", str(study), "--out", str(tmp_path / "out")]) == 0
+    assert f"left out {study / why}" in capsys.readouterr().err
+    assert read_table(tmp_path / "out", "participants")["participant"].tolist() == ["W02"]
+    assert main(["report", str(study), "--out", str(tmp_path / "report")]) == 0
+    assert why in capsys.readouterr().err
+    sessions = pd.read_csv(tmp_path / "report" / "tables" / "sessions.csv")
+    assert sessions["participant"].tolist() == ["W02"]
+
+    assert main(["export", str(study), "--out", str(tmp_path / "forced"), "--force"]) == 0
+    assert f"warning: exported although {why}" in capsys.readouterr().err
+    assert sorted(read_table(tmp_path / "forced", "participants")["participant"]) == ["W01", "W02"]
