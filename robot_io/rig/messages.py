@@ -1,11 +1,9 @@
 """The typed messages between the application and the rig process (one pipe each way).
 
 Application → rig: :class:`RunTrial`, :class:`ObjectLoaded`, :class:`Go`, :class:`Stop`,
-:class:`Recover`, :class:`Shutdown`, and a :class:`Heartbeat` every ``HEARTBEAT_S``: a rig that hears
-nothing from the application for ``APP_SILENCE_S`` during a trial on the wall clock stops the arm.
-Rig → application: :class:`RigOpened` or :class:`RigFailed` once, then per trial
-:class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is not at A, and
-:class:`TrialDone` with the summary; :class:`Recovered` answers a :class:`Recover`;
+:class:`Recover`, :class:`Shutdown`. Rig → application: :class:`RigOpened` or :class:`RigFailed`
+once, then per trial :class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is
+not at A, and :class:`TrialDone` with the summary; :class:`Recovered` answers a :class:`Recover`;
 :class:`StopReceived` acknowledges a stop at once. Samples do not travel here: the rig writes them
 into shared memory (:mod:`robot_io.rig.stream`).
 """
@@ -21,15 +19,6 @@ from robot_io.loop import TrialSummary
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
 from robot_io.theta import Theta
-
-#: The application sends a :class:`Heartbeat` this often [s].
-HEARTBEAT_S = 0.1
-#: A rig that hears nothing from the application for this long while a trial runs on the wall clock
-#: stops the arm and ends the trial 'stopped' [s]: the application is frozen (SIGSTOP, Ctrl-Z in its
-#: terminal, a debugger) and nothing else could stop it. Five heartbeats: the application's heartbeat
-#: thread runs under SCHED_FIFO where the OS allows it, so load does not delay it by that much, and
-#: the arm (at most [safety] max_speed, 0.3-0.5 m/s in a reach) moves at most a few tens of cm more.
-APP_SILENCE_S = 0.5
 
 
 class _Message(BaseModel):
@@ -82,13 +71,7 @@ class Shutdown(_Message):
     kind: Literal["shutdown"] = "shutdown"
 
 
-class Heartbeat(_Message):
-    """The application is alive and its watcher reads the rig's sample stream."""
-
-    kind: Literal["heartbeat"] = "heartbeat"
-
-
-Command = RunTrial | ObjectLoaded | Go | Stop | Recover | Shutdown | Heartbeat
+Command = RunTrial | ObjectLoaded | Go | Stop | Recover | Shutdown
 
 
 # -- rig → application ---------------------------------------------------------------------------

@@ -26,11 +26,8 @@ from multiprocessing.connection import Connection
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.cycle import Gates, run_cycle
 from robot_io.errors import RobotIOError, explain
-from robot_io.loop import StopRequest
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import (
-    APP_SILENCE_S,
-    HEARTBEAT_S,
     Go,
     ObjectLoaded,
     ReadyWaiting,
@@ -70,37 +67,26 @@ class Outbox:
 
 class Inbox:
     """Receives commands: RunTrial and Shutdown are queued for the main thread; ObjectLoaded, Go and
-    Stop act at once on the running trial's gates (a Stop between trials stops the arm here). With
-    ``watch_application`` (trials on the wall clock) it also stops a running trial's arm when the
-    application has sent nothing, not even a :class:`Heartbeat`, for ``APP_SILENCE_S``."""
+    Stop act at once on the running trial's gates (a Stop between trials stops the arm here)."""
 
-    def __init__(self, conn: Connection, outbox: Outbox, devices: RigDevices,
-                 watch_application: bool) -> None:
+    def __init__(self, conn: Connection, outbox: Outbox, devices: RigDevices) -> None:
         self._conn, self._outbox, self._devices = conn, outbox, devices
-        self._watch_application = watch_application
         self.commands: queue.Queue[tuple[RunTrial, Gates] | Recover | None] = queue.Queue()
         self.gates: Gates | None = None
         self.running = False
-        self._heard_at = time.monotonic()
         threading.Thread(target=self._receive, name="rig-inbox", daemon=True).start()
 
     def _receive(self) -> None:
         while True:
             try:
-                # a message already waiting is read before the silence is judged: a rig that was
-                # itself not scheduled for a while does not mistake that for the application's
-                if not self._conn.poll(HEARTBEAT_S / 2):
-                    self._check_application()
-                    continue
                 command = self._conn.recv()
             except (EOFError, OSError):
                 log.warning("the application is gone: stopping the arm and exiting")
-                self._stop("the application is gone")
+                self._stop()
                 self.commands.put(None)
                 return
-            self._heard_at = time.monotonic()
             if isinstance(command, RunTrial):
-                gates = Gates(threading.Event(), threading.Event(), StopRequest())
+                gates = Gates(threading.Event(), threading.Event(), threading.Event())
                 if command.auto_loaded:
                     gates.loaded.set()
                 if command.auto_go:
@@ -113,29 +99,17 @@ class Inbox:
                 self.gates.go.set()
             elif isinstance(command, Stop):
                 self._outbox.send(StopReceived())
-                self._stop(command.reason)
+                self._stop()
             elif isinstance(command, Recover):
                 self.commands.put(command)
             elif isinstance(command, Shutdown):
-                self._stop("the rig was shut down")
+                self._stop()
                 self.commands.put(None)
                 return
 
-    def _check_application(self) -> None:
-        """Stop the running trial's arm if the application has been silent for APP_SILENCE_S."""
-        silent, gates = time.monotonic() - self._heard_at, self.gates
-        if (not self._watch_application or not self.running or gates is None
-                or gates.stop.is_set() or silent <= APP_SILENCE_S):
-            return
-        reason = (f"the application sent nothing for {silent:.2f} s (APP_SILENCE_S = "
-                  f"{APP_SILENCE_S:g} s: frozen by Ctrl-Z or SIGSTOP, or hung): the rig stopped "
-                  "the arm")
-        log.error("%s", reason)
-        gates.stop.request(reason)
-
-    def _stop(self, reason: str) -> None:
+    def _stop(self) -> None:
         if self.gates is not None:
-            self.gates.stop.request(reason)  # a running (or queued) cycle stops the arm within one cycle
+            self.gates.stop.set()  # a running (or queued) cycle stops the arm within one cycle
         if not self.running:
             self._devices.stop_arm()
 
@@ -156,7 +130,7 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
         return
     stream = SampleStream(capacity, name=stream_name)
     gc.freeze()  # what the rig holds from here on is never scanned by a collection again
-    inbox = Inbox(conn, outbox, devices, watch_application=spec.realtime)
+    inbox = Inbox(conn, outbox, devices)
     outbox.send(RigOpened(devices=devices.report(), pid=os.getpid()))
     try:
         while (item := inbox.commands.get()) is not None:
