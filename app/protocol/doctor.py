@@ -27,7 +27,8 @@ from session_store.schema import SCHEMA_VERSION
 
 
 class Verdict(BaseModel):
-    """One file's verdict: ``problems`` make it bad; ``notes`` are for information."""
+    """One file's verdict: ``problems`` and ``contradictions`` make it bad; ``notes`` are for
+    information."""
 
     path: Path
     problems: list[str] = []
@@ -39,11 +40,11 @@ class Verdict(BaseModel):
 
     @property
     def ok(self) -> bool:
-        return not self.problems
+        return not self.problems and not self.contradictions
 
     def text(self) -> str:
         head = f"{self.path.name}: {'OK' if self.ok else 'BAD'}"
-        return "\n".join([head, *(f"  problem: {p}" for p in self.problems),
+        return "\n".join([head, *(f"  problem: {p}" for p in [*self.problems, *self.contradictions]),
                           *(f"  {n}" for n in self.notes)])
 
 
@@ -71,7 +72,6 @@ def examine(path: Path) -> Verdict:
         state = replay(protocol_slots(config), found.events)
     except EventLogError as exc:
         verdict.contradictions.append(f"event log breaks the protocol: {exc}")
-        verdict.problems += verdict.contradictions
         return verdict
     created = next((e for e in found.events if e.kind == "session_created"), None)
     if created is not None and created.payload.get("config") != found.participant.config:
@@ -81,7 +81,6 @@ def examine(path: Path) -> Verdict:
         verdict.contradictions.append(f"the stored plan differs from the one the session_created "
                                       f"event records, in {', '.join(changed)}")
     verdict.contradictions += differences(found.tables, found.events)
-    verdict.problems += verdict.contradictions
     where = "complete" if state.step is Step.DONE else f"waiting for '{state.step.value}'"
     verdict.notes.append(f"seed {config.seed}, {config.scenario.value}; {state.completed} of "
                          f"{config.interactions} interactions completed, {where}; "
