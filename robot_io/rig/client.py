@@ -59,6 +59,8 @@ HANG_S = 0.5
 SETTLE_S = 5.0
 #: How long the application waits to see a dead or killed rig's exit code [s] (1 s was too short under load).
 REAP_S = 5.0
+#: How long a rig may take to stop the arm, release its devices and exit after Shutdown [s].
+CLOSE_S = 5.0
 #: How long a hung rig gets to print its threads' stacks before it is killed [s].
 STACKS_S = 0.2
 #: Stages during which the rig writes one sample row per cycle.
@@ -196,21 +198,23 @@ class RigClient:
             self.process.kill()
         self._wait_reaped()
 
-    def _wait_reaped(self) -> None:
-        """Wait (at most REAP_S) until this thread sees the rig's exit code. The report reader and
-        kill() may reap it at the same moment: the thread that loses sees "no such child" and, for
-        a moment, no exit code, until the other has stored it."""
-        deadline = time.monotonic() + REAP_S
-        while self.process.exitcode is None and time.monotonic() < deadline:
-            self.process.join(0.05)
+    def _wait_reaped(self, limit: float = REAP_S) -> bool:
+        """Wait (at most ``limit`` s) until this thread sees the rig's exit code; False if it has
+        none by then. The report reader, close() and kill() may reap the rig at the same moment:
+        the thread that loses sees "no such child", and ``join`` returns at once with no exit code
+        (``is_alive`` says True) until the winner has stored it. Only the exit code, seen here, says
+        the rig has ended."""
+        deadline = time.monotonic() + limit
+        while self.process.exitcode is None and (left := deadline - time.monotonic()) > 0:
+            self.process.join(min(left, 0.05))
+        return self.process.exitcode is not None
 
     def close(self) -> None:
         """Shut the rig down (it stops the arm and releases its devices); kill it if it hangs."""
         self._closing = True
         self._send(Shutdown())
-        self.process.join(5.0)
-        if self.process.is_alive():
-            log.error("the rig process did not exit within 5 s: killing it")
+        if not self._wait_reaped(CLOSE_S):
+            log.error("the rig process did not exit within %g s: killing it", CLOSE_S)
             self.backstop("the rig did not shut down")
         self._conn.close()
         if self._stopper is not None:

@@ -4,16 +4,18 @@ messages and the shared-memory stream, and what happens when the rig dies or han
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import queue
 import signal
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
-from support.waiting import tail, wait_for
+from support.waiting import CEILING_S, tail, wait_for
 
 from robot_io.config import ControllerConfig
 from robot_io.rig.client import RigClient
@@ -151,3 +153,27 @@ def test_stop_reaches_a_hung_rig_through_the_backstop():
         acknowledged = client.stop("stopped by the experimenter (Stop)")
         alive = client.alive
     assert not acknowledged and not alive
+
+
+def reap(client: RigClient) -> None:
+    """Join the rig until its exit code is known (as the report reader does once the pipe ends)."""
+    while client.process.exitcode is None:
+        client.process.join(0.01)
+
+
+def test_a_rig_that_exits_while_other_threads_reap_it_closes_cleanly(caplog):
+    """Issue 25, item 13: the report reader reaps the rig the moment it exits after Shutdown; a
+    close() whose own ``waitpid`` then finds no child used to take that for a rig still running,
+    log "did not exit within 5 s" at once and fire the backstop on a rig that had exited cleanly.
+    Here three more threads reap beside the reader, so close() loses that race most times."""
+    for attempt in range(5):
+        client = rig(realtime=False, reports=Reports())
+        reaping = [threading.Thread(target=reap, args=(client,)) for _ in range(3)]
+        for thread in reaping:
+            thread.start()
+        with caplog.at_level(logging.ERROR, logger="robot_io.rig.client"):
+            client.close()
+        for thread in reaping:
+            thread.join(CEILING_S)
+        assert client.process.exitcode == 0, f"close {attempt}: exit code {client.process.exitcode}"
+        assert not caplog.records, f"close {attempt}: {[r.getMessage() for r in caplog.records]}"
