@@ -31,7 +31,7 @@ from robot_io.config import ControllerConfig
 from robot_io.errors import ArmFault, MoveStopped, RobotIOError
 from robot_io.gripper import Gripper
 from robot_io.hand import HandSource
-from robot_io.loop import HoldPhase, Outcome, StageCallback, TrialRecord, TrialSummary
+from robot_io.loop import HoldPhase, Outcome, StageCallback, StopRequest, TrialRecord, TrialSummary
 from robot_io.recorder import TrialRecorder
 from robot_io.release import ForceRelease
 from robot_io.stages import Stage
@@ -50,7 +50,7 @@ class Gates:
 
     loaded: threading.Event
     go: threading.Event
-    stop: threading.Event
+    stop: StopRequest
 
     @classmethod
     def automatic(cls) -> Gates:
@@ -58,7 +58,7 @@ class Gates:
         loaded, go = threading.Event(), threading.Event()
         loaded.set()
         go.set()
-        return cls(loaded, go, threading.Event())
+        return cls(loaded, go, StopRequest())
 
     def wait(self, gate: threading.Event) -> bool:
         """Block until ``gate`` opens (True) or a stop is requested (False)."""
@@ -121,10 +121,10 @@ def run_cycle(config: ControllerConfig, theta: Theta | None, devices: CycleDevic
         loop = make_loop(config, theta, hand, arm, clock, hold=hold, on_stage=on_stage,
                          recorder=recorder, stop=gates.stop)
         if not gates.wait(gates.loaded):  # the object goes into the open gripper, at R
-            return not_started(config, realtime, Outcome.STOPPED, "stop requested")
+            return not_started(config, realtime, Outcome.STOPPED, gates.stop.reason)
         gripper.close()
     except MoveStopped:
-        return not_started(config, realtime, Outcome.STOPPED, "stop requested")
+        return not_started(config, realtime, Outcome.STOPPED, gates.stop.reason)
     except RobotIOError as exc:
         arm.stop()
         outcome = Outcome.ARM_FAULT if isinstance(exc, ArmFault) else Outcome.ERROR
@@ -136,7 +136,7 @@ def run_cycle(config: ControllerConfig, theta: Theta | None, devices: CycleDevic
         return not_started(config, realtime, outcome, waiting)
     on_stage(Stage.READY, float("nan"))
     if not gates.wait(gates.go):
-        return not_started(config, realtime, Outcome.STOPPED, "stop requested")
+        return not_started(config, realtime, Outcome.STOPPED, gates.stop.reason)
     record = loop.run()
     if record.summary.outcome not in (Outcome.COMPLETED, Outcome.NOT_TAKEN):
         return record
@@ -168,7 +168,7 @@ def _await_ready(hand: HandSource, config: ControllerConfig, gates: Gates,
         if why is None:
             return None
         if gates.stop.is_set():
-            return "stop requested"
+            return gates.stop.reason
         if time.monotonic() > deadline:
             return f"not ready within ready_timeout_s = {config.cycle.ready_timeout_s} s: {why}"
         time.sleep(READY_POLL_S)

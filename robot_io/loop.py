@@ -101,6 +101,20 @@ class TrialRecord:
     samples: dict[str, np.ndarray]
 
 
+class StopRequest(threading.Event):
+    """A request to stop the arm, and why (:attr:`reason`: the first request's)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.reason = "stop requested"
+
+    def request(self, reason: str) -> None:
+        """Request the stop; a reason given after the first request does not replace it."""
+        if not self.is_set():
+            self.reason = reason
+            self.set()
+
+
 class HandoverLoop:
     """One handover: call :meth:`run` on this thread, or :meth:`start` for a worker thread.
 
@@ -117,12 +131,12 @@ class HandoverLoop:
                  limiter: SafetyLimiter, config: LoopConfig, hold: HoldPhase | None = None,
                  on_stage: StageCallback | None = None,
                  recorder: TrialRecorder | None = None,
-                 stop: threading.Event | None = None) -> None:
+                 stop: StopRequest | None = None) -> None:
         self.dmp, self.coupling, self.hand, self.arm = dmp, coupling, hand, arm
         self._signals = signals_source(coupling)  # recorded every cycle, through the compliance
         self.clock, self.limiter, self.config = clock, limiter, config
         self.hold, self.on_stage = hold, on_stage or (lambda stage, t: None)
-        self._stop_requested = stop or threading.Event()
+        self._stop_requested = stop or StopRequest()
         self._thread: threading.Thread | None = None
         self.result: TrialRecord | None = None
         self._recorder: TrialRecorder | None = recorder
@@ -178,7 +192,7 @@ class HandoverLoop:
                 t = clock.now()
                 began = time.perf_counter()
                 if self._stop_requested.is_set():
-                    outcome, reason = Outcome.STOPPED, "stop requested"
+                    outcome, reason = Outcome.STOPPED, self._stop_requested.reason
                     break
                 if self.arm.state is ArmState.FAULT:
                     outcome, reason = Outcome.ARM_FAULT, self.arm.fault

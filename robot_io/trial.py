@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import threading
-
 from robot_io.arm import Arm
 from robot_io.clock import Clock, RealClock, SimClock
 from robot_io.compliance import CompliantCoupling
@@ -11,7 +9,7 @@ from robot_io.config import ControllerConfig
 from robot_io.coupling import Coupling, HandCoupling, NoCoupling
 from robot_io.dmp import DMP
 from robot_io.hand import HandSource
-from robot_io.loop import HandoverLoop, HoldPhase, StageCallback, TrialRecord
+from robot_io.loop import HandoverLoop, HoldPhase, StageCallback, StopRequest, TrialRecord
 from robot_io.mock_arm import MockArm
 from robot_io.recorder import TrialRecorder
 from robot_io.safety import SafetyLimiter
@@ -39,7 +37,7 @@ def make_coupling(config: ControllerConfig, theta: Theta | None, dt: float) -> C
 def make_loop(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: Arm,
               clock: Clock, *, hold: HoldPhase | None = None, on_stage: StageCallback | None = None,
               recorder: TrialRecorder | None = None,
-              stop: threading.Event | None = None) -> HandoverLoop:
+              stop: StopRequest | None = None) -> HandoverLoop:
     """A handover from the robot start R to the handover point H; the arm is first moved to R.
     With ``hold``, the robot then holds the object out at H with the k_ext compliance term of
     Table I while the participant grasps it (:class:`~robot_io.compliance.CompliantCoupling`)."""

@@ -6,7 +6,9 @@ stops the arm within one cycle. If the rig does not acknowledge it within ``STOP
 is stuck, the process hangs), :meth:`RigClient.backstop` acts without it: on a UR it sends the
 controller's dashboard ``stop`` (the program ends and the arm halts; the control script's watchdog
 would end it anyway within 1/watchdog_hz), and it kills the rig process. The same backstop fires by
-itself when the rig stops writing samples for ``HANG_S`` while it streams.
+itself when the rig stops writing samples for ``HANG_S`` while it streams. The other way round,
+the same watchdog thread sends the rig a heartbeat during a trial: a rig that hears nothing from a
+frozen application for ``APP_SILENCE_S`` stops the arm (robot_io.rig.process.Inbox).
 """
 
 from __future__ import annotations
@@ -15,16 +17,20 @@ import contextlib
 import logging
 import multiprocessing
 import os
+import select
 import threading
 import time
 from collections.abc import Callable
 
+from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.errors import RobotIOError
 from robot_io.rig import process
 from robot_io.rig.messages import (
+    HEARTBEAT_S,
     Command,
     DeviceReport,
     Go,
+    Heartbeat,
     ObjectLoaded,
     Recover,
     Recovered,
@@ -265,12 +271,25 @@ class RigClient:
             return SETTLE_S, "stopping the arm"
         return HANG_S, "streaming"
 
+    def _beat(self) -> None:
+        """Tell a rig that runs a trial that the application is alive (robot_io.rig.messages
+        .APP_SILENCE_S). Never blocks: a rig that has stopped reading (its pipe full) gets none, so
+        a heartbeat can never hold up a Stop."""
+        if self.running is None:
+            return
+        with contextlib.suppress(OSError, ValueError):
+            if select.select([], [self._conn.fileno()], [], 0)[1]:
+                self._send(Heartbeat())
+
     def _watch(self) -> None:
-        """Fire the backstop when the rig writes no sample row for longer than
-        :meth:`_silence_limit` allows."""
+        """Every HEARTBEAT_S: a heartbeat to the rig, and the backstop when the rig writes no sample
+        row for longer than :meth:`_silence_limit` allows. Runs under SCHED_FIFO where the OS
+        allows it: this machine's load must not pass for a frozen application."""
+        raise_priority(SUPPORT_PRIORITY)
         last_count, last_change = -1, time.monotonic()
         while self.alive and not self._closing:
-            time.sleep(HANG_S / 5)
+            time.sleep(HEARTBEAT_S)
+            self._beat()
             count, limit, now = self.stream.count, self._silence_limit(), time.monotonic()
             if count != last_count or limit is None:
                 last_count, last_change = count, now

@@ -1,9 +1,12 @@
 """The typed messages between the application and the rig process (one pipe each way).
 
 Application → rig: :class:`RunTrial`, :class:`ObjectLoaded`, :class:`Go`, :class:`Stop`,
-:class:`Recover`, :class:`Shutdown`. Rig → application: :class:`RigOpened` or :class:`RigFailed`
-once, then per trial :class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is
-not at A, and :class:`TrialDone` with the summary; :class:`Recovered` answers a :class:`Recover`;
+:class:`Recover`, :class:`Shutdown`, and a :class:`Heartbeat` every ``HEARTBEAT_S``: a rig whose
+application is stopped by a signal, or sends nothing for ``APP_SILENCE_S``, during a trial on the
+wall clock stops the arm.
+Rig → application: :class:`RigOpened` or :class:`RigFailed` once, then per trial
+:class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is not at A, and
+:class:`TrialDone` with the summary; :class:`Recovered` answers a :class:`Recover`;
 :class:`StopReceived` acknowledges a stop at once. Samples do not travel here: the rig writes them
 into shared memory (:mod:`robot_io.rig.stream`).
 """
@@ -19,6 +22,17 @@ from robot_io.loop import TrialSummary
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
 from robot_io.theta import Theta
+
+#: The application sends a :class:`Heartbeat` this often [s].
+HEARTBEAT_S = 0.1
+#: A rig that hears nothing from the application for this long while a trial runs on the wall clock
+#: stops the arm and ends the trial 'stopped' [s]: the application hangs and nothing else could stop
+#: the arm. An application *stopped* by a signal (Ctrl-Z in its terminal, SIGSTOP, a debugger) is
+#: seen at once in its process state, without waiting for this (robot_io.rig.process). The bound is
+#: not shorter because a running application's heartbeat thread needs the interpreter's lock: under
+#: the test suite's load (3 workers on 2 cores) a thread at normal priority that held it was kept
+#: off the CPU long enough for 0.5 s of silence in a live session (a false stop, seen in a full run).
+APP_SILENCE_S = 2.0
 
 
 class _Message(BaseModel):
@@ -71,7 +85,13 @@ class Shutdown(_Message):
     kind: Literal["shutdown"] = "shutdown"
 
 
-Command = RunTrial | ObjectLoaded | Go | Stop | Recover | Shutdown
+class Heartbeat(_Message):
+    """The application is alive and its watcher reads the rig's sample stream."""
+
+    kind: Literal["heartbeat"] = "heartbeat"
+
+
+Command = RunTrial | ObjectLoaded | Go | Stop | Recover | Shutdown | Heartbeat
 
 
 # -- rig → application ---------------------------------------------------------------------------

@@ -26,8 +26,11 @@ from multiprocessing.connection import Connection
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.cycle import Gates, run_cycle
 from robot_io.errors import RobotIOError, explain
+from robot_io.loop import StopRequest
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import (
+    APP_SILENCE_S,
+    HEARTBEAT_S,
     Go,
     ObjectLoaded,
     ReadyWaiting,
@@ -65,28 +68,58 @@ class Outbox:
             self._conn.send(report)
 
 
+#: Process states (``/proc/<pid>/stat``) of a process that a signal has stopped: 'T' (SIGSTOP,
+#: SIGTSTP from Ctrl-Z) and 't' (stopped by a debugger's trace).
+STOPPED_STATES = frozenset("Tt")
+
+
+def process_state(pid: int) -> str | None:
+    """The kernel's one-letter state of process ``pid`` (R running, S sleeping, T stopped, ...);
+    None where there is no ``/proc`` (not Linux) or no such process. It needs nothing from that
+    process: a frozen interpreter cannot hide it."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as stat:
+            # "pid (comm) state ...": comm may hold spaces and parentheses, the state follows the last ')'
+            return stat.read().rpartition(b")")[2].split()[0].decode()
+    except (OSError, IndexError):
+        return None
+
+
 class Inbox:
     """Receives commands: RunTrial and Shutdown are queued for the main thread; ObjectLoaded, Go and
-    Stop act at once on the running trial's gates (a Stop between trials stops the arm here)."""
+    Stop act at once on the running trial's gates (a Stop between trials stops the arm here). With
+    ``watch_application`` (trials on the wall clock) it also stops a running trial's arm when the
+    application is stopped by a signal, or has sent nothing, not even a :class:`Heartbeat`, for
+    ``APP_SILENCE_S``."""
 
-    def __init__(self, conn: Connection, outbox: Outbox, devices: RigDevices) -> None:
+    def __init__(self, conn: Connection, outbox: Outbox, devices: RigDevices,
+                 watch_application: bool) -> None:
         self._conn, self._outbox, self._devices = conn, outbox, devices
+        self._watch_application = watch_application
         self.commands: queue.Queue[tuple[RunTrial, Gates] | Recover | None] = queue.Queue()
         self.gates: Gates | None = None
         self.running = False
+        self._heard_at = time.monotonic()
+        self._application = os.getppid()  # the process that started the rig (spawn)
         threading.Thread(target=self._receive, name="rig-inbox", daemon=True).start()
 
     def _receive(self) -> None:
         while True:
             try:
+                # a message already waiting is read before the silence is judged: a rig that was
+                # itself not scheduled for a while does not mistake that for the application's
+                if not self._conn.poll(HEARTBEAT_S / 2):
+                    self._check_application()
+                    continue
                 command = self._conn.recv()
             except (EOFError, OSError):
                 log.warning("the application is gone: stopping the arm and exiting")
-                self._stop()
+                self._stop("the application is gone")
                 self.commands.put(None)
                 return
+            self._heard_at = time.monotonic()
             if isinstance(command, RunTrial):
-                gates = Gates(threading.Event(), threading.Event(), threading.Event())
+                gates = Gates(threading.Event(), threading.Event(), StopRequest())
                 if command.auto_loaded:
                     gates.loaded.set()
                 if command.auto_go:
@@ -99,17 +132,34 @@ class Inbox:
                 self.gates.go.set()
             elif isinstance(command, Stop):
                 self._outbox.send(StopReceived())
-                self._stop()
+                self._stop(command.reason)
             elif isinstance(command, Recover):
                 self.commands.put(command)
             elif isinstance(command, Shutdown):
-                self._stop()
+                self._stop("the rig was shut down")
                 self.commands.put(None)
                 return
 
-    def _stop(self) -> None:
+    def _check_application(self) -> None:
+        """Stop the running trial's arm if the application is frozen: stopped by a signal, as its
+        process state says (at once), or silent for APP_SILENCE_S (it hangs)."""
+        silent, gates = time.monotonic() - self._heard_at, self.gates
+        if not self._watch_application or not self.running or gates is None or gates.stop.is_set():
+            return
+        if (state := process_state(self._application)) in STOPPED_STATES:
+            reason = (f"the application is stopped (Ctrl-Z, SIGSTOP or a debugger: process state "
+                      f"{state}) and sent nothing for {silent:.2f} s: the rig stopped the arm")
+        elif silent > APP_SILENCE_S:
+            reason = (f"the application sent nothing for {silent:.2f} s (APP_SILENCE_S = "
+                      f"{APP_SILENCE_S:g} s: it hangs): the rig stopped the arm")
+        else:
+            return
+        log.error("%s", reason)
+        gates.stop.request(reason)
+
+    def _stop(self, reason: str) -> None:
         if self.gates is not None:
-            self.gates.stop.set()  # a running (or queued) cycle stops the arm within one cycle
+            self.gates.stop.request(reason)  # a running (or queued) cycle stops the arm within one cycle
         if not self.running:
             self._devices.stop_arm()
 
@@ -130,7 +180,7 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
         return
     stream = SampleStream(capacity, name=stream_name)
     gc.freeze()  # what the rig holds from here on is never scanned by a collection again
-    inbox = Inbox(conn, outbox, devices)
+    inbox = Inbox(conn, outbox, devices, watch_application=spec.realtime)
     outbox.send(RigOpened(devices=devices.report(), pid=os.getpid()))
     try:
         while (item := inbox.commands.get()) is not None:

@@ -14,7 +14,7 @@ from robot_io.config import ControllerConfig
 from robot_io.cycle import CycleDevices, Gates, run_cycle
 from robot_io.gripper import NoGripper
 from robot_io.hand import HandSample
-from robot_io.loop import Outcome
+from robot_io.loop import Outcome, StopRequest
 from robot_io.mock_arm import MockArm
 from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.simulated_pull import SimulatedPull
@@ -111,11 +111,12 @@ def test_no_pull_within_the_release_timeout_ends_the_trial_not_taken_and_the_rob
 def test_stop_while_waiting_for_go_ends_the_trial_before_anything_streams():
     config = ControllerConfig()
     rig = devices(config)
-    gates = Gates(threading.Event(), threading.Event(), threading.Event())
+    gates = Gates(threading.Event(), threading.Event(), StopRequest())
     gates.loaded.set()
-    threading.Timer(0.05, gates.stop.set).start()
+    threading.Timer(0.05, gates.stop.request, ["the experimenter's Stop"]).start()
     record, stages = run(config, rig, gates)
     assert record.summary.outcome is Outcome.STOPPED and record.summary.cycles == 0
+    assert record.summary.reason == "the experimenter's Stop"  # the request's own reason
     assert Stage.GO not in [stage for stage, _ in stages]
 
 

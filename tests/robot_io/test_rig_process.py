@@ -8,6 +8,7 @@ import logging
 import os
 import queue
 import signal
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -19,7 +20,7 @@ from support.waiting import CEILING_S, tail, wait_for
 
 from robot_io.config import ControllerConfig
 from robot_io.rig.client import RigClient
-from robot_io.rig.messages import RigDied, RigSpec, RunTrial, StageReached, TrialDone
+from robot_io.rig.messages import APP_SILENCE_S, RigDied, RigSpec, RunTrial, StageReached, TrialDone
 from robot_io.rig.process import STACKS_SIGNAL
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
@@ -92,8 +93,10 @@ def test_a_rig_asked_for_its_stacks_prints_them_and_runs_on(capfd):
         printed = []
 
         def stacks_printed() -> bool:
+            # the dump comes a thread at a time (the inbox's frames are in process.py too): wait
+            # for the main thread's, which is printed last
             printed.append(capfd.readouterr().err)
-            return "robot_io/rig/process.py" in "".join(printed)
+            return "in spawn_main" in "".join(printed)
 
         wait_for(stacks_printed, "the rig's stacks on stderr", seen=lambda: tail("".join(printed)))
         err = "".join(printed)
@@ -177,3 +180,33 @@ def test_a_rig_that_exits_while_other_threads_reap_it_closes_cleanly(caplog):
             thread.join(CEILING_S)
         assert client.process.exitcode == 0, f"close {attempt}: exit code {client.process.exitcode}"
         assert not caplog.records, f"close {attempt}: {[r.getMessage() for r in caplog.records]}"
+
+
+def hold_the_interpreter(seconds: float) -> None:
+    """Hang this process (the rig's application) as a stuck computation does: one thread keeps the
+    interpreter's lock for ``seconds``, so no other thread of it (the heartbeat's) runs."""
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(seconds * 10)  # no other thread is handed the lock before the loop ends
+    try:
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            pass
+    finally:
+        sys.setswitchinterval(interval)
+
+
+def test_a_rig_whose_application_hangs_mid_trial_stops_the_arm_and_says_why():
+    """Issue 25, item 1, the other half of the frozen application (a stopped one is in
+    tests/session/test_frozen_application.py): one that still runs but sends nothing, here holding
+    its interpreter's lock, has its trial stopped by the rig after APP_SILENCE_S."""
+    reports = Reports()
+    client = rig(realtime=True, reports=reports)
+    try:
+        client.run_trial(trial().model_copy(update={"auto_go": False}))  # it waits for Go: no end
+        reports.until(lambda r: isinstance(r, StageReached) and r.stage is Stage.READY)
+        hold_the_interpreter(APP_SILENCE_S + 1.0)
+        done = reports.until(lambda r: isinstance(r, TrialDone), "the stopped trial's TrialDone")
+    finally:
+        client.close()
+    assert done.summary.outcome == "stopped" and done.rows == 0, done.summary
+    assert done.summary.reason.startswith("the application sent nothing for"), done.summary.reason
