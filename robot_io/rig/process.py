@@ -168,6 +168,10 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
     """Entry point of the rig process (``multiprocessing`` spawn); logs at the application's level."""
     logging.basicConfig(level=log_level, format=f"rig[{os.getpid()}] %(levelname)s %(name)s: %(message)s")
     faulthandler.register(STACKS_SIGNAL, all_threads=True)
+    # Ctrl-Z in the application's terminal stops its whole process group: the rig (and ur_rtde's
+    # control worker, which inherits this) stays running, sees its application stopped and stops the
+    # arm itself (Inbox), rather than being frozen mid-reach with it
+    signal.signal(signal.SIGTSTP, signal.SIG_IGN)
     outbox = Outbox(conn)
     if spec.realtime_priority:
         # every thread of the rig inherits it (the hand receiver, ur_rtde's, the inbox); the loop's own

@@ -4,11 +4,8 @@ application runs again. (An application that hangs while it runs: tests/robot_io
 
 from __future__ import annotations
 
-import os
-import signal
-
 import pytest
-from support.frozen import end, freeze_mid_reach, start_session, stored_trial
+from support.frozen import end, freeze_mid_reach, start_session, stored_trial, thaw
 from support.ur import standin
 from support.waiting import CEILING_S, wait_for
 
@@ -21,16 +18,18 @@ RATE_HZ = 125
 STOPPED_WITHIN_S = 0.5
 
 
-def test_a_frozen_application_has_its_rig_stop_the_arm_and_the_trial_says_why(tmp_path):
+@pytest.mark.parametrize("ctrl_z", [False, True], ids=["SIGSTOP", "Ctrl-Z"])
+def test_a_frozen_application_has_its_rig_stop_the_arm_and_the_trial_says_why(tmp_path, ctrl_z):
     """Before, the reach went on to H and the arm held there until the release timed out (1128
     servoL after the SIGSTOP in the issue), with nothing able to stop it. Now the controller gets
     at most STOPPED_WITHIN_S of targets after the freeze; the stop is servoStop (a deceleration,
-    never a jump)."""
+    never a jump). Ctrl-Z (SIGTSTP to the process group) would freeze the rig with the application:
+    the rig ignores it, and stops the arm as for SIGSTOP."""
     with standin() as ur:
         run = start_session(tmp_path, ur)
         try:
-            frozen = freeze_mid_reach(run, ur, tmp_path)
-            os.kill(run.pid, signal.SIGCONT)  # the application runs again and records the trial
+            frozen = freeze_mid_reach(run, ur, tmp_path, ctrl_z)
+            thaw(run)  # the application runs again and records the trial
             outcome = wait_for(lambda: stored_trial(tmp_path / "study" / "F1.sqlite", 1),
                                "trial 1's outcome in the database", timeout=CEILING_S * 2)
         finally:

@@ -46,7 +46,7 @@ def start_session(folder: Path, ur: Standin) -> subprocess.Popen:
             [sys.executable, "-m", "app.cli", "run-session", "--study", str(folder / "study"),
              "--participant", "F1", "--scenario", "perturbed", "--auto", "--no-progress",
              "--realtime-priority", "--config", str(lab)],
-            stdout=subprocess.DEVNULL, stderr=err)
+            stdout=subprocess.DEVNULL, stderr=err, process_group=0)  # a job of its own, as in a terminal
 
 
 def reach_under_way(run: subprocess.Popen, ur: Standin, folder: Path) -> float:
@@ -59,15 +59,24 @@ def reach_under_way(run: subprocess.Popen, ur: Standin, folder: Path) -> float:
     return time.monotonic()
 
 
-def freeze_mid_reach(run: subprocess.Popen, ur: Standin, folder: Path) -> Frozen:
-    """SIGSTOP ``run`` (its own pid) once its reach is under way, and wait until the controller's
-    script has stopped (the stream ended, by whatever ended it); the application stays frozen."""
+def freeze_mid_reach(run: subprocess.Popen, ur: Standin, folder: Path, ctrl_z: bool = False) -> Frozen:
+    """Freeze ``run`` once its reach is under way: SIGSTOP to its own pid, or (``ctrl_z``) SIGTSTP to
+    its process group, as Ctrl-Z in its terminal does. Wait until the controller's script has
+    stopped (the stream ended, by whatever ended it); the application stays frozen."""
     reach_under_way(run, ur, folder)
-    os.kill(run.pid, signal.SIGSTOP)
+    if ctrl_z:
+        os.killpg(run.pid, signal.SIGTSTP)
+    else:
+        os.kill(run.pid, signal.SIGSTOP)
     frozen_at = time.monotonic()
     before = len(servo_targets(ur.control))
     received = servo_targets_once_stopped(ur.control)
     return Frozen(targets_after=len(received) - before, last_servo_s=received[-1][0] - frozen_at)
+
+
+def thaw(run: subprocess.Popen) -> None:
+    """Let the frozen application (and whatever Ctrl-Z stopped with it) run again."""
+    os.killpg(run.pid, signal.SIGCONT)
 
 
 def stored_trial(database: Path, trial_index: int) -> tuple[str, str | None] | None:
@@ -84,7 +93,7 @@ def end(run: subprocess.Popen) -> None:
     """Kill the session (its own pid, thawed first) and wait for its rig and learner to end."""
     children = descendants(run.pid)
     if run.poll() is None:
-        os.kill(run.pid, signal.SIGCONT)
+        thaw(run)
         run.kill()
     run.wait()
     assert not still_alive(children, CEILING_S), "the session's processes outlived it"
