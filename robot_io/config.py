@@ -135,8 +135,18 @@ class SafetyLimits(_Frozen):
 HAND_RANGE_BOUNDS = {"reaction_delay_s": 5.0, "mean_speed_mps": 3.0, "pause_s": 10.0}
 
 
+#: A minimum-jerk reach's peak speed over its mean speed (15/8).
+MINIMUM_JERK_PEAK_OVER_MEAN = 1.875
+
+
 class HandProfile(_Frozen):
-    """How the simulated participant moves; each range is drawn from uniformly per trial."""
+    """The participant's hand: the fastest any hand moves, which tracked samples must respect, and
+    how the simulated participant moves (each range drawn from uniformly per trial)."""
+
+    max_speed: in_range(0, 10, "m/s") = Field(
+        3.0, description="the fastest a hand moves [m/s]: a tracked sample farther from the last "
+                         "accepted one than this speed allows is a tracker jump, refused as a "
+                         "dropout (reach-to-grasp peaks at 1-1.5 m/s; 3 leaves room for a hurry)")
 
     tracker_rate_hz: in_range(0, 2000, "Hz") = Field(
         100.0, description="tracker sample rate (Vicon in the paper; mocap runs at most ~2 kHz)")
@@ -162,6 +172,11 @@ class HandProfile(_Frozen):
                                   f"{HAND_RANGE_BOUNDS[name]:g}")
         if self.mean_speed_mps[0] <= 0:
             raise ConfigError(f"hand.mean_speed_mps = {self.mean_speed_mps} must be > 0")
+        peak = MINIMUM_JERK_PEAK_OVER_MEAN * self.mean_speed_mps[1]
+        if peak > self.max_speed:
+            raise ConfigError(f"hand.mean_speed_mps = {self.mean_speed_mps} makes reaches that peak "
+                              f"at {peak:.2f} m/s, beyond hand.max_speed = {self.max_speed:g} m/s: "
+                              "the simulated hand's samples would be refused as tracker jumps")
         return self
 
 

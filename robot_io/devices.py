@@ -31,11 +31,11 @@ def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: 
     if kind == "lsl":
         from robot_io.lsl_hand import LSLHand
 
-        return LSLHand(config.hand_source, tracker_transform(config))
+        return LSLHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     if kind == "udp":
         from robot_io.udp_hand import UDPHand
 
-        return UDPHand(config.hand_source, tracker_transform(config))
+        return UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     if scenario is None:
         raise RobotIOError("hand_source.kind = 'simulated' needs a scenario")
     return SimulatedHand(scenario, config.scene, config.hand, seed)
@@ -111,9 +111,10 @@ def _judge_hand(kind: str, hand: TrackedHand, listen_s: float, staleness_limit_s
     if received == 0:
         return f"hand: NOT OK — {kind} source open but no sample in {listen_s:g} s"
     if invalid:
-        return (f"hand: NOT OK — {invalid} of {received} samples had a non-finite time stamp or an "
-                f"implausible position (more than {PLAUSIBLE_RANGE_M:g} m from the robot base): check "
-                "the units and the sender's clock")
+        return (f"hand: NOT OK — {invalid} of {received} samples were refused, the latest as "
+                f"{hand.refusal} (also refused: a non-finite time stamp, a position more than "
+                f"{PLAUSIBLE_RANGE_M:g} m from the robot base): check the units, the sender's clock "
+                "and the marker's labelling")
     valid_age = hand.valid_age()
     if valid_age is None:
         return (f"hand: NOT OK — all {received} samples occluded (no marker position): is the "

@@ -5,7 +5,11 @@ the tracker rate, and tells a stand-in UR controller where the hand is so that i
 (:mod:`robot_io.simulated_pull`).
 
 Between trials the hand rests at the start A (so the cycle's ready check passes); :meth:`play` starts
-a trial's trajectory at the Go instant, on this machine's monotonic clock, which is also LSL's.
+a trial's trajectory at the Go instant, on this machine's monotonic clock, which is also LSL's. The
+hand moves as a hand can, never faster than ``[hand] max_speed``, or a tracked source would refuse
+its samples as tracker jumps: after a trial it walks back to A (``WALK_SPEED_MPS``), and a Go heard
+after the hand should have left A (this process or the application was kept off the CPU) starts the
+reach as it is heard, as a participant who reacts late, rather than in the middle of its path.
 """
 
 from __future__ import annotations
@@ -25,9 +29,25 @@ from pydantic import BaseModel, ConfigDict
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
+from robot_io.minimum_jerk import minimum_jerk
 from robot_io.simulated_hand import Scenario, SimulatedHand
 
 log = logging.getLogger(__name__)
+
+#: The mean speed of the hand's walk back to A after a trial [m/s] (a minimum-jerk move: it peaks
+#: at 15/8 of this, well below [hand] max_speed).
+WALK_SPEED_MPS = 0.5
+
+
+class Walk:
+    """The hand's minimum-jerk move from where it is to ``end`` at WALK_SPEED_MPS, from ``began``."""
+
+    def __init__(self, start: np.ndarray, end: np.ndarray, began: float) -> None:
+        self.start, self.end, self.began = start, end, began
+        self.duration = max(float(np.linalg.norm(end - start)) / WALK_SPEED_MPS, 1e-3)
+
+    def at(self, now: float) -> np.ndarray:
+        return minimum_jerk(self.start, self.end, self.duration, np.array([now - self.began]))[0][0]
 
 
 class PublisherSpec(BaseModel):
@@ -63,6 +83,8 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
     standin = ControlClient(spec.standin_host) if spec.standin_host else None
     rest = config.scene.point("hand_start")
     hand: SimulatedHand | None = None
+    walk: Walk | None = None  # back to A after a trial
+    exact = rest  # where the hand is
     go, occluded_until = 0.0, 0.0
     conn.send("ready")
     next_at = time.monotonic()
@@ -75,17 +97,19 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
             if message[0] == "play":
                 _, scenario, seed, go = message
                 hand = SimulatedHand(Scenario(scenario), config.scene, config.hand, seed)
+                # a Go heard after the hand should have left A: it leaves now (a late reaction)
+                go = max(go, time.monotonic() - hand.reaction_delay)
             elif message[0] == "occlude":
                 occluded_until = time.monotonic() + message[1]
             else:
-                hand = None
+                hand, walk = None, Walk(exact, rest, time.monotonic())
         now = time.monotonic()
-        if hand is None or now < go:
-            position, exact = rest, rest
-        else:
+        if hand is not None and now >= go:
             sample = hand.latest(now - go)
             position = np.full(3, np.nan) if sample is None else sample.position
             exact = hand.position_at(now - go)
+        else:
+            position = exact = rest if walk is None else walk.at(now)
         if now < occluded_until:
             position = np.full(3, np.nan)  # the marker is hidden: the tracker sends no position
         tracker = transform.invert(position)

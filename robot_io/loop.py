@@ -174,6 +174,7 @@ class HandoverLoop:
         self._last: HandSample | None = None
         self._seen_t = -np.inf
         self._invalid = 0
+        self._refused_before = getattr(self.hand, "invalid", 0)  # a tracked hand's refusals so far
         robot_arrival = hand_arrival = first_target = hold_at = release_at = None
         stage, peak_pull = Stage.GO, 0.0
         outcome, reason = Outcome.TIMEOUT, f"no handover within timeout_s = {cfg.timeout_s}"
@@ -203,7 +204,8 @@ class HandoverLoop:
                 if age > cfg.staleness_limit_s:
                     outcome = Outcome.TRACKER_LOST
                     reason = (f"no valid hand sample for {age:.3f} s "
-                              f"(staleness_limit_s = {cfg.staleness_limit_s})")
+                              f"(staleness_limit_s = {cfg.staleness_limit_s})"
+                              + self._hand_refusal())
                     break
                 row = recorder.next_row()
                 row[SLICES["t"]] = t
@@ -283,6 +285,12 @@ class HandoverLoop:
             "peak_pull_n": None if hold_at is None else peak_pull}), samples)
         log.info("handover ended: %s (%s)", outcome, reason)
         return self.result
+
+    def _hand_refusal(self) -> str:
+        """What a tracked hand (robot_io.tracked_hand) refused during this trial, said in the
+        trial's reason when it is lost ('' for none, or a source that refuses nothing)."""
+        refused = getattr(self.hand, "invalid", 0) - self._refused_before
+        return f"; {refused} samples refused, the latest as {self.hand.refusal}" if refused else ""
 
     def _latest_valid(self, t: float) -> HandSample | None:
         """The newest valid hand sample; a new invalid one (NaN) is counted and ignored."""

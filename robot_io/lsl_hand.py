@@ -75,8 +75,8 @@ def resolve_one(config: HandSourceConfig, window: float = DISCOVERY_WINDOW_S) ->
 class LSLHand(TrackedHand):
     """Resolves the one stream of the type (and name), then pulls samples in a thread."""
 
-    def __init__(self, config: HandSourceConfig, transform: FrameTransform) -> None:
-        super().__init__(transform)
+    def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float) -> None:
+        super().__init__(transform, max_speed)
         self.channels = list(config.lsl_channels)
         info = resolve_one(config)
         if max(self.channels) >= info.channel_count():

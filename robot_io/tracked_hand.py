@@ -11,9 +11,14 @@ Dropouts: an occluded marker (NaN, or exactly zero as Vicon sends it) becomes a 
 loop counts and ignores; no sample at all for ``staleness_limit_s`` makes the loop stop the arm.
 
 Invalid samples are validated before they are kept, and each is one dropout, never the newest sample:
-a non-finite time stamp (it would compare false with every later one and freeze the source), and a
+a non-finite time stamp (it would compare false with every later one and freeze the source), a
 position farther than ``PLAUSIBLE_RANGE_M`` from the robot base (a tracker glitch or a wrong unit,
-e.g. 1e308 mm). They are counted in ``invalid`` (and in ``dropouts``) and logged once.
+e.g. 1e308 mm), and a jump: a position farther from the last accepted one than ``[hand] max_speed``
+allows in the time between them, plus ``TRACKER_JITTER_M`` (a marker swapped or mislabelled; a hand
+cannot move so). They are counted in ``invalid`` (and in ``dropouts``), logged once, and the latest
+is :attr:`TrackedHand.refusal`. A jump that persists is lost tracking: the loop sees no valid sample
+and stops the arm after ``staleness_limit_s``, as for an occluded marker; once the new position is
+as far as ``max_speed`` could have carried the hand, it is accepted (a hand that moved unseen).
 """
 
 from __future__ import annotations
@@ -33,20 +38,25 @@ log = logging.getLogger(__name__)
 
 #: A hand position farther than this from the robot base in any axis is not a hand in the lab [m].
 PLAUSIBLE_RANGE_M = 5.0
+#: What a tracker's noise may add to the distance a hand can move between two samples [m].
+TRACKER_JITTER_M = 0.01
 
 
 class TrackedHand:
     """Thread-safe newest sample of a tracked hand, in the robot base frame."""
 
-    def __init__(self, transform: FrameTransform) -> None:
-        self.transform = transform
+    def __init__(self, transform: FrameTransform, max_speed: float) -> None:
+        self.transform, self.max_speed = transform, max_speed
         self._lock = threading.Lock()
         self._newest: tuple[float, np.ndarray] | None = None
         self.received = 0
         self.dropouts = 0
-        #: samples refused: a non-finite time stamp or an implausible position (also dropouts)
+        #: samples refused: a non-finite time stamp, an implausible position or a jump (also dropouts)
         self.invalid = 0
+        #: why the latest refused sample was refused (None: none was)
+        self.refusal: str | None = None
         self._newest_valid_at: float | None = None
+        self._accepted: tuple[float, np.ndarray] | None = None  # the newest valid sample
         self._thread: threading.Thread | None = None
         self._running = False
 
@@ -68,17 +78,35 @@ class TrackedHand:
                                       f"than {PLAUSIBLE_RANGE_M} m from the robot base")
                 position = np.full(3, np.nan)
         with self._lock:
+            if problem is None and not np.isnan(position[0]):
+                problem = self._jump(measured_at, position)
+                if problem is not None:
+                    position = np.full(3, np.nan)
             if problem is not None:
                 self.invalid += 1
+                self.refusal = problem
                 if self.invalid == 1:
                     log.warning("%s: sample refused as a dropout: %s", type(self).__name__, problem)
             if np.isnan(position[0]):
                 self.dropouts += 1
             elif self._newest_valid_at is None or measured_at > self._newest_valid_at:
                 self._newest_valid_at = measured_at
+                self._accepted = (measured_at, position)
             if self._newest is None or measured_at >= self._newest[0]:
                 self._newest = (measured_at, position)
             self.received += 1
+
+    def _jump(self, measured_at: float, position: np.ndarray) -> str | None:
+        """Why ``position`` cannot be the hand, if it is farther from the newest accepted sample
+        than ``max_speed`` · Δt + ``TRACKER_JITTER_M`` (None: it can be)."""
+        if self._accepted is None:
+            return None
+        since = abs(measured_at - self._accepted[0])
+        distance = float(np.linalg.norm(position - self._accepted[1]))
+        if distance <= self.max_speed * since + TRACKER_JITTER_M:
+            return None
+        return (f"a jump of {distance:.3f} m in {since:.3f} s from the last accepted sample "
+                f"(faster than hand.max_speed = {self.max_speed:g} m/s)")
 
     def latest(self, now: float) -> HandSample | None:
         with self._lock:

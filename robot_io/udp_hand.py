@@ -18,8 +18,8 @@ log = logging.getLogger(__name__)
 
 
 class UDPHand(TrackedHand):
-    def __init__(self, config: HandSourceConfig, transform: FrameTransform) -> None:
-        super().__init__(transform)
+    def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float) -> None:
+        super().__init__(transform, max_speed)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind((config.udp_host, config.udp_port))
         self.sock.settimeout(0.1)

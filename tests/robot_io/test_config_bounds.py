@@ -27,6 +27,10 @@ CASES = [
     ("[loop]\ntimeout_s = inf", "loop.timeout_s = inf: must be a finite number in (0, 120] s"),
     ("[hand]\ntracker_rate_hz = 1e9",
      "hand.tracker_rate_hz = 1000000000.0: must be a finite number in (0, 2000] Hz"),
+    ("[hand]\nmax_speed = 0", "hand.max_speed = 0: must be a finite number in (0, 10] m/s"),
+    # the simulated hand's reaches (peak 1.875 × mean) would be refused as tracker jumps
+    ("[hand]\nmean_speed_mps = [0.5, 2.0]", "hand.mean_speed_mps = (0.5, 2.0) makes reaches that "
+     "peak at 3.75 m/s, beyond hand.max_speed = 3 m/s"),
     ("[release]\ntimeout_s = inf", "release.timeout_s = inf: must be a finite number in (0, 60] s"),
     ("[ur]\nconnect_timeout_s = inf", "ur.connect_timeout_s = inf: must be a finite number in (0, 120] s"),
     ("[scene]\nbox = [1e308, 0.25, 0.15]", "scene.box.0 = 1e+308: must be a finite number in [-3, 3] m"),

@@ -58,7 +58,7 @@ def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
     simulated = SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, 3)
     with realtime_threads():  # the replay and the receiver, as a rig runs them (a stale hand
         # sample of 0.186 s ended the trial tracker_lost beside a full suite's load on the normal policy)
-        hand = LSLHand(config.hand_source, _transform(config))
+        hand = LSLHand(config.hand_source, _transform(config), config.hand.max_speed)
         replay = Replay(simulated, lambda xyz: outlet.push_sample(xyz.tolist()), 100.0).start()
     try:
         hand.wait_for_sample(5.0, config.loop.staleness_limit_s)
@@ -120,7 +120,7 @@ def test_an_lsl_backlog_is_taken_in_one_wake_and_its_newest_sample_is_current():
     name, stream_type = unique("handover-backlog"), unique("MocapTest")
     config = source_config(config, kind="lsl", lsl_stream_name=name, lsl_stream_type=stream_type)
     outlet = lsl_outlet(name, stream_type)
-    hand = WakeCountingLSLHand(config.hand_source, _transform(config))
+    hand = WakeCountingLSLHand(config.hand_source, _transform(config), config.hand.max_speed)
     try:
         outlet.push_sample(to_tracker(np.array([0.5, 0.0, 0.3])).tolist())
         wait_for(lambda: hand.received == 1, "the first sample", seen=lambda: hand.received)
@@ -155,7 +155,7 @@ def test_an_lsl_backlog_is_taken_in_one_wake_and_its_newest_sample_is_current():
 
 def test_waiting_for_the_tracker_wants_a_fresh_sample_not_just_any():
     config = source_config(ControllerConfig(), kind="udp", udp_host="127.0.0.107", udp_port=0)
-    hand = UDPHand(config.hand_source, _transform(config))
+    hand = UDPHand(config.hand_source, _transform(config), config.hand.max_speed)
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     x, y, z = to_tracker(np.array([0.55, 0.05, 0.30]))
     try:
@@ -184,12 +184,12 @@ def test_lsl_source_says_what_it_could_not_find():
     config = source_config(ControllerConfig(), kind="lsl", lsl_stream_type="NoSuchType",
                            resolve_timeout_s=0.3)
     with pytest.raises(HandSourceError, match="no LSL stream of type 'NoSuchType'"):
-        LSLHand(config.hand_source, _transform(config))
+        LSLHand(config.hand_source, _transform(config), config.hand.max_speed)
 
 
 def test_udp_json_samples_are_transformed_stamped_and_dropouts_become_nan():
     config = source_config(ControllerConfig(), kind="udp", udp_host="127.0.0.107", udp_port=0)
-    hand = UDPHand(config.hand_source, _transform(config))
+    hand = UDPHand(config.hand_source, _transform(config), config.hand.max_speed)
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
         target = np.array([0.55, 0.05, 0.30])
@@ -225,3 +225,44 @@ def test_kabsch_recovers_a_known_transform_and_rejects_collinear_points():
         fit_kabsch(line, line)
     with pytest.raises(ConfigError, match="N ≥ 3"):
         fit_kabsch(tracker[:2], base[:2])
+
+
+@pytest.mark.slow
+def test_a_tracker_jump_mid_reach_ends_the_trial_tracker_lost_not_at_a_hand_2m_off():
+    """UDP at 100 Hz; from 0.5 s to 1.0 s of the replay the tracker adds 2 m to y (issue 25, item
+    3: the trial 'completed', 702 cycles at the speed cap, 4 cm past H). The jumped samples are
+    refused, the trial ends tracker_lost through the occlusion's path and says why, and every hand
+    position the loop used is one of the hand's own."""
+    config = source_config(ControllerConfig(), kind="udp", udp_host="127.0.0.1", udp_port=0)
+    simulated = SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, 3)
+    sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    with realtime_threads():  # the replay and the receiver, as a rig runs them
+        hand = UDPHand(config.hand_source, _transform(config), config.hand.max_speed)
+
+        began: list[float] = []
+
+        def send(xyz: np.ndarray) -> None:
+            began[:] = began or [time.monotonic()]
+            jumped = 0.5 <= time.monotonic() - began[0] < 1.0
+            x, y, z = (xyz + np.array([0.0, 2000.0, 0.0]) if jumped else xyz).tolist()
+            sender.sendto(json.dumps({"x": x, "y": y, "z": z}).encode(), hand.address)
+
+        replay = Replay(simulated, send, 100.0).start()
+    try:
+        hand.wait_for_sample(5.0, config.loop.staleness_limit_s)
+        clock = RealClock(125, realtime_priority=True)
+        arm = MockArm(clock, config.scene.point("robot_start"))
+        loop_config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": 125})})
+        record = make_loop(loop_config, Theta(a=5.0, delta=-0.2, k=1.0), hand, arm, clock).run()
+    finally:
+        replay.stop()
+        hand.close()
+        sender.close()
+    summary = record.summary
+    assert summary.outcome is Outcome.TRACKER_LOST, summary.reason
+    assert "samples refused, the latest as a jump of 2." in summary.reason
+    hand_t, hand_xyz = record.samples["hand_t"], record.samples["hand"]
+    valid = np.isfinite(hand_t)
+    nearest = np.min(np.linalg.norm(hand_xyz[valid][:, None, :] - np.array(replay.sent)[None],
+                                    axis=2), axis=1)
+    assert np.max(nearest) < 1e-5

@@ -17,7 +17,7 @@ import pytest
 from support.hand_replay import TRACKER, to_tracker
 from support.waiting import wait_for
 
-from robot_io.config import HandSourceConfig
+from robot_io.config import HandProfile, HandSourceConfig
 from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
 from robot_io.lsl_hand import LSLHand, xpath_literal
@@ -34,6 +34,9 @@ def unique(label: str) -> str:
 
 def transform() -> FrameTransform:
     return TRACKER  # the outlets push to_tracker(...) positions
+
+
+MAX_SPEED = HandProfile().max_speed
 
 
 def source(stream_type: str, name: str | None = None) -> HandSourceConfig:
@@ -76,7 +79,7 @@ def first_position(hand: LSLHand, pushing: dict[int, np.ndarray],
 def test_the_named_stream_is_read_even_when_another_of_its_type_came_first():
     stream_type, wanted, other = unique("MocapTest"), unique("wanted"), unique("other")
     with outlets(stream_type, other, wanted) as (other_outlet, wanted_outlet):
-        hand = LSLHand(source(stream_type, wanted), transform())
+        hand = LSLHand(source(stream_type, wanted), transform(), MAX_SPEED)
         try:
             position = first_position(hand, {0: OTHER, 1: WANTED}, [other_outlet, wanted_outlet])
         finally:
@@ -98,7 +101,7 @@ def test_the_named_stream_is_waited_for_while_another_of_its_type_answers(monkey
 
     def open_hand() -> None:
         try:
-            opened.append(LSLHand(source(stream_type, wanted), transform()))
+            opened.append(LSLHand(source(stream_type, wanted), transform(), MAX_SPEED))
         except BaseException as exc:  # handed to the test thread
             opened.append(exc)
 
@@ -121,7 +124,7 @@ def test_the_named_stream_is_waited_for_while_another_of_its_type_answers(monkey
 def test_a_name_with_both_quote_kinds_is_resolved_by_that_name():
     stream_type, name = unique("MocapTest"), unique("""Bob's "left" hand""")
     with outlets(stream_type, unique("other"), name) as made:
-        hand = LSLHand(source(stream_type, name), transform())
+        hand = LSLHand(source(stream_type, name), transform(), MAX_SPEED)
         try:
             position = first_position(hand, {0: OTHER, 1: WANTED}, made)
         finally:
@@ -132,7 +135,7 @@ def test_a_name_with_both_quote_kinds_is_resolved_by_that_name():
 def test_without_a_name_two_streams_of_the_type_are_refused_and_listed():
     stream_type, first, second = unique("MocapTest"), unique("first"), unique("second")
     with outlets(stream_type, first, second), pytest.raises(HandSourceError) as refused:
-        LSLHand(source(stream_type), transform())
+        LSLHand(source(stream_type), transform(), MAX_SPEED)
     message = str(refused.value)
     assert f"2 streams answered as the LSL stream of type {stream_type!r}" in message
     assert repr(first) in message and repr(second) in message and "source_id" in message
@@ -143,13 +146,13 @@ def test_two_streams_of_the_same_name_and_type_are_refused():
     stream_type, name = unique("MocapTest"), unique("twice")
     with outlets(stream_type, name, name), pytest.raises(HandSourceError,
                                                         match=r"2 streams answered .* named"):
-        LSLHand(source(stream_type, name), transform())
+        LSLHand(source(stream_type, name), transform(), MAX_SPEED)
 
 
 def test_without_a_name_the_one_stream_of_the_type_is_read():
     stream_type, name = unique("MocapTest"), unique("only")
     with outlets(stream_type, name) as made:
-        hand = LSLHand(source(stream_type), transform())
+        hand = LSLHand(source(stream_type), transform(), MAX_SPEED)
         try:
             position = first_position(hand, {0: WANTED}, made)
         finally:

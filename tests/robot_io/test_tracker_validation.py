@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import socket
 import threading
 import time
@@ -20,6 +21,7 @@ from app.cli import main
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
 from robot_io.hand import HandSample
+from robot_io.tracked_hand import TRACKER_JITTER_M
 from robot_io.udp_hand import UDPHand
 
 pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
@@ -65,7 +67,7 @@ def sending(address: tuple[str, int], message: Callable[[int], dict],
 def _udp_hand() -> UDPHand:
     config = ControllerConfig()
     source = config.hand_source.model_copy(update={"kind": "udp", "udp_host": HOST, "udp_port": 0})
-    return UDPHand(source, tracker_transform(config))
+    return UDPHand(source, tracker_transform(config), config.hand.max_speed)
 
 
 def _newest_after(datagrams: list[bytes]) -> tuple[UDPHand, HandSample | None]:
@@ -130,3 +132,33 @@ def test_check_devices_fails_in_plain_words_on_a_stale_occluded_or_invalid_strea
         assert code == 1, (name, out)
         assert hand_line.startswith("hand: NOT OK — ") and STREAMS[name][1] in hand_line, name
         assert "arm: UR at" in out and "Traceback" not in out
+
+
+def _path(n: int, t0: float, y_mm: float = 100.0, x_mm: float | None = None) -> bytes:
+    """Sample ``n`` of a hand moving along x at 0.5 m/s (5 mm per 10 ms), stamped ``t0 + n/100``."""
+    x = 950.0 + 5.0 * n if x_mm is None else x_mm
+    return json.dumps({"x": x, "y": y_mm, "z": 50.0, "t": t0 + 0.01 * n}).encode()
+
+
+def test_a_tracker_jump_is_refused_until_a_hand_could_have_got_there():
+    """2 m added to y for 0.5 s (issue 25, item 3: the trial completed at the speed cap, towards a
+    hand 2 m off): every jumped sample is a dropout and says why; the hand back on its path is
+    followed again; a position that stays is accepted once hand.max_speed could have carried the
+    hand there (a hand that really moved while unseen)."""
+    # stamped in the past (a UDPHand takes a stamp in the future as the arrival time)
+    t0, max_speed = time.monotonic() - 10.0, ControllerConfig().hand.max_speed
+    jumped = [_path(n, t0, y_mm=2100.0) for n in range(10, 60)]
+    hand, sample = _newest_after([_path(n, t0) for n in range(10)] + jumped
+                                 + [_path(n, t0) for n in range(60, 70)])
+    assert (hand.invalid, hand.dropouts) == (50, 50)
+    assert re.match(r"a jump of 2\.0\d\d m in 0\.500 s from the last accepted sample \(faster "
+                    r"than hand\.max_speed = 3 m/s\)", hand.refusal), hand.refusal
+    assert sample.is_valid() and sample.position == pytest.approx(
+        tracker_transform(ControllerConfig()).apply(np.array([950.0 + 5 * 69, 100.0, 50.0])))
+
+    stays = range(70, 150)  # 2 m off from sample 69 on, for good
+    hand, sample = _newest_after([_path(n, t0) for n in range(70)] + [
+        _path(n, t0, y_mm=2100.0, x_mm=950.0 + 5 * 69) for n in stays])
+    refused = sum(max_speed * 0.01 * (n - 69) + TRACKER_JITTER_M < 2.0 for n in stays)
+    assert hand.invalid == refused == 66
+    assert sample.is_valid() and sample.position[1] == pytest.approx(2.1)  # accepted: the new place

@@ -241,7 +241,7 @@ def test_a_stale_hand_source_stops_the_arm():
             "translation": tuple(TRACKER.translation)})
         config = config.model_copy(update={"hand_source": source})
         arm = URArm(config.ur, config.safety)
-        tracker = UDPHand(config.hand_source, tracker_transform(config))
+        tracker = UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
         sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
 
         def send(xyz: np.ndarray) -> None:
