@@ -28,6 +28,7 @@ restarted with the full history replayed (one fit), up to ``max_restarts`` times
 
 from __future__ import annotations
 
+import functools
 import logging
 import multiprocessing as mp
 import queue
@@ -35,7 +36,6 @@ import time
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict
-from scipy.stats import qmc
 
 from app.learning.config import LearnerConfig, LearnerSnapshot
 from app.learning.errors import LearningError, WorkerError
@@ -150,8 +150,6 @@ class LearnerClient:
         self._next_id = 0
         self._n_interactions = len(snapshot.interactions) if snapshot else 0
         self._ready: Suggestion | None = None
-        self._fallback_engine = qmc.Sobol(config.box.dim, scramble=True,
-                                          seed=derive_seed(config.seed, 3) % 2**32)
         self._start([])
 
     @classmethod
@@ -277,6 +275,15 @@ class LearnerClient:
         self._start(self._history)
         if self._pending is not None:
             self._requests.put(self._pending.model_dump(mode="json"))
+
+    @functools.cached_property
+    def _fallback_engine(self) -> Any:  # scipy.stats.qmc.Sobol
+        """The seeded Sobol sequence of fallback θ, made when a reply is first late: importing
+        scipy.stats costs every start of a session ~1 s of CPU, and most sessions need none."""
+        from scipy.stats import qmc
+
+        return qmc.Sobol(self.config.box.dim, scramble=True,
+                         seed=derive_seed(self.config.seed, 3) % 2**32)
 
     def _fallback(self) -> Suggestion:
         """A θ the caller can use now: the last batch-opening θ* on a θ* slot, else the next

@@ -15,7 +15,6 @@ from pathlib import Path
 
 import numpy as np
 from pydantic import BaseModel
-from scipy.stats import qmc
 
 from app.learning.config import LearnerConfig, LearnerSnapshot, ModelConfig
 from app.learning.models import Comparison as LearnerComparison
@@ -96,6 +95,8 @@ def hand_seed(config: StudyConfig, interaction: int) -> int:
 
 def validation_sobol(config: StudyConfig) -> list[Theta]:
     """The Sobol reference points of the validation pairs, in the θ box (seeded, not the learner's)."""
+    from scipy.stats import qmc  # here: scipy.stats costs every start of a session ~1 s of CPU
+
     engine = qmc.Sobol(3, scramble=True, seed=np.random.default_rng([config.seed, 0x50B0]))
     unit = engine.random(max(config.validation_batches, 1))
     low = np.array([b[0] for b in config.theta_bounds.values()])

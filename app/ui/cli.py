@@ -14,7 +14,6 @@ from app.cli import DEFAULT_STUDY
 from app.protocol.seeds import parse_seed
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
-from app.ui.server import HandoverServers, ServeOptions
 from robot_io.cli import argument_type
 from robot_io.simulated_hand import Scenario
 
@@ -98,6 +97,10 @@ def port_number(text: str) -> int:
 
 
 def serve_command(args: argparse.Namespace) -> int:
+    # here, not at the top: every handover command imports this module for its subcommand, and
+    # viser costs each of them ~0.5 s of CPU
+    from app.ui.server import HandoverServers, ServeOptions
+
     lab = load_lab_config(args.config)
     with open_runner(args, lab, realtime=True) as runner:
         if args.auto_participant:
