@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import logging
 import sqlite3
 from collections.abc import Collection, Mapping
 from pathlib import Path
@@ -34,8 +33,6 @@ from session_store.models import (
 from session_store.reading import reading
 from session_store.schema import TABLES, columns_of, sample_column_names, sample_columns
 from session_store.store import SUFFIX, ParticipantStore, participant_codes
-
-log = logging.getLogger(__name__)
 
 FORMATS = ("csv", "parquet")
 
@@ -154,12 +151,12 @@ def _read_study(study_dir: Path, tables: Collection[str], sample_phases: Collect
     """Every participant's tables (and, with ``copies``, a copy of their database there), read
     without writing to the study folder. A file that cannot be read raises its StoreError, or with
     ``skip_unreadable`` is left out and returned as path → why; so is a file in ``exclude`` (path →
-    why the caller refuses it). Nothing readable raises."""
+    why the caller refuses it). The caller says what was left out (logged here too, the export
+    command said each twice). Nothing readable raises."""
     parts, unreadable = [], {}
     for code in _study_codes(study_dir):
         path = Path(study_dir) / f"{code}{SUFFIX}"
         if exclude and path in exclude:
-            log.warning("left out %s: %s", path, exclude[path])
             unreadable[path] = exclude[path]
             continue
         try:
@@ -176,7 +173,6 @@ def _read_study(study_dir: Path, tables: Collection[str], sample_phases: Collect
         except StoreError as exc:
             if not skip_unreadable:
                 raise
-            log.warning("left out %s: %s", path, exc)
             unreadable[path] = str(exc)
     if not parts:
         raise StoreError(f"{study_dir} holds no readable participant database: "

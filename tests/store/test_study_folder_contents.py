@@ -121,7 +121,7 @@ def test_a_read_only_folder_reads_the_transactions_still_in_the_wal(study, tmp_p
     assert set(loaded.tables["events"]["participant"]) == {"P02"}
 
 
-def test_one_bad_file_never_stops_the_export_of_the_others(study, tmp_path, capsys):
+def test_one_bad_file_never_stops_the_export_of_the_others(study, tmp_path, capsys, caplog):
     (study / "P05.sqlite").write_bytes(b"not a database at all " * 200)
     new_engine(study, "P06").close()
     with contextlib.closing(sqlite3.connect(study / "P06.sqlite")) as conn:
@@ -136,6 +136,8 @@ def test_one_bad_file_never_stops_the_export_of_the_others(study, tmp_path, caps
     assert "schema version 99" in reasons[str(study / "P06.sqlite")]
     assert "holds no session (0 bytes" in reasons[str(study / "P07.sqlite")]
     assert "3 database(s) left out" in err and err.count("warning: left out") == 3
+    # said once, by the command: the export logged each as well (a second line on the terminal)
+    assert [r.getMessage() for r in caplog.records if r.name == "session_store.export"] == []
     assert sorted(read_table(out, "participants")["participant"]) == ["P01", "P02"]
     assert sorted(p.name for p in (out / "sqlite").iterdir()) == ["P01.sqlite", "P02.sqlite"]
     assert (study / "P07.sqlite").stat().st_size == 0
