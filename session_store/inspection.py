@@ -1,10 +1,11 @@
 """A participant file judged by its contents, read only: what it holds decides, not its name.
 
-Nothing here writes to the study folder: the file is opened with SQLite's ``mode=ro`` (and, in a
-read-only folder where SQLite cannot create the ``-shm`` index a WAL database needs, with
-``immutable=1`` when no ``-wal`` file holds transactions). A file is refused, unchanged, when it is
-empty or holds no session, is not one of ours, or holds another participant's session than its
-name says (a copy or a renamed file). Write failures (a full disk) become one message too.
+Nothing here writes to the study folder: the file is opened with SQLite's ``mode=ro``, or with
+``immutable=1`` where SQLite would otherwise create the ``-wal`` and ``-shm`` files a WAL database
+needs and no ``-wal`` file holds transactions: in a read-only folder (where it cannot), and for a
+file an earlier version's writer left in WAL mode while no writer holds it. A file is refused,
+unchanged, when it is empty or holds no session, is not one of ours, or holds another participant's
+session than its name says (a copy or a renamed file). Write failures (a full disk) become one message too.
 """
 
 from __future__ import annotations
@@ -17,24 +18,61 @@ from pathlib import Path
 from session_store.errors import (
     CorruptStoreError,
     EmptyStoreError,
+    LockRefused,
     MisnamedStoreError,
     SchemaVersionError,
     StoreWriteError,
 )
+from session_store.lock import holder_of
 
 #: SQLite's result codes of a write that failed for want of room or a working disk.
 WRITE_FAILURES = {"SQLITE_FULL": "the disk is full", "SQLITE_IOERR": "the disk failed (I/O error)",
                   "SQLITE_READONLY": "the file or its folder is read-only"}
 
 
+#: Bytes 18-19 of a database file's header (its read and write format versions) in WAL mode.
+WAL_MODE = b"\x02\x02"
+
+
 def _sidecar(path: Path, suffix: str) -> Path:
     return path.with_name(path.name + suffix)
+
+
+def _closed_in_wal_mode(path: Path) -> bool:
+    """``path`` is a database an earlier version's writer left in WAL mode, closed: its header says
+    WAL, no ``-wal`` file holds transactions and no writer holds its lock. SQLite would give a
+    read-only connection to it a ``-wal`` and a ``-shm`` that the reader cannot remove."""
+    try:
+        with open(path, "rb") as file:
+            header = file.read(20)
+    except OSError:
+        return False
+    wal = _sidecar(path, "-wal")
+    if header[18:20] != WAL_MODE or (wal.exists() and wal.stat().st_size > 0):
+        return False
+    try:
+        return holder_of(path) is None
+    except LockRefused:  # a lock file that is not one (a symlink): whoever writes, read as before
+        return False
+
+
+def _immutable(path: Path, uri: str) -> sqlite3.Connection:
+    """A connection that reads the main file only (nothing else is asked of the folder)."""
+    conn = sqlite3.connect(f"{uri}?immutable=1", uri=True)
+    try:
+        conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
+    except sqlite3.DatabaseError as exc:
+        conn.close()
+        raise CorruptStoreError(f"{path} is not a readable SQLite database: {exc}") from exc
+    return conn
 
 
 def connect_read_only(path: Path) -> sqlite3.Connection:
     """A read-only connection to ``path`` that has been seen to open (raises CorruptStoreError or
     StoreError saying why it cannot be read)."""
     uri = Path(path).resolve().as_uri()
+    if _closed_in_wal_mode(path):
+        return _immutable(path, uri)
     try:
         conn = sqlite3.connect(f"{uri}?mode=ro", uri=True)
     except sqlite3.Error as exc:
@@ -52,13 +90,7 @@ def connect_read_only(path: Path) -> sqlite3.Connection:
             f"{path} cannot be read here: its latest transactions are in {wal.name}, which SQLite "
             f"reads only with {shm.name}, and this folder is read-only; copy the study folder to a "
             "writable place and run the command on the copy")
-    conn = sqlite3.connect(f"{uri}?immutable=1", uri=True)  # a read-only folder, no WAL to read
-    try:
-        conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
-    except sqlite3.DatabaseError as exc:
-        conn.close()
-        raise CorruptStoreError(f"{path} is not a readable SQLite database: {exc}") from exc
-    return conn
+    return _immutable(path, uri)  # a read-only folder, no WAL to read
 
 
 def stored_code(conn: sqlite3.Connection, path: Path) -> str:

@@ -170,23 +170,38 @@ def test_export_and_report_never_write_to_the_study_folder(study, tmp_path):
     assert len(trials[trials["participant"] == "P01"]) == stored_rows(path, "trials")
 
 
+def contents(study: Path) -> dict[str, object]:
+    """Every file of the folder: a database's fingerprint, any other file's bytes."""
+    return {p.name: fingerprint(p) if p.suffix == ".sqlite" else p.read_bytes()
+            for p in sorted(study.iterdir())}
+
+
+def read_with_every_command(study: Path, tmp_path: Path) -> None:
+    assert main(["doctor", str(study)]) == 0
+    assert main(["export", str(study), "--out", str(tmp_path / "out")]) == 0
+    assert main(["report", str(study), "--out", str(tmp_path / "report")]) == 0
+
+
 def test_doctor_export_and_report_leave_the_study_folder_as_the_writer_left_it(tmp_path):
     """Run on a study as its writer closed it, the reading commands add no file and change none
     (before, each left a -wal and a -shm beside every database: a reader of a WAL database creates
     both and cannot remove them; issue 25, item 6)."""
     study = tmp_path / "study"
     closed_session(study, "P01", Step.PLACE, seed=3)
-
-    def contents() -> dict[str, object]:
-        return {p.name: fingerprint(p) if p.suffix == ".sqlite" else p.read_bytes()
-                for p in sorted(study.iterdir())}
-
-    before = contents()
+    before = contents(study)
     assert set(before) == {"P01.sqlite", "P01.sqlite.lock"}
-    assert main(["doctor", str(study)]) == 0
-    assert main(["export", str(study), "--out", str(tmp_path / "out")]) == 0
-    assert main(["report", str(study), "--out", str(tmp_path / "report")]) == 0
-    assert contents() == before
+    read_with_every_command(study, tmp_path)
+    assert contents(study) == before
+
+
+def test_files_an_earlier_version_left_in_wal_mode_are_read_without_a_file_added(study, tmp_path):
+    """The files as an earlier version's writer closed them (WAL mode, no -wal or -shm), in a
+    writable folder: a WAL database opened read-only gets a -wal and a -shm that its reader cannot
+    remove, so each reading command left two files per participant."""
+    before = contents(study)
+    assert set(before) == {"P01.sqlite", "P01.sqlite.lock", "P02.sqlite", "P02.sqlite.lock"}
+    read_with_every_command(study, tmp_path)
+    assert contents(study) == before
 
 
 def test_doctor_reads_a_read_only_folder_as_export_does(study, capsys):
