@@ -21,7 +21,7 @@ from robot_io.clock import RealClock
 from robot_io.config import ControllerConfig
 from robot_io.errors import ConfigError, HandSourceError
 from robot_io.frame import fit_kabsch
-from robot_io.loop import Outcome
+from robot_io.loop import Outcome, TrialRecord
 from robot_io.lsl_hand import LSLHand
 from robot_io.mock_arm import MockArm
 from robot_io.simulated_hand import Scenario, SimulatedHand
@@ -49,6 +49,16 @@ def source_config(config: ControllerConfig, **update):
     return config.model_copy(update={"hand_source": source})
 
 
+def handover_at_125_hz(config: ControllerConfig, hand) -> TrialRecord:
+    """One handover of the mock arm at 125 Hz on the wall clock (SCHED_FIFO), coupled to the tracked
+    ``hand`` once it delivers."""
+    hand.wait_for_sample(5.0, config.loop.staleness_limit_s)
+    clock = RealClock(125, realtime_priority=True)
+    arm = MockArm(clock, config.scene.point("robot_start"))
+    loop_config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": 125})})
+    return make_loop(loop_config, Theta(a=5.0, delta=-0.2, k=1.0), hand, arm, clock).run()
+
+
 @pytest.mark.slow
 def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
     config = ControllerConfig()
@@ -61,11 +71,7 @@ def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
         hand = LSLHand(config.hand_source, _transform(config), config.hand.max_speed)
         replay = Replay(simulated, lambda xyz: outlet.push_sample(xyz.tolist()), 100.0).start()
     try:
-        hand.wait_for_sample(5.0, config.loop.staleness_limit_s)
-        clock = RealClock(125, realtime_priority=True)
-        arm = MockArm(clock, config.scene.point("robot_start"))
-        loop_config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": 125})})
-        record = make_loop(loop_config, Theta(a=5.0, delta=-0.2, k=1.0), hand, arm, clock).run()
+        record = handover_at_125_hz(config, hand)
         replay.stop()
         # every sample sent arrives, once (the inlet was open before the first was pushed)
         wait_for(lambda: hand.received >= len(replay.sent), "every sent sample at the inlet",
@@ -249,11 +255,7 @@ def test_a_tracker_jump_mid_reach_ends_the_trial_tracker_lost_not_at_a_hand_2m_o
 
         replay = Replay(simulated, send, 100.0).start()
     try:
-        hand.wait_for_sample(5.0, config.loop.staleness_limit_s)
-        clock = RealClock(125, realtime_priority=True)
-        arm = MockArm(clock, config.scene.point("robot_start"))
-        loop_config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": 125})})
-        record = make_loop(loop_config, Theta(a=5.0, delta=-0.2, k=1.0), hand, arm, clock).run()
+        record = handover_at_125_hz(config, hand)
     finally:
         replay.stop()
         hand.close()
