@@ -19,7 +19,7 @@ from robot_io.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.simulated_hand import Scenario
 from robot_io.udp_hand import UDPHand
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.soak]  # a process that publishes on the wall clock
 
 #: This test's own loopback address (UDP port 0: any free one).
 HOST = "127.0.0.108"
