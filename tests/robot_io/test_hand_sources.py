@@ -49,9 +49,9 @@ def source_config(config: ControllerConfig, **update):
     return config.model_copy(update={"hand_source": source})
 
 
-def handover_at_125_hz(config: ControllerConfig, hand) -> TrialRecord:
-    """One handover of the mock arm at 125 Hz on the wall clock (SCHED_FIFO), coupled to the tracked
-    ``hand`` once it delivers."""
+def trial_once_live(config: ControllerConfig, hand) -> TrialRecord:
+    """Once ``hand`` has a fresh sample, one reach of the mock arm at 125 Hz on the wall clock
+    (under SCHED_FIFO where allowed, as a rig with [loop] realtime_priority)."""
     hand.wait_for_sample(5.0, config.loop.staleness_limit_s)
     clock = RealClock(125, realtime_priority=True)
     arm = MockArm(clock, config.scene.point("robot_start"))
@@ -71,7 +71,7 @@ def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
         hand = LSLHand(config.hand_source, _transform(config), config.hand.max_speed)
         replay = Replay(simulated, lambda xyz: outlet.push_sample(xyz.tolist()), 100.0).start()
     try:
-        record = handover_at_125_hz(config, hand)
+        record = trial_once_live(config, hand)
         replay.stop()
         # every sample sent arrives, once (the inlet was open before the first was pushed)
         wait_for(lambda: hand.received >= len(replay.sent), "every sent sample at the inlet",
@@ -255,7 +255,7 @@ def test_a_tracker_jump_mid_reach_ends_the_trial_tracker_lost_not_at_a_hand_2m_o
 
         replay = Replay(simulated, send, 100.0).start()
     try:
-        record = handover_at_125_hz(config, hand)
+        record = trial_once_live(config, hand)
     finally:
         replay.stop()
         hand.close()
