@@ -151,8 +151,8 @@ def _read_study(study_dir: Path, tables: Collection[str], sample_phases: Collect
     """Every participant's tables (and, with ``copies``, a copy of their database there), read
     without writing to the study folder. A file that cannot be read raises its StoreError, or with
     ``skip_unreadable`` is left out and returned as path → why; so is a file in ``exclude`` (path →
-    why the caller refuses it). The caller says what was left out (logged here too, the export
-    command said each twice). Nothing readable raises."""
+    why the caller refuses it). Only the caller says what was left out (a log line here as well
+    made the export command say each one twice). Nothing readable raises."""
     parts, unreadable = [], {}
     for code in _study_codes(study_dir):
         path = Path(study_dir) / f"{code}{SUFFIX}"

@@ -38,6 +38,12 @@ def _sidecar(path: Path, suffix: str) -> Path:
     return path.with_name(path.name + suffix)
 
 
+def _wal_holds_transactions(path: Path) -> bool:
+    """A ``-wal`` file beside ``path`` holds transactions that the main file does not have yet."""
+    wal = _sidecar(path, "-wal")
+    return wal.exists() and wal.stat().st_size > 0
+
+
 def _closed_in_wal_mode(path: Path) -> bool:
     """``path`` is a database an earlier version's writer left in WAL mode, closed: its header says
     WAL, no ``-wal`` file holds transactions and no writer holds its lock. SQLite would give a
@@ -47,8 +53,7 @@ def _closed_in_wal_mode(path: Path) -> bool:
             header = file.read(20)
     except OSError:
         return False
-    wal = _sidecar(path, "-wal")
-    if header[18:20] != WAL_MODE or (wal.exists() and wal.stat().st_size > 0):
+    if header[18:20] != WAL_MODE or _wal_holds_transactions(path):
         return False
     try:
         return holder_of(path) is None
@@ -84,8 +89,8 @@ def connect_read_only(path: Path) -> sqlite3.Connection:
         conn.close()
         if getattr(exc, "sqlite_errorname", "") != "SQLITE_CANTOPEN":
             raise CorruptStoreError(f"{path} is not a readable SQLite database: {exc}") from exc
-    wal, shm = _sidecar(path, "-wal"), _sidecar(path, "-shm")
-    if wal.exists() and wal.stat().st_size > 0:
+    if _wal_holds_transactions(path):
+        wal, shm = _sidecar(path, "-wal"), _sidecar(path, "-shm")
         raise CorruptStoreError(
             f"{path} cannot be read here: its latest transactions are in {wal.name}, which SQLite "
             f"reads only with {shm.name}, and this folder is read-only; copy the study folder to a "
