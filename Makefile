@@ -19,6 +19,8 @@ install: $(VENV)/.installed
 
 # uv (from the package index) installs: it downloads and unpacks in parallel, where pip took ~2 of
 # CI's minutes. uv does not read pip's configuration, so the folder of pip's find-links is passed on.
+# It compiles no bytecode (compiling all of torch took 70 CPU-s): the suite's collection compiles what
+# is imported, before the first test.
 FIND_LINKS = $(or $(PIP_FIND_LINKS),$(shell $(BIN)/pip config get global.find-links 2>/dev/null))
 
 $(VENV)/.installed: pyproject.toml
