@@ -40,6 +40,11 @@ CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic"
                  "--disable-background-networking", "--disable-component-update", "--disable-sync",
                  "--autoplay-policy=no-user-gesture-required"]
 TOKEN = "test-token"
+#: How often a wait here reads a page [s]. A look at a page is a round trip through Playwright's
+#: driver and a layout of the page in Chromium: at the suite's 0.02 s (support/waiting.POLL_S) the
+#: looks of a tablet test took 12 of its 58 CPU-seconds (test_tablet_session, alone). A state a page
+#: shows stays shown for longer than this; waits that sample passing states poll faster themselves.
+PAGE_POLL_S = 0.1
 #: The short and the briefest protocol of tests/support/engine, as [protocol] tables of a lab config.
 SHORT_TOML = protocol_toml(SHORT_PROTOCOL)
 BRIEF_TOML = protocol_toml(BRIEF_PROTOCOL)
@@ -126,7 +131,7 @@ def tablet_screen(page: Page, not_: str | tuple[str, ...] = (), timeout_s: float
                      if marker in text and name not in skip), None)
 
     return wait_for(shown, f"the tablet to show a screen other than {sorted(skip)}",
-                    timeout=timeout_s, seen=lambda: what_it_showed(page))
+                    timeout=timeout_s, seen=lambda: what_it_showed(page), poll=PAGE_POLL_S)
 
 
 def start_trial(dashboard: Page) -> None:
@@ -227,7 +232,7 @@ def dashboard_state(dashboard: Page) -> str:
         return "unlocked" if code.count() and code.first.is_visible() else None
 
     return wait_for(state, "the dashboard's token prompt or its participant Code field",
-                    seen=lambda: what_it_showed(dashboard))
+                    seen=lambda: what_it_showed(dashboard), poll=PAGE_POLL_S)
 
 
 @dataclass
@@ -375,7 +380,8 @@ def open_screens(browser: Browser, served: Served) -> tuple[Page, Page]:
 def pairing_code(dashboard: Page) -> str:
     """The tablet pairing code the (unlocked) dashboard shows."""
     return wait_for(lambda: re.search(r"pairing code (\d{4})", dashboard.inner_text("body")),
-                    "the dashboard's pairing code", seen=lambda: what_it_showed(dashboard)).group(1)
+                    "the dashboard's pairing code", seen=lambda: what_it_showed(dashboard),
+                    poll=PAGE_POLL_S).group(1)
 
 
 def pair_tablet(dashboard: Page, tablet: Page) -> None:
@@ -573,4 +579,4 @@ def keep_starting(dashboard: Page, done: Callable[[], T | None], timeout_s: floa
     # The ceiling of a whole session's worth of trials (34 on the paper's protocol), not a bound.
     return wait_for(step, "the session to reach the awaited point while Start trial is pressed "
                           "each time the dashboard is ready", timeout=timeout_s,
-                    seen=lambda: what_it_showed(dashboard))
+                    seen=lambda: what_it_showed(dashboard), poll=PAGE_POLL_S)

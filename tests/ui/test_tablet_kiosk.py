@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Page
 from support.browser import (
+    PAGE_POLL_S,
     button,
     chromium,
     confirm_placement,
@@ -78,7 +79,7 @@ def check_layout(page: Page, width: int, height: int) -> None:
     """Wait until viser has laid the screen out for the new size (its mobile layout below 576 px
     comes a few frames after the resize) and it is right; if it never is, say what is wrong."""
     wait_for(lambda: not layout_problems(page, width, height), f"a right layout at {width}×{height}",
-             seen=lambda: layout_problems(page, width, height))
+             seen=lambda: layout_problems(page, width, height), poll=PAGE_POLL_S)
 
 
 def test_kiosk_layouts_with_five_markers_and_the_offline_cover(tmp_path: Path) -> None:
