@@ -148,6 +148,12 @@ class Received:
     values: list[float]
 
 
+def _zero(name: str) -> object:
+    """An output variable the stand-in does not model: zero (a vector of zeros) of its type."""
+    fmt = FORMATS[OUTPUT_TYPES[name]]
+    return [0] * int(fmt[0]) if fmt[0].isdigit() else 0
+
+
 class Controller:
     """Registers, safety state, program state, the arm and the log of received commands."""
 
@@ -178,15 +184,25 @@ class Controller:
         self.pull_output, self.pull_open_level = 0, True
 
     # -- what the RTDE outputs report ------------------------------------------------------------
-    def output_value(self, name: str) -> object:
-        if name in self.outputs:
-            return self.outputs[name]
-        if name in self.inputs:
-            return self.inputs[name]
-        return self._state_value(name)
+    def output_values(self, names: list[str]) -> list[object]:
+        """The values of an output recipe's ``names`` this cycle. The controller's state is read
+        once per package: building it for every name (a recipe has dozens) took a quarter of a core
+        at 125 Hz, more than the rest of the stand-in."""
+        state: dict[str, object] | None = None
+        values = []
+        for name in names:
+            if name in self.outputs:
+                values.append(self.outputs[name])
+            elif name in self.inputs:
+                values.append(self.inputs[name])
+            else:
+                state = self._state() if state is None else state
+                values.append(state[name] if name in state else _zero(name))
+        return values
 
-    def _state_value(self, name: str) -> object:
-        fixed = {
+    def _state(self) -> dict[str, object]:
+        """The output variables the stand-in models, as the controller reports them now."""
+        return {
             "timestamp": self.time, "actual_TCP_pose": list(self.arm.pose),
             "actual_q": list(self.arm.joints()),
             "target_TCP_pose": list(self.arm.pose), "actual_TCP_force": list(self.force),
@@ -198,10 +214,6 @@ class Controller:
             "actual_digital_output_bits": self.tool_outputs << 16, "speed_scaling": 1.0,
             "target_speed_fraction": 1.0, "tcp_force_scalar": float(np.linalg.norm(self.force[:3])),
         }
-        if name in fixed:
-            return fixed[name]
-        fmt = FORMATS[OUTPUT_TYPES[name]]
-        return [0] * int(fmt[0]) if fmt[0].isdigit() else 0
 
     @property
     def robot_status_bits(self) -> int:

@@ -97,7 +97,7 @@ class RTDEConnection:
             return
         controller = self.server.controller
         with controller.lock:
-            values = [controller.output_value(name) for name in recipe.names]
+            values = controller.output_values(recipe.names)
         self.send(rtde.DATA_PACKAGE, b"\x01" + recipe.layout.pack(*rtde.flatten(values)))
 
 
