@@ -18,19 +18,25 @@ SOAK_HOGS ?= 1
 install: $(VENV)/.installed
 
 # uv (from the package index) installs: it downloads and unpacks in parallel, where pip took ~2 of
-# CI's minutes. uv does not read pip's configuration, so the folder of pip's find-links is passed on.
+# CI's minutes. uv does not read pip's configuration, so pip's find-links folders, constraint files
+# and certificate bundle (where the machine sets them, e.g. a local CPU torch and a cap on torch) are
+# passed on; they are read with $(PYTHON)'s pip: make expands a recipe before its first line creates
+# the venv.
 # It compiles no bytecode (compiling all of torch took 70 CPU-s): the suite's collection compiles what
 # is imported, before the first test.
-FIND_LINKS = $(or $(PIP_FIND_LINKS),$(shell $(BIN)/pip config get global.find-links 2>/dev/null))
+pip_setting = $(shell $(PYTHON) -m pip config list 2>/dev/null | sed -n "s/^[^.]*\.$(1)='\(.*\)'$$/\1/p" | head -1)
+UV_INSTALL = $(addprefix SSL_CERT_FILE=,$(call pip_setting,cert)) \
+	$(BIN)/uv pip install --quiet --python $(BIN)/python \
+	$(addprefix --find-links ,$(call pip_setting,find-links)) \
+	$(addprefix --constraint ,$(call pip_setting,constraint))
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet uv
 	@# A torch wheel that the machine provides locally (pip's find-links, e.g. a CPU build) is
 	@# installed first; elsewhere this step finds nothing and the registry's torch is used.
-	-$(if $(FIND_LINKS),$(BIN)/uv pip install --quiet --python $(BIN)/python --no-index --no-deps \
-		$(addprefix --find-links ,$(FIND_LINKS)) torch)
-	$(BIN)/uv pip install --quiet --python $(BIN)/python -e '.[dev]'
+	-$(UV_INSTALL) --no-index --no-deps torch
+	$(UV_INSTALL) -e '.[dev]'
 	touch $@
 
 demo: install
