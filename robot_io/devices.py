@@ -90,7 +90,7 @@ def _check_gripper(config: ControllerConfig) -> str:
                         "fingers open and close once)")
             return f"gripper: {where} (not moved)"
     except RobotIOError as exc:
-        return f"gripper: NOT OK — {exc}"
+        return f"gripper: NOT OK — {str(exc).removeprefix('gripper: ')}"
     return "gripper: none configured"
 
 
