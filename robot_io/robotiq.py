@@ -119,8 +119,15 @@ class URCapLink:
                                f"'GET {name}'")
         return int(words[1])
 
+    def object_status(self) -> Obj:
+        value = self.get("OBJ")
+        if value not in Obj._value2member_map_:
+            raise GripperFault(f"gripper: the Robotiq URCap on {self.address} answered OBJ {value} "
+                               "(0–3 expected)")
+        return Obj(value)
+
     def status(self) -> RobotiqStatus:
-        return RobotiqStatus(sta=self.get("STA"), pos=self.get("POS"), obj=Obj(self.get("OBJ")),
+        return RobotiqStatus(sta=self.get("STA"), pos=self.get("POS"), obj=self.object_status(),
                              flt=self.get("FLT"))
 
     def await_value(self, ready: Callable[[], bool], what: str, timeout: float) -> None:
@@ -181,7 +188,7 @@ class RobotiqSocketGripper:
         self._holding = False
         self.detected: bool | None = None
         self._fault: GripperFault | None = None
-        self._jobs: queue.Queue[tuple[Callable[[], None], Future] | None] = queue.Queue()
+        self._jobs: queue.Queue[tuple[Callable[[], None], Future] | None] = queue.Queue()  # None: end
         self._worker = threading.Thread(target=self._work, name="robotiq-gripper", daemon=True)
         self._worker.start()
         log.info("gripper: Robotiq on %s, %s", self._link.address, self.status.describe())
@@ -228,29 +235,36 @@ class RobotiqSocketGripper:
     def _work(self) -> None:
         """Run the queued moves; between them, while holding, watch the object and the fault code.
         A fault stays (the link's or the gripper's state is unknown after it): every later move
-        raises it, except a lost object's, which the next close clears."""
+        raises it — except a lost object's, which moves nothing and which the next close clears."""
         while True:
             try:
-                item = self._jobs.get(timeout=POLL_S)
+                job = self._jobs.get(timeout=POLL_S)
             except queue.Empty:
-                item = ()
-            if item is None:
+                if self._holding and self._fault is None:
+                    self._attempt(self._watch)
+                continue
+            if job is None:
                 return
-            done = item[1] if item else None
-            try:
-                if done is not None:
-                    if self._fault is not None:
-                        raise self._fault
-                    item[0]()
-                    done.set_result(None)
-                elif self._holding and self._fault is None:
-                    self._watch()
-            except GripperFault as exc:
-                log.error("%s", exc)
-                self._fault = self._fault or exc
-                self._holding = False
-                if done is not None:
-                    done.set_exception(exc)
+            move, done = job
+            sticky = None if isinstance(self._fault, ObjectLost) else self._fault
+            if (fault := sticky or self._attempt(move)) is not None:
+                done.set_exception(fault)
+            else:
+                done.set_result(None)
+
+    def _attempt(self, action: Callable[[], None]) -> GripperFault | None:
+        """Run ``action``; the fault it met (recorded, the object no longer held), or None. An
+        unexpected error is a fault too: the worker must outlive it to report it."""
+        try:
+            action()
+        except Exception as exc:
+            fault = exc if isinstance(exc, GripperFault) else GripperFault(
+                f"gripper: the Robotiq gripper's worker failed: {type(exc).__name__}: {exc}")
+            log.error("%s", fault)
+            self._fault = self._fault or fault
+            self._holding = False
+            return fault
+        return None
 
     def _move(self, position: int) -> RobotiqStatus:
         """Go to ``position`` at the configured speed and force; the status once the fingers stop."""
@@ -288,7 +302,7 @@ class RobotiqSocketGripper:
 
     def _watch(self) -> None:
         """One look at the held object: lost (``OBJ`` left 2) or a fault code is a fault."""
-        obj, flt = Obj(self._link.get("OBJ")), self._link.get("FLT")
+        obj, flt = self._link.object_status(), self._link.get("FLT")
         if flt:
             raise GripperFault(f"gripper: the Robotiq gripper reports fault code {flt} (GET FLT) while "
                                "holding the object")
