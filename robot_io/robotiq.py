@@ -48,9 +48,10 @@ ACTIVATION_TIMEOUT_S = 15.0
 ACTIVATED = 3
 
 
-class ObjectLost(GripperFault):
-    """The held object slipped out (``OBJ`` left 2): the trial's fault, not the gripper's — the next
-    close clears it."""
+class ObjectFault(GripperFault):
+    """No object where one should be: none detected by a close, or the held one slipped out (``OBJ``
+    left 2). The trial's fault, not the gripper's: the gripper still moves, and the next close clears
+    it."""
 
 
 class Obj(IntEnum):
@@ -201,7 +202,7 @@ class RobotiqSocketGripper:
     # -- the Gripper interface ---------------------------------------------------------------------
     def close(self) -> None:
         """Close on the object and wait until the fingers stop; a fault unless they stopped on it."""
-        if isinstance(self._fault, ObjectLost):
+        if isinstance(self._fault, ObjectFault):
             self._fault = None  # a new object, a new grip
         self.check()
         done = self._submit(self._close)
@@ -235,7 +236,7 @@ class RobotiqSocketGripper:
     def _work(self) -> None:
         """Run the queued moves; between them, while holding, watch the object and the fault code.
         A fault stays (the link's or the gripper's state is unknown after it): every later move
-        raises it — except a lost object's, which moves nothing and which the next close clears."""
+        raises it — except an :class:`ObjectFault`, which the next close clears."""
         while True:
             try:
                 job = self._jobs.get(timeout=POLL_S)
@@ -246,7 +247,7 @@ class RobotiqSocketGripper:
             if job is None:
                 return
             move, done = job
-            sticky = None if isinstance(self._fault, ObjectLost) else self._fault
+            sticky = None if isinstance(self._fault, ObjectFault) else self._fault
             if (fault := sticky or self._attempt(move)) is not None:
                 done.set_exception(fault)
             else:
@@ -286,9 +287,11 @@ class RobotiqSocketGripper:
         status = self._move(self.config.closed_position)
         self.status = status
         self.detected = status.obj is Obj.CONTACT_CLOSING
-        if not self.detected:
-            raise GripperFault(f"gripper: the Robotiq gripper closed to {status.pos}/255 without "
-                               f"detecting an object (OBJ {int(status.obj)}): is the object loaded?")
+        if not self.detected:  # open again, so that the object can be loaded for the repeat
+            self.status = self._move(self.config.open_position)
+            raise ObjectFault(f"gripper: the Robotiq gripper closed to {status.pos}/255 without "
+                              f"detecting an object (OBJ {int(status.obj)}) and opened again: is the "
+                              "object loaded?")
         self._holding = True
         log.info("gripper closed on the object at position %d", status.pos)
 
@@ -307,5 +310,5 @@ class RobotiqSocketGripper:
             raise GripperFault(f"gripper: the Robotiq gripper reports fault code {flt} (GET FLT) while "
                                "holding the object")
         if self._holding and obj is not Obj.CONTACT_CLOSING:
-            raise ObjectLost(f"gripper: the object was lost while holding (OBJ went from 2 to "
-                               f"{int(obj)}): the fingers closed past it")
+            raise ObjectFault(f"gripper: the object was lost while holding (OBJ went from 2 to "
+                              f"{int(obj)}): the fingers closed past it")

@@ -65,12 +65,16 @@ def test_position_speed_and_force_are_sent_as_configured():
         assert robotiq_state(ur)["pre"] == 10
 
 
-def test_nothing_to_close_on_is_a_fault_naming_the_object():
+def test_nothing_to_close_on_is_a_fault_naming_the_object_until_it_is_loaded():
     with standin() as ur, connected_gripper(ur) as gripper:
         ur.control("configure_robotiq", object_position=None)
-        with pytest.raises(GripperFault, match=r"without detecting an object.*is the object loaded"):
+        with pytest.raises(GripperFault, match=r"without detecting an object.*opened again"):
             gripper.close()
         assert not gripper.holding and gripper.detected is False
+        assert robotiq_state(ur)["position"] == 0  # opened again, to be loaded
+        ur.control("configure_robotiq", object_position=DEFAULT_OBJECT_POSITION)  # the next trial's
+        gripper.close()
+        assert gripper.holding and gripper.detected
 
 
 def test_a_urcap_that_stops_answering_mid_hold_is_a_clear_fault():
