@@ -258,12 +258,45 @@ class HandSourceConfig(_Frozen):
         return rotation
 
 
-class GripperConfig(_Frozen):
-    """The gripper that holds the object; ``tool_output``: a tool digital output drives it."""
+#: A Robotiq register value (position, speed, force): one byte.
+RobotiqByte = Annotated[int, Field(ge=0, le=255)]
+#: The Robotiq URCap's gripper socket on the controller (its manual, "Control over the socket").
+ROBOTIQ_PORT = 63352
 
-    kind: Literal["none", "tool_output"] = Field("none", description="gripper interface")
-    tool_output: int = Field(0, ge=0, le=1, description="tool digital output that drives it")
-    open_level: bool = Field(True, description="output level that opens the gripper")
+
+class GripperConfig(_Frozen):
+    """The gripper that holds the object: ``tool_output``, a tool digital output drives it;
+    ``robotiq_socket``, a Robotiq 2F-85 through its URCap's socket (``robot_io.robotiq``)."""
+
+    kind: Literal["none", "tool_output", "robotiq_socket"] = Field("none", description="gripper interface")
+    tool_output: int = Field(0, ge=0, le=1, description="tool_output: the tool digital output that drives it")
+    open_level: bool = Field(True, description="tool_output: the output level that opens the gripper")
+    host: str | None = Field(
+        None, description="robotiq_socket: address of the controller whose URCap drives the gripper; "
+                          "unset: [ur] host (the URCap runs on the UR's controller); never assumed")
+    port: int = Field(ROBOTIQ_PORT, ge=1, le=65535,
+                      description="robotiq_socket: the URCap's gripper socket (63352 on every controller)")
+    speed: RobotiqByte = Field(255, description="robotiq_socket: finger speed, 0 (20 mm/s) to 255 "
+                                                "(150 mm/s on a 2F-85)")
+    force: RobotiqByte = Field(50, description="robotiq_socket: grip force, 0 (20 N) to 255 (235 N on a "
+                                               "2F-85); low enough that a pull opens no finger")
+    open_position: RobotiqByte = Field(0, description="robotiq_socket: finger position that opens "
+                                                      "(0: fully open, 85 mm on a 2F-85)")
+    closed_position: RobotiqByte = Field(255, description="robotiq_socket: finger position commanded "
+                                                          "to close (255: fully closed); the object "
+                                                          "stops the fingers before it")
+    move_timeout_s: in_range(0, 30, "s") = Field(
+        5.0, description="robotiq_socket: a close or an open that has not ended within this long is "
+                         "a fault [s] (a full 2F-85 stroke takes 0.6 s at speed 255, 4.3 s at 0)")
+    reply_timeout_s: in_range(0, 10, "s") = Field(
+        1.0, description="robotiq_socket: no answer from the URCap within this long is a fault [s]")
+
+    @model_validator(mode="after")
+    def _closes_past_open(self) -> GripperConfig:
+        if self.closed_position <= self.open_position:
+            raise ConfigError(f"gripper.closed_position = {self.closed_position} must be above "
+                              f"gripper.open_position = {self.open_position} (0 open … 255 closed)")
+        return self
 
 
 class ReleaseConfig(_Frozen):
@@ -327,11 +360,20 @@ class ControllerConfig(_Frozen):
         if self.gripper.kind == "tool_output" and self.arm.kind != "ur":
             raise ConfigError("gripper.kind = 'tool_output' needs arm.kind = 'ur' (the output is the "
                               f"UR's), not {self.arm.kind!r}")
+        if self.gripper.kind == "robotiq_socket" and self.gripper.host is None and self.ur.host is None:
+            raise ConfigError('[gripper] host is not set and neither is [ur] host; [gripper] kind = '
+                              '"robotiq_socket" needs the address of the controller its URCap runs '
+                              'on. Set [gripper] host (or [ur] host): it has no default')
         if self.arm.kind == "ur" and self.ur.host is None:
             raise ConfigError('[ur] host is not set; [arm] kind = "ur" needs the UR controller\'s '
                               'address. Set it (e.g. host = "192.168.1.10"): it has no default, so no '
                               "robot at an assumed address is ever driven")
         return self
+
+    @property
+    def gripper_host(self) -> str | None:
+        """Where a ``robotiq_socket`` gripper's URCap listens: ``[gripper] host``, else ``[ur] host``."""
+        return self.gripper.host or self.ur.host
 
     @model_validator(mode="after")
     def _scene_in_workspace(self) -> ControllerConfig:

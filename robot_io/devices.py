@@ -9,9 +9,10 @@ import numpy as np
 from robot_io.config import ControllerConfig
 from robot_io.errors import RobotIOError
 from robot_io.frame import FrameTransform
-from robot_io.gripper import ToolOutputGripper
+from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
 from robot_io.hand import HandSource
 from robot_io.loop import TrialRecord
+from robot_io.robotiq import ACTIVATED, RobotiqSocketGripper, probe
 from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
 from robot_io.tracked_hand import PLAUSIBLE_RANGE_M, TrackedHand
@@ -41,6 +42,16 @@ def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: 
     return SimulatedHand(scenario, config.scene, config.hand, seed)
 
 
+def open_gripper(config: ControllerConfig) -> Gripper:
+    """The configured gripper, connected (a Robotiq one also activated, if it was not)."""
+    kind = config.gripper.kind
+    if kind == "tool_output":
+        return ToolOutputGripper(config.ur.host, config.gripper)
+    if kind == "robotiq_socket":
+        return RobotiqSocketGripper(config.gripper_host, config.gripper)
+    return NoGripper()
+
+
 def ur_trial(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: URArm) -> TrialRecord:
     """One real-time handover on the UR at the controller's rate (125 or 500 Hz)."""
     config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": arm.rate_hz})})
@@ -57,16 +68,30 @@ def check_devices(config: ControllerConfig, listen_s: float = 1.0) -> tuple[list
         arm_ok = _check_arm(config, lines)
     lines.extend(_check_hand(config, listen_s))
 
-    if config.gripper.kind == "tool_output":
-        try:
-            ToolOutputGripper(config.ur.host, config.gripper).disconnect()
-            lines.append(f"gripper: tool digital output {config.gripper.tool_output} reachable "
-                         "(not switched)")
-        except RobotIOError as exc:
-            lines.append(f"gripper: NOT OK — {exc}")
-    else:
-        lines.append("gripper: none configured")
+    lines.append(_check_gripper(config))
     return lines, arm_ok and not any("NOT OK" in line for line in lines)
+
+
+def _check_gripper(config: ControllerConfig) -> str:
+    """One line on the gripper: reachable, and a Robotiq's activation, position and fault code
+    (read, never activated or moved)."""
+    gripper = config.gripper
+    try:
+        if gripper.kind == "tool_output":
+            ToolOutputGripper(config.ur.host, gripper).disconnect()
+            return f"gripper: tool digital output {gripper.tool_output} reachable (not switched)"
+        if gripper.kind == "robotiq_socket":
+            status = probe(config.gripper_host, gripper)
+            where = f"Robotiq URCap on {config.gripper_host}:{gripper.port}, {status.describe()}"
+            if status.flt:
+                return f"gripper: NOT OK — {where}: clear the fault on the teach pendant"
+            if status.sta != ACTIVATED:
+                return (f"gripper: {where}; not moved: it activates when the rig opens it (the "
+                        "fingers open and close once)")
+            return f"gripper: {where} (not moved)"
+    except RobotIOError as exc:
+        return f"gripper: NOT OK — {str(exc).removeprefix('gripper: ')}"
+    return "gripper: none configured"
 
 
 def _check_arm(config: ControllerConfig, lines: list[str]) -> bool:

@@ -19,6 +19,10 @@ class ArmFault(RobotIOError):
     """The arm refused a command or is in a fault state (stopped, protective stop, limits)."""
 
 
+class GripperFault(RobotIOError):
+    """The gripper does not answer, reports a fault code, or lost the object it held."""
+
+
 class MoveStopped(RobotIOError):
     """A bounded move (to the start pose R) was stopped on request before it arrived."""
 

@@ -1,7 +1,8 @@
 """The gripper interface (open/close) and its tool-digital-output implementation (``RTDEIOInterface``).
 
 Most UR-mounted parallel grippers without their own URCap (pneumatic, or electric with a digital
-input) are driven by one tool digital output; ``open_level`` says which level opens.
+input) are driven by one tool digital output; ``open_level`` says which level opens. A Robotiq 2F-85
+on its URCap's socket is :class:`robot_io.robotiq.RobotiqSocketGripper`.
 """
 
 from __future__ import annotations
@@ -20,9 +21,15 @@ class Gripper(Protocol):
     def holding(self) -> bool:
         """Closed on the object (as last commanded)."""
 
-    def open(self) -> None: ...
+    def open(self) -> None:
+        """Open; called in the control loop, so it must not wait for the fingers."""
 
-    def close(self) -> None: ...
+    def close(self) -> None:
+        """Close on the object (in prepare, the arm still: it may wait for the fingers)."""
+
+    def check(self) -> None:
+        """Raise :class:`~robot_io.errors.GripperFault` if the gripper reported one (called every
+        control cycle while the cycle runs: no I/O)."""
 
     def disconnect(self) -> None: ...
 
@@ -39,6 +46,9 @@ class NoGripper:
 
     def close(self) -> None:
         self.holding = True
+
+    def check(self) -> None:
+        pass
 
     def disconnect(self) -> None:
         pass
@@ -70,6 +80,9 @@ class ToolOutputGripper:
     def close(self) -> None:
         self._set(not self.config.open_level, "close")
         self.holding = True
+
+    def check(self) -> None:
+        """A tool output reports nothing back: a failed switch raised already."""
 
     def disconnect(self) -> None:
         self._io.disconnect()

@@ -25,7 +25,7 @@ from robot_io.compliance import signals_source
 from robot_io.config import LoopConfig
 from robot_io.coupling import Coupling
 from robot_io.dmp import DMP
-from robot_io.errors import ArmFault
+from robot_io.errors import ArmFault, GripperFault
 from robot_io.gripper import Gripper
 from robot_io.hand import HandSample, HandSource
 from robot_io.recorder import SLICES, TrialRecorder
@@ -198,6 +198,8 @@ class HandoverLoop:
                 if self.arm.state is ArmState.FAULT:
                     outcome, reason = Outcome.ARM_FAULT, self.arm.fault
                     break
+                if hold is not None:
+                    hold.gripper.check()  # a gripper fault ends the trial and stops the arm (finally)
                 measured = self.arm.read_pose()
                 last = self._latest_valid(t)
                 age = t - (last.t if last is not None else 0.0)
@@ -270,6 +272,8 @@ class HandoverLoop:
                 misses += missed
         except ArmFault as exc:
             outcome, reason = Outcome.ARM_FAULT, self.arm.fault or str(exc)
+        except GripperFault as exc:
+            outcome, reason = Outcome.ERROR, str(exc)
         except Exception as exc:
             log.exception("handover loop failed")
             outcome, reason = Outcome.ERROR, f"{type(exc).__name__}: {exc}"

@@ -4,10 +4,12 @@ It starts the project's stand-in UR controller (:mod:`robot_io.ur_standin`) on a
 address and a hand publisher (:mod:`robot_io.hand_publisher`) that plays the simulated participant's
 hand on LSL (or UDP) and makes the stand-in pull on the object once the hand holds it at H. The lab
 configuration is pointed at them — ``[arm] kind = "ur"`` at that address, ``[hand_source]`` the
-publisher's stream, ``[gripper]`` the UR's tool output — so a session runs through ``ur_rtde``,
-``pylsl``, the gripper's tool output and the force release exactly as on the rig. The stand-in and
-the publisher run under SCHED_FIFO where the OS allows it (``realtime_priority``): the controller
-and the tracker they stand for have hardware of their own, which this machine's load cannot slow.
+publisher's stream, ``[gripper]`` the UR's tool output, or, when the lab's file says ``[gripper] kind
+= "robotiq_socket"``, the stand-in's Robotiq URCap socket at that address — so a session runs through
+``ur_rtde``, ``pylsl``, the lab's kind of gripper and the force release exactly as on the rig. The
+stand-in and the publisher run under SCHED_FIFO where the OS allows it (``realtime_priority``): the
+controller and the tracker they stand for have hardware of their own, which this machine's load
+cannot slow.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from typing import Literal
 import numpy as np
 
 from app.session.config import LabConfig
+from robot_io.config import ROBOTIQ_PORT, GripperConfig
 from robot_io.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.simulated_hand import Scenario
 from robot_io.ur_standin.control import ControlClient
@@ -57,7 +60,8 @@ def free_udp_port(host: str) -> int:
 
 #: What a rehearsal chooses afresh on every run (a free loopback address, a stream name, a port).
 #: It is not the rig: resuming a rehearsed session in a new rehearsal is not a rig change.
-CHOSEN_PER_RUN = {"ur": ("host",), "hand_source": ("lsl_stream_name", "udp_host", "udp_port")}
+CHOSEN_PER_RUN = {"ur": ("host",), "gripper": ("host",),
+                  "hand_source": ("lsl_stream_name", "udp_host", "udp_port")}
 
 
 def rehearsal_rig(rig: dict) -> dict:
@@ -67,6 +71,30 @@ def rehearsal_rig(rig: dict) -> dict:
             {key: "rehearsal" if key in CHOSEN_PER_RUN.get(table, ()) else value
              for key, value in values.items()}
             for table, values in rig.items()}
+
+
+def rehearsal_gripper(gripper: GripperConfig, host: str) -> GripperConfig:
+    """The lab's gripper on the stand-in at ``host``: a Robotiq on the stand-in's URCap socket; any
+    other kind (none included) on the stand-in's tool output, as the rehearsal always drove it."""
+    if gripper.kind == "robotiq_socket":
+        return gripper.model_copy(update={"host": host, "port": ROBOTIQ_PORT})
+    return gripper.model_copy(update={"kind": "tool_output"})
+
+
+def gripper_moves(gripper: GripperConfig, events: list[str]) -> tuple[int, int]:
+    """How often the stand-in's events show the gripper opened and closed."""
+    if gripper.kind == "robotiq_socket":
+        return (sum(event.startswith("robotiq: opening") for event in events),
+                sum(event.startswith("robotiq: closing") for event in events))
+    opened = closed = 0
+    previous = None
+    for event in events:
+        if event.startswith("tool digital outputs = "):
+            state = bool(int(event.rsplit(" ", 1)[1], 2) >> gripper.tool_output & 1) == gripper.open_level
+            if state != previous:
+                opened, closed = opened + state, closed + (not state)
+            previous = state
+    return opened, closed
 
 
 class Rehearsal:
@@ -95,7 +123,7 @@ class Rehearsal:
                 arm=lab.arm.model_copy(update={"kind": "ur"}),
                 ur=lab.ur.model_copy(update={"host": self.host}),
                 hand_source=source,
-                gripper=lab.gripper.model_copy(update={"kind": "tool_output"}))
+                gripper=rehearsal_gripper(lab.gripper, self.host))
             self.control = ControlClient(self.host)
             self.configure_pull(taken=True)
             self.publisher = HandPublisher(PublisherSpec(
@@ -118,7 +146,7 @@ class Rehearsal:
                      pull_n=self.lab.hand.pull_n if taken else 0.0,
                      grasp_delay_s=self.lab.hand.grasp_delay_s,
                      tool_output=self.lab.gripper.tool_output,
-                     open_level=self.lab.gripper.open_level)
+                     open_level=self.lab.gripper.open_level, gripper=self.lab.gripper.kind)
 
     def play(self, scenario: Scenario, seed: int, go_monotonic: float) -> None:
         self.publisher.play(scenario, seed, go_monotonic)
@@ -127,18 +155,10 @@ class Rehearsal:
         self.publisher.rest()
 
     def observed(self) -> dict[str, int | float]:
-        """What the stand-in controller saw: gripper openings and closings on the tool output,
-        moves to R, and where the TCP is now (distance to R, m)."""
-        output, level = self.lab.gripper.tool_output, self.lab.gripper.open_level
+        """What the stand-in controller saw: gripper openings and closings (on the tool output, or
+        the Robotiq's moves), moves to R, and where the TCP is now (distance to R, m)."""
         start = self.lab.scene.point("robot_start")
-        opened = closed = 0
-        previous = None
-        for event in self.control("events")["events"]:
-            if event.startswith("tool digital outputs = "):
-                state = bool(int(event.rsplit(" ", 1)[1], 2) >> output & 1) == level
-                if state != previous:
-                    opened, closed = opened + state, closed + (not state)
-                previous = state
+        opened, closed = gripper_moves(self.lab.gripper, self.control("events")["events"])
         moves_to_r = sum(1 for _, command, values in self.control("received")["received"]
                          if command == MOVEL and np.linalg.norm(np.asarray(values[:3]) - start) < 1e-6)
         pose = np.asarray(self.control("state")["pose"][:3])

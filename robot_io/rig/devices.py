@@ -5,7 +5,8 @@ cycle runs on (DESIGN.md §1).
 the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.ur_arm.URArm`
 over ur_rtde, connected once). ``[hand_source] kind``: ``simulated`` (a seeded
 :class:`~robot_io.simulated_hand.SimulatedHand` per trial), ``lsl`` or ``udp`` (opened once).
-``[gripper] kind``: ``tool_output`` (the UR's tool digital output) or ``none``.
+``[gripper] kind``: ``tool_output`` (the UR's tool digital output), ``robotiq_socket`` (a Robotiq
+2F-85 on its URCap's socket, :mod:`robot_io.robotiq`) or ``none``.
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ import numpy as np
 
 from robot_io.arm import ArmState
 from robot_io.cycle import CycleDevices
-from robot_io.devices import open_hand
+from robot_io.devices import open_gripper, open_hand
 from robot_io.errors import ArmFault, ConfigError
-from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
+from robot_io.gripper import Gripper, NoGripper
 from robot_io.hand import HandSource
 from robot_io.mock_arm import MockArm
 from robot_io.rig.messages import DeviceReport, RigSpec
@@ -42,6 +43,9 @@ def check_spec(spec: RigSpec) -> None:
     if not spec.realtime and (config.arm.kind != "mock" or config.hand_source.kind != "simulated"):
         raise ConfigError("simulated time needs arm.kind = 'mock' and hand_source.kind = "
                           "'simulated'; real devices run on the wall clock")
+    if not spec.realtime and config.gripper.kind != "none":
+        raise ConfigError(f"simulated time needs gripper.kind = 'none', not {config.gripper.kind!r}: "
+                          "a real gripper runs on the wall clock")
 
 
 class RigDevices:
@@ -61,8 +65,7 @@ class RigDevices:
                 self.ur = URArm(config.ur, config.safety)
             if config.hand_source.kind != "simulated":
                 self.tracked = open_hand(config)
-            if config.gripper.kind == "tool_output":
-                self.gripper = ToolOutputGripper(config.ur.host, config.gripper)
+            self.gripper = open_gripper(config)
         except BaseException:
             self.close()
             raise
@@ -83,8 +86,9 @@ class RigDevices:
             hand_detail = "UDP on {}:{}".format(*getattr(tracked, "address", ("?", "?")))
         else:
             hand_detail = f"simulated hand ({self.spec.scenario.value})"
-        gripper_detail = (f"tool digital output {config.gripper.tool_output}"
-                          if config.gripper.kind == "tool_output" else "no gripper")
+        gripper_detail = {"tool_output": f"tool digital output {config.gripper.tool_output}",
+                          "robotiq_socket": f"Robotiq 2F-85 on {config.gripper_host}:"
+                                            f"{config.gripper.port}"}.get(config.gripper.kind, "no gripper")
         return DeviceReport(arm=config.arm.kind, arm_detail=arm_detail,
                             polyscope_version=None if ur is None else ur.polyscope_version,
                             rate_hz=config.loop.rate_hz, hand_source=source.kind,

@@ -104,7 +104,7 @@ class DeviceReport(_Message):
     rate_hz: int
     hand_source: str = Field(description="simulated, lsl or udp")
     hand_detail: str
-    gripper: str = Field(description="none or tool_output")
+    gripper: str = Field(description="none, tool_output or robotiq_socket")
     gripper_detail: str
 
 

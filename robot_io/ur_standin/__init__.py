@@ -5,7 +5,9 @@ for ``ur_rtde``'s real ``RTDEControlInterface``, ``RTDEReceiveInterface``, ``RTD
 ``DashboardClient`` to connect, upload their control script, stream ``servoL``, read the TCP pose and
 force, set tool outputs and hit the watchdog. It interprets no URScript: it recognises the uploaded
 ``rtde_control`` program and runs a Python model of that program's register handshake. The arm is a
-bounded first-order follower of servo targets — a protocol-level model, not robot dynamics.
+bounded first-order follower of servo targets — a protocol-level model, not robot dynamics. It also
+answers a Robotiq URCap's gripper socket (port 63352) for a modelled 2F-85
+(:mod:`robot_io.ur_standin.robotiq`).
 
 Run it in its own process (``python -m robot_io.ur_standin --host 127.0.0.5``): ``ur_rtde``'s
 constructors hold the GIL while they wait for the controller, so a stand-in in the same process

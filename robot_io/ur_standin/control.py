@@ -11,11 +11,16 @@ data package: ``[t, command id, doubles]``, ``t`` in the stand-in's ``time.monot
 client connection on every port); ``stall`` with ``seconds`` (no cycles, no output packages);
 ``set_force`` with ``force`` (6 values, N and N·m); ``set_pose`` with ``pose`` (6 values);
 ``set_hand`` with ``position`` (3 values, or null) and ``configure_pull`` with ``direction``,
-``pull_n``, ``grasp_delay_s``, ``tool_output``, ``open_level`` (the rehearsal's simulated pull).
+``pull_n``, ``grasp_delay_s``, ``tool_output``, ``open_level`` and optionally ``gripper``
+(``"tool_output"``, the default, or ``"robotiq_socket"``: which gripper holds the object) — the
+rehearsal's simulated pull; ``configure_robotiq`` with any of ``object_position`` (finger position
+0–255 where the object stops the closing fingers, or null: no object), ``fault`` (what ``GET FLT``
+answers) and ``answering`` (false: the URCap socket answers nothing).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import socket
 import time
@@ -40,6 +45,7 @@ def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int
             return {"ok": True, "pose": list(controller.arm.pose), "q": list(controller.arm.joints()),
                     "force": list(controller.force), "safety": controller.safety.name,
                     "program": program and program.name, "tool_outputs": controller.tool_outputs,
+                    "robotiq": dataclasses.asdict(controller.robotiq),
                     "events": controller.events[-50:],
                     "speed": float(np.linalg.norm(controller.arm.velocity)),
                     "stalled": time.monotonic() < controller.stalled_until,
@@ -74,7 +80,16 @@ def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int
                                             float(request["grasp_delay_s"]))
             controller.pull_output = int(request["tool_output"])
             controller.pull_open_level = bool(request["open_level"])
+            controller.pull_gripper = request.get("gripper", "tool_output")
             controller.event(f"simulated pull of {request['pull_n']} N configured")
+            return {"ok": True}
+        if op == "configure_robotiq":
+            robotiq, changed = controller.robotiq, {}
+            for key in ("object_position", "fault", "answering"):
+                if key in request:
+                    setattr(robotiq, key, request[key])
+                    changed[key] = request[key]
+            controller.event(f"robotiq configured: {changed}")
             return {"ok": True}
         if op == "set_pose":
             controller.arm.pose = np.asarray(request["pose"], dtype=float).reshape(6)

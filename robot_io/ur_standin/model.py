@@ -15,6 +15,8 @@ The joint angles ``actual_q`` follow it through the UR5's analytic inverse kinem
 :data:`READY_Q` at start), so they move continuously and FK(q) is the reported pose. A pose no UR5
 can take (out of reach, or not finite after ``set_pose``) has no joint angles: NaN.
 
+A Robotiq 2F-85 on its URCap's socket is modelled in :mod:`robot_io.ur_standin.robotiq`.
+
 The measured force is what the test sets (``set_force``) — no contact model — unless a rehearsal
 configured the simulated participant's pull (``configure_pull``, :mod:`robot_io.simulated_pull`):
 then each cycle it is the pull of the hand last reported with ``set_hand`` on the object the TCP
@@ -33,6 +35,7 @@ import numpy as np
 
 from robot_io.simulated_pull import SimulatedPull
 from robot_io.ur_kinematics import nearest_inverse
+from robot_io.ur_standin.robotiq import RobotiqModel
 from robot_io.ur_standin.rtde_protocol import FORMATS, OUTPUT_TYPES
 
 log = logging.getLogger(__name__)
@@ -170,6 +173,7 @@ class Controller:
         self.safety_since = 0.0
         self.program = None  # a running program (robot_io.ur_standin.control_script.ControlScript)
         self.tool_outputs = 0
+        self.robotiq = RobotiqModel()  # the 2F-85 behind the URCap socket (port 63352)
         self.received: list[Received] = []
         self.events: list[str] = []
         self.last_script = ""
@@ -182,6 +186,7 @@ class Controller:
         self.hand: np.ndarray | None = None
         self.pull: SimulatedPull | None = None
         self.pull_output, self.pull_open_level = 0, True
+        self.pull_gripper = "tool_output"  # or "robotiq_socket": which gripper holds the object
 
     # -- what the RTDE outputs report ------------------------------------------------------------
     def output_values(self, names: list[str]) -> list[object]:
@@ -294,11 +299,15 @@ class Controller:
     # -- one controller cycle ----------------------------------------------------------------------
     @property
     def holding(self) -> bool:
-        """The gripper on the pull's tool output is closed (its level is not the opening one)."""
+        """The gripper holds the object: the Robotiq's fingers stopped on it, or the gripper on the
+        pull's tool output is closed (its level is not the opening one)."""
+        if self.pull_gripper == "robotiq_socket":
+            return self.robotiq.holding
         return bool(self.tool_outputs >> self.pull_output & 1) != self.pull_open_level
 
     def tick(self) -> None:
         self.time += self.period
+        self.robotiq.tick(self.period, self.event)
         if self.pull is not None:
             self.force[:3] = self.pull.force(self.time, self.hand, self.arm.pose[:3], self.holding,
                                              float(np.linalg.norm(self.arm.velocity)))

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from robot_io.ur_standin import control, dashboard, script_server
+from robot_io.ur_standin import control, dashboard, robotiq, script_server
 from robot_io.ur_standin.listener import Listener
 from robot_io.ur_standin.model import Controller, Series
 from robot_io.ur_standin.rtde_server import RTDEServer
@@ -20,8 +20,8 @@ RTDE_PORT, DASHBOARD_PORT = 30004, 29999
 
 
 class StandinController:
-    """Listens on ``host`` (RTDE, dashboard, script ports, control port) and runs the controller cycle
-    at 125 Hz (CB-series) or 500 Hz (e-Series) until :meth:`close`."""
+    """Listens on ``host`` (RTDE, dashboard, script ports, the Robotiq URCap's socket, control port)
+    and runs the controller cycle at 125 Hz (CB-series) or 500 Hz (e-Series) until :meth:`close`."""
 
     def __init__(self, host: str, series: Series = Series.CB3,
                  start_pose: np.ndarray | None = None, control_port: int = control.DEFAULT_PORT) -> None:
@@ -34,6 +34,7 @@ class StandinController:
             Listener(host, DASHBOARD_PORT, functools.partial(dashboard.serve, self.controller)),
             *(Listener(host, port, functools.partial(script_server.serve, self.controller))
               for port in script_server.PORTS),
+            Listener(host, robotiq.PORT, functools.partial(robotiq.serve, self.controller)),
         ]
         self.control = Listener(host, control_port, serve_control)
         self._running = True

@@ -1,6 +1,7 @@
 """The whole handover cycle (robot_io.cycle) on the mock arm and the simulated hand, on simulated time:
 stages in order, the release fired by the participant's pull and armed only in the hold, a fresh
-baseline each trial, the k_ext compliance while grasped, not_taken, stop and the ready check."""
+baseline each trial, the k_ext compliance while grasped, not_taken, stop, a gripper fault and the
+ready check."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 from robot_io.clock import SimClock
 from robot_io.config import ControllerConfig
 from robot_io.cycle import CycleDevices, Gates, run_cycle
+from robot_io.errors import GripperFault
 from robot_io.gripper import NoGripper
 from robot_io.hand import HandSample
 from robot_io.loop import Outcome, StopRequest
@@ -24,12 +26,13 @@ from robot_io.theta import Theta
 THETA = Theta(a=5.0, delta=-0.2, k=5.0)
 
 
-def devices(config: ControllerConfig, bias: np.ndarray | None = None, seed: int = 3):
+def devices(config: ControllerConfig, bias: np.ndarray | None = None, seed: int = 3,
+            gripper: NoGripper | None = None):
     """Mock arm whose force is the simulated participant's pull (plus a constant ``bias``, as a
-    CB-series force estimate has), the simulated hand, no gripper hardware."""
+    CB-series force estimate has), the simulated hand, no gripper hardware (or ``gripper``)."""
     clock = SimClock(config.loop.rate_hz)
     hand = SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, seed)
-    gripper = NoGripper()
+    gripper = gripper or NoGripper()
     scene = config.scene
     pull = SimulatedPull(scene.point("hand_start") - scene.point("handover_point"),
                          config.hand.pull_n, config.hand.grasp_delay_s)
@@ -106,6 +109,34 @@ def test_no_pull_within_the_release_timeout_ends_the_trial_not_taken_and_the_rob
     assert [stage for stage, _ in stages][-3:] == [Stage.NOT_TAKEN, Stage.RETRACT, Stage.DONE]
     assert rig.gripper.holding  # still holding the object, back at R
     np.testing.assert_allclose(rig.arm.read_pose(), config.scene.point("robot_start"))
+
+
+class FaultingGripper(NoGripper):
+    """A gripper that reports :attr:`fault` once it is set (as the Robotiq's worker does)."""
+
+    fault: GripperFault | None = None
+
+    def check(self) -> None:
+        if self.fault is not None:
+            raise self.fault
+
+
+def test_a_gripper_fault_in_the_hold_ends_the_trial_stops_the_arm_and_nothing_retracts():
+    config = ControllerConfig()
+    gripper = FaultingGripper()
+    rig = devices(config, gripper=gripper)
+    stages: list[Stage] = []
+
+    def on_stage(stage: Stage, t: float) -> None:
+        stages.append(stage)
+        if stage is Stage.HOLD:
+            gripper.fault = GripperFault("gripper: the object was lost while holding")
+
+    record = run_cycle(config, THETA, rig, Gates.automatic(), on_stage)
+    assert record.summary.outcome is Outcome.ERROR
+    assert record.summary.reason == "gripper: the object was lost while holding"
+    assert stages[-1] is Stage.HOLD  # no release, no retract: the arm stays where it stopped
+    assert rig.arm.stop_requested_at is not None and not rig.arm.is_moving
 
 
 def test_stop_while_waiting_for_go_ends_the_trial_before_anything_streams():
