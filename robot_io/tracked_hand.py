@@ -137,6 +137,10 @@ class TrackedHand:
             newest = self._newest_valid_at
         return None if newest is None else time.monotonic() - newest
 
+    def detail(self) -> str:
+        """What ``handover check-devices`` adds about this source (subclasses that know more)."""
+        return ""
+
     # -- receiver thread -----------------------------------------------------------------------
     def start(self) -> None:
         self._running = True
