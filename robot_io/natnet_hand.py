@@ -37,6 +37,9 @@ log = logging.getLogger(__name__)
 
 #: The frames' time span over which the host clock's tick rate is learned [s].
 RATE_BASELINE_S = 0.5
+#: A reported latency beyond this is not one (a tick rate learned across a restart of Motive's
+#: clock or a change of its camera rate): the frame is stamped on arrival and the rate learned anew [s].
+MAX_REPORTED_LATENCY_S = 0.5
 #: How often the model definitions are asked for again while none have come [s] (UDP may drop one).
 MODELDEF_RETRY_S = 0.5
 
@@ -66,10 +69,16 @@ class TickRate:
         if span >= self.baseline_s:
             self.hz = (ticks - self._first[1]) / span
 
+    def reset(self) -> None:
+        """Learn the rate anew from the next pair on."""
+        self._first, self.hz = None, None
+
 
 def reported_latency(frame: DataFrame, rate: TickRate) -> float | None:
-    """The camera-to-transmit latency ``frame`` reports [s], None where it reports none (protocol
-    before 3.0) or the tick rate is not known yet."""
+    """The camera-to-transmit latency ``frame`` reports [s]: (transmit − mid-exposure) ticks over
+    the learned tick rate; None where it reports none (protocol before 3.0), the tick rate is not
+    known yet, or the result is no latency (negative or above :data:`MAX_REPORTED_LATENCY_S`: the
+    rate is then learned anew)."""
     suffix = frame.suffix
     if suffix.stamp_transmit is None:
         return None
@@ -79,7 +88,11 @@ def reported_latency(frame: DataFrame, rate: TickRate) -> float | None:
     rate.add(suffix.timestamp, measured)
     if not rate.hz or rate.hz <= 0:
         return None
-    return max(0.0, (suffix.stamp_transmit - measured) / rate.hz)
+    latency = (suffix.stamp_transmit - measured) / rate.hz
+    if not 0.0 <= latency <= MAX_REPORTED_LATENCY_S:
+        rate.reset()
+        return None
+    return latency
 
 
 def describe_bodies(descriptions: DataDescriptions) -> str:
@@ -169,14 +182,18 @@ class NatNetHand(TrackedHand):
             return None
         return (self.frames - 1) / (self.last_arrival - self.first_arrival)
 
+    def describe(self) -> str:
+        """Which rigid body of which server, in words."""
+        return (f"rigid body {self.rigid_body!r} (id {self.body_id}) from {self.server_detail} at "
+                f"{self.server[0]}:{self.server[1]}")
+
     def detail(self) -> str:
-        """The rigid body, the stream's rate and the latency it reports, in words."""
+        """:meth:`describe`, the stream's rate and the latency it reports, in words."""
         rate = self.rate_hz()
         latency = ("latency not reported (stamped on arrival)" if self.latency_s is None
                    else f"latency {1e3 * self.latency_s:.1f} ms")
-        return (f"rigid body {self.rigid_body!r} (id {self.body_id}) from {self.server_detail} at "
-                f"{self.server[0]}:{self.server[1]}, "
-                + ("no rate yet" if rate is None else f"{rate:.0f} Hz") + f", {latency}")
+        return (f"{self.describe()}, " + ("no rate yet" if rate is None else f"{rate:.0f} Hz")
+                + f", {latency}")
 
     def close(self) -> None:
         """Stop the client's threads and close its sockets."""

@@ -81,7 +81,7 @@ class RigDevices:
         if source.kind == "lsl":
             hand_detail = f"LSL stream {getattr(tracked, 'name', '?')!r} ({source.lsl_stream_type})"
         elif source.kind == "natnet":
-            hand_detail = f"NatNet {tracked.detail()}"
+            hand_detail = f"NatNet {tracked.describe()}"
         elif source.kind == "udp":
             hand_detail = "UDP on {}:{}".format(*getattr(tracked, "address", ("?", "?")))
         else:

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+from natnet import DataFrame, PacketBuffer, Version
 from pydantic import ValidationError
 from support.natnet import HAND, OBJECT, TRACKER_M, motive, natnet_source, natnet_toml, to_tracker_m
 from support.waiting import wait_for
@@ -19,8 +20,16 @@ from app.cli import main
 from app.session.config import load_lab_config
 from robot_io.config import HandProfile, LoopConfig
 from robot_io.errors import HandSourceError
-from robot_io.natnet_hand import NatNetHand
-from robot_io.natnet_standin import RigidBodySpec, hidden, pose_at
+from robot_io.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
+from robot_io.natnet_standin import (
+    NAT_FRAMEOFDATA,
+    PROTOCOL_VERSION,
+    FrameStamps,
+    RigidBodySpec,
+    frame_of_data,
+    hidden,
+    pose_at,
+)
 
 pytestmark = pytest.mark.soak  # real sockets and threads on the clock: `make soak` repeats them
 
@@ -65,6 +74,28 @@ def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its
     # stand-in's, and the sample is stamped that much before it arrived, which was before now
     assert hand.latency_s == pytest.approx(server.latency_s, abs=1e-4)
     assert sample.t <= now - server.latency_s + 1e-4
+
+
+def parsed(exposure: float, transmit: float, *, received: float | None = None) -> DataFrame:
+    """A stand-in frame measured at ``exposure`` and sent at ``transmit`` [s], as the natnet
+    client parses it."""
+    packet = frame_of_data(1, {HAND.id: pose_at(to_tracker_m(WANTED))}, exposure,
+                           FrameStamps(exposure, exposure if received is None else received, transmit))
+    buffer = PacketBuffer(packet)
+    assert buffer.read("<HH") == (NAT_FRAMEOFDATA, len(packet) - 4)
+    return DataFrame.read_from_buffer(buffer, Version(*PROTOCOL_VERSION))
+
+
+def test_the_reported_latency_needs_the_tick_rate_and_refuses_what_is_no_latency():
+    """The tick rate is learned over RATE_BASELINE_S of frames; a latency that is negative or above
+    half a second is none (the frame is stamped on arrival) and the rate is learned anew."""
+    rate = TickRate()
+    assert reported_latency(parsed(10.0, 10.004), rate) is None  # the rate is not known yet
+    later = 10.0 + RATE_BASELINE_S
+    assert reported_latency(parsed(later, later + 0.004), rate) == pytest.approx(0.004, abs=1e-6)
+    assert reported_latency(parsed(later + 1, later + 3), rate) is None and rate.hz is None
+    no_exposure = parsed(0.0, 0.010, received=0.006)
+    assert no_exposure.suffix.stamp_camera_mid_exposure == 0 and no_exposure.suffix.stamp_data_received
 
 
 def test_a_rigid_body_motive_lost_is_a_dropout_never_zero_nor_its_last_position():
