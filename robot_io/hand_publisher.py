@@ -83,8 +83,9 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
         outlet = pylsl.StreamOutlet(info)
     udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM) if spec.udp_target else None
     standin = ControlClient(spec.standin_host) if spec.standin_host else None
-    # where the NatNet stand-in's next frame puts the hand (the loop below moves it)
-    natnet_tracker = [transform.invert(config.scene.point("hand_start"))]
+    # where the NatNet stand-in's next frame puts the hand and when it was there (the loop below
+    # moves it; one tuple, replaced whole, so the stand-in's thread reads a consistent pair)
+    natnet_tracker = [(time.monotonic(), transform.invert(config.scene.point("hand_start")))]
     natnet = _natnet_standin(spec, natnet_tracker)
     conn.send(("ready", None if natnet is None else natnet.address[1]))
     try:
@@ -94,18 +95,23 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
             natnet.close()
 
 
-def _natnet_standin(spec: PublisherSpec, tracker: list[np.ndarray]):
-    """A NatNet stand-in on 127.0.0.1 streaming ``tracker[0]`` as ``spec.natnet_rigid_body``, beside
-    a second rigid body (the object, at H) so the source must choose by name; None without one."""
+def _natnet_standin(spec: PublisherSpec, tracker: list[tuple[float, np.ndarray]]):
+    """A NatNet stand-in on 127.0.0.1 streaming ``tracker[0]`` (when, where) as
+    ``spec.natnet_rigid_body``, beside a second rigid body (the object, at H) so the source must
+    choose by name; None without one."""
     if spec.natnet_rigid_body is None:
         return None
-    from robot_io.natnet_standin import NatNetStandin, RigidBodySpec, pose_at
+    from robot_io.natnet_standin import NatNetStandin, RigidBodySpec, Snapshot, pose_at
 
     config = spec.config
     held = pose_at(tracker_transform(config).invert(config.scene.point("handover_point")))
     bodies = [RigidBodySpec(spec.natnet_rigid_body, 1), RigidBodySpec(REHEARSAL_OBJECT, 2)]
-    return NatNetStandin(bodies, lambda: {1: pose_at(tracker[0]), 2: held},
-                         rate_hz=config.hand.tracker_rate_hz).start()
+
+    def poses() -> Snapshot:
+        measured_at, position = tracker[0]
+        return Snapshot({1: pose_at(position), 2: held}, measured_at)
+
+    return NatNetStandin(bodies, poses, rate_hz=config.hand.tracker_rate_hz).start()
 
 
 #: The name of the NatNet stand-in's second rigid body in a rehearsal.
@@ -113,7 +119,7 @@ REHEARSAL_OBJECT = "handover-object"
 
 
 def _play(conn: Connection, spec: PublisherSpec, outlet, udp: socket.socket | None, standin,
-          natnet_tracker: list[np.ndarray]) -> None:
+          natnet_tracker: list[tuple[float, np.ndarray]]) -> None:
     """Play the hand until the pipe closes (or the stand-in controller ends)."""
     import pylsl
 
@@ -150,7 +156,8 @@ def _play(conn: Connection, spec: PublisherSpec, outlet, udp: socket.socket | No
             position = exact = rest if walk is None else walk.at(now)
         if now < occluded_until:
             position = np.full(3, np.nan)  # the marker is hidden: the tracker sends no position
-        tracker = natnet_tracker[0] = transform.invert(position)
+        tracker = transform.invert(position)
+        natnet_tracker[0] = (now, tracker)
         if outlet is not None:
             outlet.push_sample(tracker.tolist(), pylsl.local_clock())
         if udp is not None:

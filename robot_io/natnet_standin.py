@@ -52,9 +52,18 @@ class RigidBodyPose(NamedTuple):
     tracked: bool = True
 
 
-#: Where the stand-in's rigid bodies are: id → pose, called once per frame; an id left out is not
-#: in the frame.
-Poses = Callable[[], Mapping[int, RigidBodyPose]]
+class Snapshot(NamedTuple):
+    """Rigid-body poses with the instant they were measured (``time.monotonic``)."""
+
+    poses: Mapping[int, RigidBodyPose]
+    measured_at: float
+
+
+#: Where the stand-in's rigid bodies are, called once per frame: id → pose (an id left out is not in
+#: the frame), measured ``latency_s`` before the frame is sent; or a :class:`Snapshot` that says when
+#: they were measured (a hand played elsewhere at its own pace: the frame's exposure is that instant,
+#: so its position and its time stamp agree however the two paces beat).
+Poses = Callable[[], Mapping[int, RigidBodyPose] | Snapshot]
 
 
 def _packet(message: int, payload: bytes) -> bytes:
@@ -109,8 +118,8 @@ def frame_of_data(frame: int, poses: Mapping[int, RigidBodyPose], timestamp: flo
 class NatNetStandin:
     """The server: bound on ``host``:``port`` (0: a free port, see :attr:`address`), it answers
     requests at once and streams frames at ``rate_hz`` from :meth:`start` until :meth:`close`.
-    ``latency_s`` is the camera-to-transmit latency each frame reports (the poses are taken as
-    measured that long before the frame is sent)."""
+    ``latency_s`` is the camera-to-transmit latency each frame reports for poses given without
+    their instant (they are taken as measured that long before the frame is sent)."""
 
     def __init__(self, rigid_bodies: Sequence[RigidBodySpec], poses: Poses, host: str = "127.0.0.1",
                  port: int = 0, rate_hz: float = 120.0, latency_s: float = 0.004) -> None:
@@ -160,9 +169,11 @@ class NatNetStandin:
             with self._lock:
                 clients = list(self.clients)
             if clients:
-                exposure = now - self.latency_s
-                packet = frame_of_data(self.frames_sent, self.poses(), exposure - self._started,
-                                       FrameStamps(exposure, now - self.latency_s / 2, now))
+                taken = self.poses()
+                poses, exposure = ((taken.poses, min(taken.measured_at, now))
+                                   if isinstance(taken, Snapshot) else (taken, now - self.latency_s))
+                packet = frame_of_data(self.frames_sent, poses, exposure - self._started,
+                                       FrameStamps(exposure, (exposure + now) / 2, now))
                 for client in clients:
                     self._send(packet, client)
                 self.frames_sent += 1
