@@ -133,10 +133,11 @@ class NatNetHand(TrackedHand):
     def _connect(self, timeout: float) -> None:
         try:
             self.client.connect(timeout=timeout)
-        except TimeoutError:
+        except OSError as exc:  # TimeoutError: nothing answered; others: the network refused
+            said = "" if isinstance(exc, TimeoutError) else f" ({exc})"
             raise HandSourceError(f"no NatNet server answered at {self.server[0]}:{self.server[1]} "
-                                  f"within resolve_timeout_s = {timeout} s (is Motive streaming, in "
-                                  "unicast, to this machine's network?)") from None
+                                  f"within resolve_timeout_s = {timeout} s{said} (is Motive streaming, "
+                                  "in unicast, to this machine's network?)") from None
         self.client.run_async()
         deadline = time.monotonic() + timeout
         while not self._described.is_set():
