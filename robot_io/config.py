@@ -227,14 +227,27 @@ class URConfig(_Frozen):
 class HandSourceConfig(_Frozen):
     """Where hand samples come from and the tracker → robot-base calibration (``docs/hardware.md``)."""
 
-    kind: Literal["simulated", "lsl", "udp"] = Field("simulated", description="hand source")
+    kind: Literal["simulated", "lsl", "udp", "natnet"] = Field(
+        "simulated", description="hand source (natnet: OptiTrack Motive's NatNet stream, unicast)")
     lsl_stream_type: str = Field("Mocap", description="LSL: type of the stream to resolve")
     lsl_stream_name: str | None = Field(None, description="LSL: name of the stream (None: any)")
     lsl_channels: tuple[int, int, int] = Field((0, 1, 2), description="LSL: channels of x, y, z")
     udp_host: str = Field("0.0.0.0", description="UDP: address to listen on")
     udp_port: int = Field(9870, ge=1, le=65535, description="UDP: port to listen on")
+    natnet_server: str | None = Field(
+        None, description="NatNet: the Motive PC's address, required by kind = \"natnet\"; never "
+                          "assumed (a stand-in: 127.0.0.1)")
+    natnet_local_address: str | None = Field(
+        None, description="NatNet: this machine's address to receive on (None: the one it reaches "
+                          "natnet_server from)")
+    natnet_command_port: int = Field(
+        1510, ge=1, le=65535, description="NatNet: Motive's command port (Motive's default 1510)")
+    natnet_rigid_body: str | None = Field(
+        None, description="NatNet: the name of the hand's rigid body in Motive, required by kind = "
+                          "\"natnet\" (never the first one streamed)")
     units_to_m: in_range(0, 1, "m per unit") = Field(
-        0.001, description="tracker units → metres (Vicon, OptiTrack: mm)")
+        0.001, description="tracker units → metres (Vicon, OptiTrack over LSL: mm; NatNet streams "
+                           "metres: 1.0)")
     rotation: tuple[RotationRow, RotationRow, RotationRow] = Field(
         ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
         description="tracker → robot base rotation (rows), from `handover calibrate-tracker`")
@@ -256,6 +269,26 @@ class HandSourceConfig(_Frozen):
                              f"with determinant +1 (here {det:.3g}): it turns, never squashes or "
                              "mirrors; paste the rows `handover calibrate-tracker` prints")
         return rotation
+
+    @model_validator(mode="after")
+    def _natnet_complete(self) -> HandSourceConfig:
+        """NatNet needs the Motive PC's address (never assumed, as [ur] host), the rigid body's
+        name (never "the first one"), and metres: NatNet streams positions in metres, so a
+        units_to_m meant for millimetres would put the hand a thousand times too close."""
+        if self.kind != "natnet":
+            return self
+        if self.natnet_server is None:
+            raise ConfigError('[hand_source] natnet_server is not set; kind = "natnet" needs the '
+                              'Motive PC\'s address. Set it (e.g. natnet_server = "192.168.1.20"): it '
+                              "has no default, so no tracker at an assumed address is ever read")
+        if not self.natnet_rigid_body:
+            raise ConfigError('[hand_source] natnet_rigid_body is not set; kind = "natnet" needs the '
+                              "name of the hand's rigid body as Motive streams it (e.g. "
+                              'natnet_rigid_body = "hand")')
+        if self.units_to_m != 1.0:
+            raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but NatNet streams metres: "
+                              'set units_to_m = 1.0 with kind = "natnet"')
+        return self
 
 
 #: A Robotiq register value (position, speed, force): one byte.

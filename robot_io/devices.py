@@ -37,6 +37,10 @@ def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: 
         from robot_io.udp_hand import UDPHand
 
         return UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
+    if kind == "natnet":
+        from robot_io.natnet_hand import NatNetHand
+
+        return NatNetHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     if scenario is None:
         raise RobotIOError("hand_source.kind = 'simulated' needs a scenario")
     return SimulatedHand(scenario, config.scene, config.hand, seed)
@@ -148,5 +152,6 @@ def _judge_hand(kind: str, hand: TrackedHand, listen_s: float, staleness_limit_s
         return (f"hand: NOT OK — the newest position is {valid_age:.3f} s old (staleness_limit_s "
                 f"= {staleness_limit_s} s): the tracker's time stamps are not on this machine's "
                 f"clock, or it stopped; {heard}")
+    detail = hand.detail()
     return (f"hand: {kind}, {received / listen_s:.0f} samples/s, newest {1e3 * valid_age:.0f} ms "
-            f"old, {dropouts} occluded")
+            f"old, {dropouts} occluded" + (f"; {detail}" if detail else ""))

@@ -1,6 +1,7 @@
 """The rehearsal's simulated participant as a tracker would deliver them: a process that plays the
-simulated hand (:class:`~robot_io.simulated_hand.SimulatedHand`) on a Lab Streaming Layer outlet
-and/or as UDP datagrams, in tracker coordinates (the inverse of ``[hand_source]``'s calibration), at
+simulated hand (:class:`~robot_io.simulated_hand.SimulatedHand`) on a Lab Streaming Layer outlet,
+as UDP datagrams and/or as the rigid body of a stand-in NatNet server
+(:mod:`robot_io.natnet_standin`), in tracker coordinates (the inverse of ``[hand_source]``'s calibration), at
 the tracker rate, and tells a stand-in UR controller where the hand is so that it pulls on the object
 (:mod:`robot_io.simulated_pull`).
 
@@ -57,6 +58,7 @@ class PublisherSpec(BaseModel):
     lsl_name: str | None = None  # publish an LSL stream of [hand_source] lsl_stream_type
     udp_target: tuple[str, int] | None = None  # send UDP datagrams there
     standin_host: str | None = None  # report the hand to this stand-in's control port
+    natnet_rigid_body: str | None = None  # serve NatNet on 127.0.0.1 (a free port): this rigid body
     realtime_priority: bool = False  # SCHED_FIFO: a tracker has hardware of its own
 
 
@@ -72,21 +74,63 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
         raise_priority(SUPPORT_PRIORITY)
     config = spec.config
     transform = tracker_transform(config)
-    rate = config.hand.tracker_rate_hz
     outlet = None
     if spec.lsl_name is not None:
         # a source_id of its own: no other outlet (another rehearsal, a test) can be taken for it
-        info = pylsl.StreamInfo(spec.lsl_name, config.hand_source.lsl_stream_type, 3, rate,
+        info = pylsl.StreamInfo(spec.lsl_name, config.hand_source.lsl_stream_type, 3,
+                                config.hand.tracker_rate_hz,
                                 pylsl.cf_double64, f"{spec.lsl_name}-{uuid.uuid4().hex}")
         outlet = pylsl.StreamOutlet(info)
     udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM) if spec.udp_target else None
     standin = ControlClient(spec.standin_host) if spec.standin_host else None
+    # where the NatNet stand-in's next frame puts the hand and when it was there (the loop below
+    # moves it; one tuple, replaced whole, so the stand-in's thread reads a consistent pair)
+    natnet_tracker = [(time.monotonic(), transform.invert(config.scene.point("hand_start")))]
+    natnet = _natnet_standin(spec, natnet_tracker)
+    conn.send(("ready", None if natnet is None else natnet.address[1]))
+    try:
+        _play(conn, spec, outlet, udp, standin, natnet_tracker)
+    finally:
+        if natnet is not None:
+            natnet.close()
+
+
+def _natnet_standin(spec: PublisherSpec, tracker: list[tuple[float, np.ndarray]]):
+    """A NatNet stand-in on 127.0.0.1 streaming ``tracker[0]`` (when, where) as
+    ``spec.natnet_rigid_body``, beside a second rigid body (the object, at H) so the source must
+    choose by name; None without one."""
+    if spec.natnet_rigid_body is None:
+        return None
+    from robot_io.natnet_standin import NatNetStandin, RigidBodySpec, Snapshot, pose_at
+
+    config = spec.config
+    held = pose_at(tracker_transform(config).invert(config.scene.point("handover_point")))
+    bodies = [RigidBodySpec(spec.natnet_rigid_body, 1), RigidBodySpec(REHEARSAL_OBJECT, 2)]
+
+    def poses() -> Snapshot:
+        measured_at, position = tracker[0]
+        return Snapshot({1: pose_at(position), 2: held}, measured_at)
+
+    return NatNetStandin(bodies, poses, rate_hz=config.hand.tracker_rate_hz).start()
+
+
+#: The name of the NatNet stand-in's second rigid body in a rehearsal.
+REHEARSAL_OBJECT = "handover-object"
+
+
+def _play(conn: Connection, spec: PublisherSpec, outlet, udp: socket.socket | None, standin,
+          natnet_tracker: list[tuple[float, np.ndarray]]) -> None:
+    """Play the hand until the pipe closes (or the stand-in controller ends)."""
+    import pylsl
+
+    config = spec.config
+    transform = tracker_transform(config)
+    rate = config.hand.tracker_rate_hz
     rest = config.scene.point("hand_start")
     hand: SimulatedHand | None = None
     walk: Walk | None = None  # back to A after a trial
     exact = rest  # where the hand is
     go, occluded_until = 0.0, 0.0
-    conn.send("ready")
     next_at = time.monotonic()
     while True:
         while conn.poll():
@@ -113,6 +157,7 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
         if now < occluded_until:
             position = np.full(3, np.nan)  # the marker is hidden: the tracker sends no position
         tracker = transform.invert(position)
+        natnet_tracker[0] = (now, tracker)
         if outlet is not None:
             outlet.push_sample(tracker.tolist(), pylsl.local_clock())
         if udp is not None:
@@ -143,9 +188,12 @@ class HandPublisher:
                                        daemon=True)
         self.process.start()
         child.close()
-        if not self._conn.poll(timeout) or self._conn.recv() != "ready":
+        ready = self._conn.recv() if self._conn.poll(timeout) else None
+        if not (isinstance(ready, tuple) and ready[0] == "ready"):
             self.close()
             raise RuntimeError(f"the hand publisher did not start within {timeout:g} s")
+        #: the NatNet stand-in's command port on 127.0.0.1 (None: no NatNet)
+        self.natnet_port: int | None = ready[1]
 
     def play(self, scenario: Scenario, seed: int, go_monotonic: float) -> None:
         """Play a trial's hand from the Go instant ``go_monotonic`` (``time.monotonic()``)."""

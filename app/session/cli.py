@@ -6,9 +6,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 from collections.abc import Iterator
+from typing import get_args
 
 from app.session.config import LabConfig
-from app.session.rehearsal import Rehearsal
+from app.session.rehearsal import HandKind, Rehearsal
 from app.session.runner import SessionRunner
 
 
@@ -17,13 +18,23 @@ def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
                         help="rehearse without hardware on the real code path: a stand-in UR "
                              "controller on a loopback address and the simulated participant's hand "
                              "on LSL (see docs/hardware.md)")
-    parser.add_argument("--rehearse-hand", choices=("lsl", "udp"), default="lsl",
-                        help="with --rehearse: the tracker protocol of the simulated hand")
+    parser.add_argument("--rehearse-hand", choices=("lsl", "udp", "natnet"),
+                        help="with --rehearse: the tracker protocol of the simulated hand (default: "
+                             "[hand_source] kind when it is one of these, else lsl)")
     parser.add_argument("--rehearse-series", choices=("cb3", "e"), default="cb3",
                         help="with --rehearse: a CB-series (125 Hz) or e-Series (500 Hz) stand-in")
     parser.add_argument("--realtime-priority", action="store_true",
                         help="run the rig's control loop under SCHED_FIFO (needs root or "
                              "CAP_SYS_NICE); also [loop] realtime_priority")
+
+
+def rehearsed_hand(args: argparse.Namespace, lab: LabConfig) -> HandKind:
+    """The tracker protocol a rehearsal plays the hand on: ``--rehearse-hand``, else the lab's own
+    ``[hand_source] kind`` when it is a tracker's (a lab on NatNet rehearses NatNet), else LSL."""
+    if args.rehearse_hand is not None:
+        return args.rehearse_hand
+    kind = lab.hand_source.kind
+    return kind if kind in get_args(HandKind) else "lsl"
 
 
 @contextlib.contextmanager
@@ -32,7 +43,7 @@ def open_runner(args: argparse.Namespace, lab: LabConfig, *, realtime: bool,
     """The session runner on the lab's devices, or on a rehearsal rig; closed (arm stopped first)
     on the way out, also on Ctrl-C."""
     priority = args.realtime_priority or lab.loop.realtime_priority
-    rehearsal = (Rehearsal(lab, hand=args.rehearse_hand, series=args.rehearse_series)
+    rehearsal = (Rehearsal(lab, hand=rehearsed_hand(args, lab), series=args.rehearse_series)
                  if args.rehearse else None)
     runner = SessionRunner(args.study, lab, realtime=realtime, rehearsal=rehearsal,
                            realtime_priority=priority, auto_experimenter=auto_experimenter)

@@ -2,14 +2,14 @@
 
 It starts the project's stand-in UR controller (:mod:`robot_io.ur_standin`) on a free loopback
 address and a hand publisher (:mod:`robot_io.hand_publisher`) that plays the simulated participant's
-hand on LSL (or UDP) and makes the stand-in pull on the object once the hand holds it at H. The lab
-configuration is pointed at them — ``[arm] kind = "ur"`` at that address, ``[hand_source]`` the
-publisher's stream, ``[gripper]`` the UR's tool output, or, when the lab's file says ``[gripper] kind
-= "robotiq_socket"``, the stand-in's Robotiq URCap socket at that address — so a session runs through
-``ur_rtde``, ``pylsl``, the lab's kind of gripper and the force release exactly as on the rig. The
-stand-in and the publisher run under SCHED_FIFO where the OS allows it (``realtime_priority``): the
-controller and the tracker they stand for have hardware of their own, which this machine's load
-cannot slow.
+hand on LSL (or UDP, or as a rigid body of a stand-in NatNet server) and makes the stand-in pull on
+the object once the hand holds it at H. The lab configuration is pointed at them — ``[arm] kind =
+"ur"`` at that address, ``[hand_source]`` the publisher's stream, ``[gripper]`` the UR's tool output,
+or, when the lab's file says ``[gripper] kind = "robotiq_socket"``, the stand-in's Robotiq URCap
+socket at that address — so a session runs through ``ur_rtde``, ``pylsl`` (or ``natnet``), the lab's
+kind of gripper and the force release exactly as on the rig. The stand-in and the publisher run under
+SCHED_FIFO where the OS allows it (``realtime_priority``): the controller and the tracker they stand
+for have hardware of their own, which this machine's load cannot slow.
 """
 
 from __future__ import annotations
@@ -35,7 +35,9 @@ from robot_io.ur_standin.standin import RTDE_PORT
 
 log = logging.getLogger(__name__)
 
-HandKind = Literal["lsl", "udp"]
+HandKind = Literal["lsl", "udp", "natnet"]
+#: The rigid body a NatNet rehearsal streams the hand as when the lab names none.
+REHEARSAL_RIGID_BODY = "hand"
 #: How long the rig waits to resolve the rehearsal's own hand stream [s]. The stream is known to be
 #: up (its publisher runs): the lab's resolve_timeout_s (5 s) is for a tracker that may be off, and
 #: on a loaded machine the rig's resolve of a running stream took longer than that.
@@ -61,7 +63,8 @@ def free_udp_port(host: str) -> int:
 #: What a rehearsal chooses afresh on every run (a free loopback address, a stream name, a port).
 #: It is not the rig: resuming a rehearsed session in a new rehearsal is not a rig change.
 CHOSEN_PER_RUN = {"ur": ("host",), "gripper": ("host",),
-                  "hand_source": ("lsl_stream_name", "udp_host", "udp_port")}
+                  "hand_source": ("lsl_stream_name", "udp_host", "udp_port", "natnet_server",
+                                  "natnet_command_port")}
 
 
 def rehearsal_rig(rig: dict) -> dict:
@@ -119,6 +122,10 @@ class Rehearsal:
             if hand == "udp":
                 source = source.model_copy(update={"udp_host": "127.0.0.1",
                                                    "udp_port": free_udp_port("127.0.0.1")})
+            if hand == "natnet":  # its command port is the stand-in's, known once it has bound it
+                source = source.model_copy(update={
+                    "natnet_server": "127.0.0.1", "natnet_local_address": None, "units_to_m": 1.0,
+                    "natnet_rigid_body": lab.hand_source.natnet_rigid_body or REHEARSAL_RIGID_BODY})
             self.lab = lab.with_rig(
                 arm=lab.arm.model_copy(update={"kind": "ur"}),
                 ur=lab.ur.model_copy(update={"host": self.host}),
@@ -130,7 +137,11 @@ class Rehearsal:
                 config=self.lab.controller, standin_host=self.host,
                 lsl_name=stream if hand == "lsl" else None,
                 udp_target=(source.udp_host, source.udp_port) if hand == "udp" else None,
+                natnet_rigid_body=source.natnet_rigid_body if hand == "natnet" else None,
                 realtime_priority=realtime_priority))
+            if hand == "natnet":
+                self.lab = self.lab.with_rig(hand_source=source.model_copy(
+                    update={"natnet_command_port": self.publisher.natnet_port}))
         except BaseException:
             self.close()
             raise

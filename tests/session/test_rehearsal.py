@@ -268,15 +268,21 @@ def test_a_resume_on_a_different_arm_is_refused_until_the_experimenter_confirms(
     assert devices["arm"] == "ur" and devices["polyscope_version"].startswith("3.15")
 
 
-def test_the_rehearsal_plays_the_hand_over_udp_too(tmp_path):
+@pytest.mark.parametrize(("hand", "shown"), [
+    ("udp", "UDP on 127.0.0.1:"),
+    # the rigid body "hand" of a stand-in Motive (NatNet 3.1, unicast, beside a second rigid body),
+    # read by the real natnet client in the rig process
+    ("natnet", "NatNet rigid body 'hand' (id 1) from Motive (NatNet 3.1"),
+])
+def test_the_rehearsal_plays_the_hand_over_udp_and_natnet_too(tmp_path, hand, shown):
     lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
-    rehearsal = Rehearsal(lab, hand="udp")
+    rehearsal = Rehearsal(lab, hand=hand)
     runner = SessionRunner(tmp_path / "study", lab, rehearsal=rehearsal, realtime_priority=True)
     runner.set_auto(True)
     probe = Probe(runner)
     try:
         runner.open("U01", Scenario.PERTURBED, seed=6)
-        assert runner.view.hand.startswith("UDP on 127.0.0.1:")
+        assert runner.view.hand.startswith(shown), runner.view.hand
         probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready",
                    timeout=READY_CEILING_S)
         runner.start_trial()

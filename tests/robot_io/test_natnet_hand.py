@@ -1,0 +1,216 @@
+"""The NatNet hand source against a stand-in Motive over real UDP on loopback, with the real ``natnet``
+client: the rigid body chosen by name, the frame transform, lost tracking as a dropout, the stamps,
+staleness, ``handover check-devices`` and the ``[hand_source]`` fields it needs. Every server binds
+a port of its own (port 0) on 127.0.0.1, and so does every client."""
+
+from __future__ import annotations
+
+import re
+import threading
+import time
+
+import numpy as np
+import pytest
+from natnet import DataFrame, PacketBuffer, Version
+from pydantic import ValidationError
+from support.natnet import HAND, OBJECT, TRACKER_M, motive, natnet_source, natnet_toml, to_tracker_m
+from support.waiting import wait_for
+
+from app.cli import main
+from app.session.config import load_lab_config
+from robot_io.config import HandProfile, LoopConfig
+from robot_io.errors import HandSourceError
+from robot_io.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
+from robot_io.natnet_standin import (
+    NAT_FRAMEOFDATA,
+    PROTOCOL_VERSION,
+    FrameStamps,
+    RigidBodySpec,
+    frame_of_data,
+    hidden,
+    pose_at,
+)
+
+pytestmark = pytest.mark.soak  # real sockets and threads on the clock: `make soak` repeats them
+
+WANTED, OTHER = np.array([0.55, 0.05, 0.30]), np.array([0.40, -0.20, 0.45])  # robot base [m]
+MAX_SPEED = HandProfile().max_speed
+
+
+class Scene:
+    """What the stand-in streams: the hand's pose (changed by the test) and the object's."""
+
+    def __init__(self) -> None:
+        self.hand = pose_at(to_tracker_m(WANTED))
+        self.lock = threading.Lock()
+
+    def poses(self):
+        with self.lock:
+            return {HAND.id: self.hand, OBJECT.id: pose_at(to_tracker_m(OTHER))}
+
+    def set_hand(self, pose) -> None:
+        with self.lock:
+            self.hand = pose
+
+
+def open_hand(server, rigid_body: str = HAND.name) -> NatNetHand:
+    return NatNetHand(natnet_source(server, rigid_body), TRACKER_M, MAX_SPEED)
+
+
+class StampRecordingHand(NatNetHand):
+    """The real NatNet source, recording each sample's stamp with the instant it was put."""
+
+    def __init__(self, *args) -> None:
+        self.stamps: list[tuple[float, float]] = []  # (measured_at, put at), on time.monotonic
+        super().__init__(*args)
+
+    def put(self, measured_at: float, tracker_xyz) -> None:
+        self.stamps.append((measured_at, time.monotonic()))
+        super().put(measured_at, tracker_xyz)
+
+
+def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its_arrival():
+    scene = Scene()
+    with motive(scene.poses) as server:
+        hand = StampRecordingHand(natnet_source(server), TRACKER_M, MAX_SPEED)
+        try:
+            wait_for(lambda: hand.latency_s is not None, "the latency the frames report",
+                     seen=lambda: f"{hand.frames} frames")
+        finally:
+            hand.close()
+    assert hand.body_id == HAND.id
+    # its data (float32 metres), not the object's, in the robot base frame
+    assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
+    # the latency each frame reports (mid-exposure to transmission, in host-clock ticks) is the
+    # stand-in's, and the newest sample is stamped that much before it arrived (an order of
+    # instants on one clock, not a duration measured)
+    assert hand.latency_s == pytest.approx(server.latency_s, abs=1e-4)
+    measured_at, put_at = hand.stamps[-1]
+    assert put_at - measured_at >= server.latency_s - 1e-4
+
+
+def parsed(exposure: float, transmit: float, *, received: float | None = None) -> DataFrame:
+    """A stand-in frame measured at ``exposure`` and sent at ``transmit`` [s], as the natnet
+    client parses it."""
+    packet = frame_of_data(1, {HAND.id: pose_at(to_tracker_m(WANTED))}, exposure,
+                           FrameStamps(exposure, exposure if received is None else received, transmit))
+    buffer = PacketBuffer(packet)
+    assert buffer.read("<HH") == (NAT_FRAMEOFDATA, len(packet) - 4)
+    return DataFrame.read_from_buffer(buffer, Version(*PROTOCOL_VERSION))
+
+
+def test_the_reported_latency_needs_the_tick_rate_and_refuses_what_is_no_latency():
+    """The tick rate is learned over RATE_BASELINE_S of frames; a latency that is negative or above
+    half a second is none (the frame is stamped on arrival) and the rate is learned anew."""
+    rate = TickRate()
+    assert reported_latency(parsed(10.0, 10.004), rate) is None  # the rate is not known yet
+    later = 10.0 + RATE_BASELINE_S
+    assert reported_latency(parsed(later, later + 0.004), rate) == pytest.approx(0.004, abs=1e-6)
+    assert reported_latency(parsed(later + 1, later + 3), rate) is None and rate.hz is None
+    no_exposure = parsed(0.0, 0.010, received=0.006)
+    assert no_exposure.suffix.stamp_camera_mid_exposure == 0 and no_exposure.suffix.stamp_data_received
+
+
+def test_a_rigid_body_motive_lost_is_a_dropout_never_zero_nor_its_last_position():
+    scene = Scene()
+    with motive(scene.poses) as server:
+        hand = open_hand(server)
+        try:
+            wait_for(lambda: hand.valid_age() is not None, "a tracked sample",
+                     seen=lambda: hand.received)
+            scene.set_hand(hidden())  # tracking-valid off; Motive's position is zeros then
+            lost = wait_for(lambda: (s := hand.latest(0.0)) is not None and not s.is_valid() and s,
+                            "a lost-hand sample", seen=lambda: hand.latest(0.0))
+            dropouts = hand.dropouts
+            scene.set_hand(pose_at(to_tracker_m(WANTED)))
+            back = wait_for(lambda: (s := hand.latest(0.0)).is_valid() and s, "the hand seen again",
+                            seen=lambda: hand.latest(0.0))
+        finally:
+            hand.close()
+    assert np.all(np.isnan(lost.position)) and dropouts >= 1 and hand.invalid == 0
+    assert back.position == pytest.approx(WANTED, abs=1e-6)
+
+
+def test_a_rigid_body_left_out_of_the_frame_is_a_dropout():
+    with motive(lambda: {OBJECT.id: pose_at(to_tracker_m(OTHER))}) as server:
+        hand = open_hand(server)
+        try:
+            wait_for(lambda: hand.received >= 3, "three frames", seen=lambda: hand.received)
+        finally:
+            hand.close()
+    assert hand.dropouts == hand.received and hand.valid_age() is None
+
+
+@pytest.mark.parametrize(("bodies", "name", "problem"), [
+    ((HAND, OBJECT), "left hand", "no rigid body is"),
+    ((HAND, RigidBodySpec("hand", 8), OBJECT), "hand", "2 rigid bodies are"),
+])
+def test_a_missing_or_ambiguous_name_is_refused_naming_the_rigid_bodies_that_exist(bodies, name,
+                                                                                     problem):
+    with motive(dict, bodies) as server, pytest.raises(HandSourceError) as refused:
+        open_hand(server, name)
+    message = str(refused.value)
+    assert f"hand_source.natnet_rigid_body = {name!r}: {problem} named so" in message
+    listed = ", ".join(f"{body.name!r} (id {body.id})" for body in bodies)
+    assert message.endswith(f"its rigid bodies: {listed}")
+
+
+def test_a_server_that_stops_streaming_leaves_the_hand_stale():
+    scene = Scene()
+    limit = LoopConfig().staleness_limit_s
+    with motive(scene.poses) as server:
+        hand = open_hand(server)
+        wait_for(lambda: hand.received > 0, "a sample before the stop", seen=lambda: hand.received)
+    try:  # the server has closed: no frame comes any more, and the newest ages past the limit
+        wait_for(lambda: hand.age() > limit, f"the newest sample older than {limit} s",
+                 seen=hand.age)
+        with pytest.raises(HandSourceError, match=r"newest valid sample is .* s old"):
+            hand.wait_for_sample(0.2, limit)
+    finally:
+        hand.close()
+
+
+def test_no_server_is_refused_in_plain_words():
+    with motive(dict) as server:
+        address = server.address  # a port that was bound and is free again: nothing answers there
+    source = natnet_source(server).model_copy(update={"resolve_timeout_s": 0.3})
+    with pytest.raises(HandSourceError, match=f"no NatNet server answered at {address[0]}:{address[1]}"):
+        NatNetHand(source, TRACKER_M, MAX_SPEED)
+
+
+def test_check_devices_reports_the_rigid_body_rate_and_latency(tmp_path, capsys):
+    hand = pose_at((0.95, 0.10, 0.05))  # A, with the identity calibration of natnet_toml
+    with motive(lambda: {HAND.id: hand, OBJECT.id: pose_at((0.5, 0.0, 0.3))}) as server:
+        lab = tmp_path / "lab.toml"
+        lab.write_text(natnet_toml(server))
+        code = main(["check-devices", "--config", str(lab)])
+        out = capsys.readouterr().out
+        lab.write_text(natnet_toml(server, "left hand"))
+        refused = main(["check-devices", "--config", str(lab)])
+        refused_out = capsys.readouterr().out
+    line = next(line for line in out.splitlines() if line.startswith("hand:"))
+    assert code == 0, out
+    assert re.fullmatch(rf"hand: natnet, \d+ samples/s, newest \d+ ms old, 0 occluded; rigid body "
+                        rf"'hand' \(id 7\) from Motive \(NatNet 3\.1\.0\.0\) at 127\.0\.0\.1:"
+                        rf"{server.address[1]}, \d+ Hz, latency 4\.0 ms", line), line
+    assert refused == 1
+    assert ("hand: NOT OK — hand_source.natnet_rigid_body = 'left hand': no rigid body is named so"
+            in refused_out and "its rigid bodies: 'hand' (id 7), 'object' (id 9)" in refused_out)
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ('kind = "natnet"\nnatnet_rigid_body = "hand"\nunits_to_m = 1.0\n',
+     '[hand_source] natnet_server is not set; kind = "natnet" needs the Motive PC\'s address'),
+    ('kind = "natnet"\nnatnet_server = "192.168.1.20"\nunits_to_m = 1.0\n',
+     "[hand_source] natnet_rigid_body is not set"),
+    ('kind = "natnet"\nnatnet_server = "192.168.1.20"\nnatnet_rigid_body = "hand"\n',
+     "hand_source.units_to_m = 0.001 but NatNet streams metres: set units_to_m = 1.0"),
+    ('kind = "natnet"\nnatnet_command_port = 70000\n', "natnet_command_port"),
+])
+def test_an_incomplete_natnet_table_is_refused_naming_the_field(tmp_path, capsys, text, message):
+    lab = tmp_path / "lab.toml"
+    lab.write_text(f"[hand_source]\n{text}")
+    with pytest.raises(ValidationError, match=re.escape(message)):
+        load_lab_config(lab)
+    assert main(["check-devices", "--config", str(lab)]) == 2  # before anything is opened
+    assert message in capsys.readouterr().err
