@@ -1,5 +1,6 @@
-"""A rehearsal of a lab whose gripper is a Robotiq 2F-85 on its URCap socket: the rehearsal rehearses
-that gripper, on the stand-in's URCap socket, through the whole cycle."""
+"""A rehearsal of a lab whose gripper is a Robotiq 2F-85 on its URCap socket and whose tracker is
+OptiTrack (NatNet): the rehearsal rehearses both, the gripper on the stand-in's URCap socket and the
+hand as a rigid body of a stand-in Motive, through the whole cycle."""
 
 from __future__ import annotations
 
@@ -15,11 +16,14 @@ pytestmark = [pytest.mark.slow, pytest.mark.soak, pytest.mark.standin]  # as tes
 
 
 def test_run_session_rehearse_drives_a_robotiq_gripper_that_opens_once_per_trial(tmp_path):
-    """The lab file names its Robotiq's address (192.0.2.1, a documentation address nothing answers
-    at); the rehearsal points it at its stand-in, which closes on the object every trial (the close
-    is a fault unless it detects it) and opens once, on the participant's pull."""
+    """The lab file names its Robotiq's and its Motive's addresses (192.0.2.1 and .2, documentation
+    addresses nothing answers at); the rehearsal points them at its stand-ins: the gripper closes on
+    the object every trial (the close is a fault unless it detects it) and opens once, on the
+    participant's pull; the hand is the lab's rigid body, read with the natnet client."""
     config = tmp_path / "lab.toml"
     config.write_text(f'[gripper]\nkind = "robotiq_socket"\nhost = "192.0.2.1"\nspeed = 200\n\n'
+                      f'[hand_source]\nkind = "natnet"\nnatnet_server = "192.0.2.2"\n'
+                      f'natnet_rigid_body = "right hand"\nunits_to_m = 1.0\n\n'
                       f"[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")
     done = subprocess.run(
         [sys.executable, "-m", "app.cli", "run-session", "--study", str(tmp_path), "--participant",
@@ -36,6 +40,7 @@ def test_run_session_rehearse_drives_a_robotiq_gripper_that_opens_once_per_trial
                              .fetchone()[0])["devices"]
     assert summary["completed"] == n and outcomes.count("completed") == n, (outcomes, done.stderr[-3000:])
     assert devices["gripper"] == "robotiq_socket" and "Robotiq 2F-85 on 127." in devices["gripper_detail"]
+    assert summary["hand"].startswith("NatNet rigid body 'right hand'"), summary["hand"]
     stand_in = summary["rehearsal"]
     assert stand_in["gripper_opened"] == released == n  # once per trial, on the pull
     assert stand_in["gripper_closed"] == len(outcomes)  # each trial's prepare closed on the object
