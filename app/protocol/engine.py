@@ -38,6 +38,7 @@ from app.protocol.plan import Slot, protocol_slots
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
 from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Actor, Rater, ThetaOrigin
+from robot_io.config import ControllerConfig
 from robot_io.loop import Outcome, TrialRecord
 from robot_io.stages import Stage
 from robot_io.theta import Theta
@@ -69,8 +70,12 @@ RIG_TABLES = ("arm", "ur", "hand_source", "gripper")
 def rig_of(config: dict) -> dict:
     """The rig tables of a configuration or of a recorded rig (as JSON). The ``[ur]`` table is part
     of a rig only when its arm is a UR: a mock arm's says nothing about the rig (and a session
-    recorded before ``[ur] host`` lost its default holds 192.168.1.10 there)."""
-    rig = {table: config.get(table) for table in RIG_TABLES}
+    recorded before ``[ur] host`` lost its default holds 192.168.1.10 there). A setting a recorded
+    table lacks did not exist when it was recorded: the session ran as its default does (e.g. the
+    NatNet and Robotiq settings), so a resume on the default is no rig change."""
+    defaults = ControllerConfig().model_dump(mode="json")
+    rig = {table: None if config.get(table) is None else {**defaults[table], **config[table]}
+           for table in RIG_TABLES}
     if (rig["arm"] or {}).get("kind") != "ur":
         rig["ur"] = None
     return rig
