@@ -30,6 +30,7 @@ from pydantic import BaseModel, ConfigDict
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
+from robot_io.frame import FrameTransform
 from robot_io.minimum_jerk import minimum_jerk
 from robot_io.simulated_hand import Scenario, SimulatedHand
 
@@ -86,16 +87,17 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
     # where the NatNet stand-in's next frame puts the hand and when it was there (the loop below
     # moves it; one tuple, replaced whole, so the stand-in's thread reads a consistent pair)
     natnet_tracker = [(time.monotonic(), transform.invert(config.scene.point("hand_start")))]
-    natnet = _natnet_standin(spec, natnet_tracker)
+    natnet = _natnet_standin(spec, transform, natnet_tracker)
     conn.send(("ready", None if natnet is None else natnet.address[1]))
     try:
-        _play(conn, spec, outlet, udp, standin, natnet_tracker)
+        _play(conn, spec, transform, outlet, udp, standin, natnet_tracker)
     finally:
         if natnet is not None:
             natnet.close()
 
 
-def _natnet_standin(spec: PublisherSpec, tracker: list[tuple[float, np.ndarray]]):
+def _natnet_standin(spec: PublisherSpec, transform: FrameTransform,
+                    tracker: list[tuple[float, np.ndarray]]):
     """A NatNet stand-in on 127.0.0.1 streaming ``tracker[0]`` (when, where) as
     ``spec.natnet_rigid_body``, beside a second rigid body (the object, at H) so the source must
     choose by name; None without one."""
@@ -104,7 +106,7 @@ def _natnet_standin(spec: PublisherSpec, tracker: list[tuple[float, np.ndarray]]
     from robot_io.natnet_standin import NatNetStandin, RigidBodySpec, Snapshot, pose_at
 
     config = spec.config
-    held = pose_at(tracker_transform(config).invert(config.scene.point("handover_point")))
+    held = pose_at(transform.invert(config.scene.point("handover_point")))
     bodies = [RigidBodySpec(spec.natnet_rigid_body, 1), RigidBodySpec(REHEARSAL_OBJECT, 2)]
 
     def poses() -> Snapshot:
@@ -118,13 +120,12 @@ def _natnet_standin(spec: PublisherSpec, tracker: list[tuple[float, np.ndarray]]
 REHEARSAL_OBJECT = "handover-object"
 
 
-def _play(conn: Connection, spec: PublisherSpec, outlet, udp: socket.socket | None, standin,
-          natnet_tracker: list[tuple[float, np.ndarray]]) -> None:
+def _play(conn: Connection, spec: PublisherSpec, transform: FrameTransform, outlet,
+          udp: socket.socket | None, standin, natnet_tracker: list[tuple[float, np.ndarray]]) -> None:
     """Play the hand until the pipe closes (or the stand-in controller ends)."""
     import pylsl
 
     config = spec.config
-    transform = tracker_transform(config)
     rate = config.hand.tracker_rate_hz
     rest = config.scene.point("hand_start")
     hand: SimulatedHand | None = None
