@@ -1,11 +1,14 @@
-"""CPU seconds of one ``handover`` command's start (``handover --help``: every subcommand's module
-is imported to build the parser, so every command pays this, and the test suite pays it at every
-command it starts). Figures are the child's user + system time, so they hold on a loaded
-machine, where wall time does not.
+"""CPU seconds of a process's start: one ``handover`` command (``handover --help``: every
+subcommand's module is imported to build the parser, so every command pays this, and the test suite
+pays it at every command it starts), and the processes a rig spawns for a session (the rig process,
+and in a rehearsal the hand publisher), which import their modules afresh. Figures are the child's
+user + system time, so they hold on a loaded machine, where wall time does not.
 
-Baselines of the same run: a bare interpreter (``python -c pass``), and the same start with the
-modules that commands now import only when they need them imported up front (viser: serve only;
-scipy.stats: the validation phase's Sobol points, a late learner's fallback), as before.
+Baselines of the same run: a bare interpreter (``python -c pass``), and each start with the modules
+that these processes now import only when they need them imported up front, as before (viser: serve
+only; scipy.stats: the validation phase's Sobol points, a late learner's fallback; scipy.linalg: the
+distance filter's exp(A·dt), now in closed form; scipy.spatial: rotation vectors, which only the UR
+stand-in's kinematics need).
 
 Usage: ``.venv/bin/python benchmarks/command_start.py [--runs 9]``
 """
@@ -18,8 +21,13 @@ import statistics
 import subprocess
 import sys
 
-DEFERRED = "import scipy.stats, viser"
-HELP = "from app.cli import main; main(['--help'])"
+#: What the robot's processes imported when they started, and no longer do.
+KINEMATICS = "import scipy.linalg, scipy.spatial.transform"
+#: What each process imports when it starts, and what it imported besides before.
+STARTS = {"handover --help": ("from app.cli import main; main(['--help'])",
+                              f"import scipy.stats, viser; {KINEMATICS}"),
+          "rig process": ("import robot_io.rig.process", KINEMATICS),
+          "hand publisher": ("import robot_io.hand_publisher", KINEMATICS)}
 
 
 def cpu_seconds(code: str) -> float:
@@ -35,18 +43,19 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=9)
     args = parser.parse_args()
-    runs = {name: [] for name in ("bare interpreter", "handover --help", "with the deferred imports")}
-    for _ in range(args.runs):  # interleaved: a change of the machine's load touches all three
-        runs["bare interpreter"].append(cpu_seconds("pass"))
-        runs["handover --help"].append(cpu_seconds(HELP))
-        runs["with the deferred imports"].append(cpu_seconds(f"{DEFERRED}; {HELP}"))
-    medians = {name: statistics.median(seconds) for name, seconds in runs.items()}
-    for name, median in medians.items():
-        print(f"{name:>26}: median {median:.2f} s CPU over {args.runs} runs")
-    saved = medians["with the deferred imports"] - medians["handover --help"]
-    print(f"deferring saves {saved:.2f} s CPU per command start (ratio "
-          f"{medians['with the deferred imports'] / medians['handover --help']:.2f}×)")
-
+    bare: list[float] = []
+    now: dict[str, list[float]] = {name: [] for name in STARTS}
+    before: dict[str, list[float]] = {name: [] for name in STARTS}
+    for _ in range(args.runs):  # interleaved: a change of the machine's load touches all of them
+        bare.append(cpu_seconds("pass"))
+        for name, (code, deferred) in STARTS.items():
+            now[name].append(cpu_seconds(code))
+            before[name].append(cpu_seconds(f"{deferred}; {code}"))
+    print(f"{'bare interpreter':>16}: median {statistics.median(bare):.2f} s CPU over {args.runs} runs")
+    for name in STARTS:
+        start, eager = statistics.median(now[name]), statistics.median(before[name])
+        print(f"{name:>16}: median {start:.2f} s CPU; with the deferred imports {eager:.2f} s: "
+              f"deferring saves {eager - start:.2f} s per start (ratio {eager / start:.2f}×)")
 
 if __name__ == "__main__":
     main()

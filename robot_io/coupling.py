@@ -15,7 +15,6 @@ import math
 from typing import Protocol
 
 import numpy as np
-from scipy.linalg import expm
 
 from robot_io.config import DMPConstants
 from robot_io.dmp import NO_COUPLING, CouplingTerms
@@ -35,12 +34,17 @@ class DistanceFilter:
     """The critically damped second-order low-pass filter of eq. (7), discretised exactly.
 
     The input d is held constant over each step (zero-order hold), so the update
-    [d̃, d̃̇] ← A_d [d̃, d̃̇] + B_d d is exact for any step length.
+    [d̃, d̃̇] ← A_d [d̃, d̃̇] + B_d d is exact for any step length. The system matrix
+    A = [[0, 1], [−ω², −2ω]] with ω = α_d/2 has the double eigenvalue −ω (critical damping), so
+    A_d = exp(A·dt) = e^(−ω·dt) [[1 + ω·dt, dt], [−ω²·dt, 1 − ω·dt]] in closed form, and
+    B_d = A⁻¹(A_d − I)[0, ω²]ᵀ.
     """
 
     def __init__(self, alpha_d: float, dt: float) -> None:
-        continuous = np.array([[0.0, 1.0], [-alpha_d**2 / 4.0, -alpha_d]])
-        transition = expm(continuous * dt)
+        omega = alpha_d / 2.0
+        continuous = np.array([[0.0, 1.0], [-omega**2, -2.0 * omega]])
+        transition = math.exp(-omega * dt) * np.array([[1.0 + omega * dt, dt],
+                                                       [-omega**2 * dt, 1.0 - omega * dt]])
         gain = np.linalg.solve(continuous, (transition - np.eye(2)) @ np.array([0.0, alpha_d**2 / 4]))
         (self._a00, self._a01), (self._a10, self._a11) = transition.tolist()
         self._b0, self._b1 = gain.tolist()

@@ -31,7 +31,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 #: DH parameters of the UR5 (see the module docstring).
 D = np.array([0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823])
@@ -78,6 +77,8 @@ def link_points(q: np.ndarray) -> np.ndarray:
 
 def pose_to_transform(pose: np.ndarray) -> np.ndarray:
     """A controller pose ``[x, y, z, rx, ry, rz]`` (rotation vector) as a 4 × 4 transform."""
+    from scipy.spatial.transform import Rotation  # here: the app draws links only, without scipy
+
     pose = np.asarray(pose, dtype=float)
     transform = np.eye(4)
     transform[:3, :3] = Rotation.from_rotvec(pose[3:6]).as_matrix()
@@ -87,6 +88,8 @@ def pose_to_transform(pose: np.ndarray) -> np.ndarray:
 
 def transform_to_pose(transform: np.ndarray) -> np.ndarray:
     """A 4 × 4 transform as a controller pose ``[x, y, z, rx, ry, rz]``."""
+    from scipy.spatial.transform import Rotation  # here: the app draws links only, without scipy
+
     return np.concatenate([transform[:3, 3], Rotation.from_matrix(transform[:3, :3]).as_rotvec()])
 
 

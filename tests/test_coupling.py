@@ -6,8 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 from pydantic import ValidationError
 from scipy.integrate import solve_ivp
+from scipy.linalg import expm
 
 from robot_io.config import DMPConstants
 from robot_io.coupling import DistanceFilter, HandCoupling, sigmoid
@@ -38,6 +41,20 @@ def test_distance_filter_matches_eq_7_integrated_finely():
         state = solve_ivp(lambda _t, z, d=d: [z[1], alpha * (alpha / 4 * (d - z[0]) - z[1])],
                           (0, dt), state, rtol=1e-10, atol=1e-12).y[:, -1]
         np.testing.assert_allclose(got, state, atol=1e-8)
+
+
+@given(alpha=st.floats(0.5, 200.0), dt=st.floats(1e-4, 0.05))
+def test_the_closed_form_transition_is_the_matrix_exponential(alpha, dt):
+    """eq. (7) discretised: the filter's closed-form A_d and B_d are exp(A·dt) and ∫exp(A·s)ds·b."""
+    flt = DistanceFilter(alpha, dt)
+    continuous = np.array([[0.0, 1.0], [-alpha**2 / 4, -alpha]])
+    # the augmented exponential gives A_d and B_d together (Van Loan)
+    augmented = np.zeros((3, 3))
+    augmented[:2, :2], augmented[:2, 2] = continuous, [0.0, alpha**2 / 4]
+    exact = expm(augmented * dt)
+    np.testing.assert_allclose([[flt._a00, flt._a01], [flt._a10, flt._a11]], exact[:2, :2],
+                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose([flt._b0, flt._b1], exact[:2, 2], rtol=1e-9, atol=1e-12)
 
 
 def test_filter_at_rest_stays_at_rest():
