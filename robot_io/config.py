@@ -227,8 +227,9 @@ class URConfig(_Frozen):
 class HandSourceConfig(_Frozen):
     """Where hand samples come from and the tracker → robot-base calibration (``docs/hardware.md``)."""
 
-    kind: Literal["simulated", "lsl", "udp", "natnet"] = Field(
-        "simulated", description="hand source (natnet: OptiTrack Motive's NatNet stream, unicast)")
+    kind: Literal["simulated", "lsl", "udp", "natnet", "vicon"] = Field(
+        "simulated", description="hand source (natnet: OptiTrack Motive's NatNet stream, unicast; "
+                                 "vicon: Vicon's DataStream through its SDK, the optional extra [vicon])")
     lsl_stream_type: str = Field("Mocap", description="LSL: type of the stream to resolve")
     lsl_stream_name: str | None = Field(None, description="LSL: name of the stream (None: any)")
     lsl_channels: tuple[int, int, int] = Field((0, 1, 2), description="LSL: channels of x, y, z")
@@ -245,6 +246,17 @@ class HandSourceConfig(_Frozen):
     natnet_rigid_body: str | None = Field(
         None, description="NatNet: the name of the hand's rigid body in Motive, required by kind = "
                           "\"natnet\" (never the first one streamed)")
+    vicon_server: str | None = Field(
+        None, description="Vicon: the address of the PC that runs Tracker, Nexus or Shogun (its "
+                          "DataStream server), required by kind = \"vicon\"; never assumed")
+    vicon_port: int = Field(
+        801, ge=1, le=65535, description="Vicon: the DataStream port (801, the one Vicon serves on)")
+    vicon_subject: str | None = Field(
+        None, description="Vicon: the name of the hand's subject (Tracker: its object), required by "
+                          "kind = \"vicon\" (never the first one streamed)")
+    vicon_segment: str | None = Field(
+        None, description="Vicon: the segment of that subject whose position is the hand, required "
+                          "by kind = \"vicon\" (Tracker: an object's one segment has its name)")
     units_to_m: in_range(0, 1, "m per unit") = Field(
         0.001, description="tracker units → metres (Vicon, OptiTrack over LSL: mm; NatNet streams "
                            "metres: 1.0)")
@@ -288,6 +300,28 @@ class HandSourceConfig(_Frozen):
         if self.units_to_m != 1.0:
             raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but NatNet streams metres: "
                               'set units_to_m = 1.0 with kind = "natnet"')
+        return self
+
+    @model_validator(mode="after")
+    def _vicon_complete(self) -> HandSourceConfig:
+        """Vicon needs the DataStream server's address (never assumed), the subject and segment
+        names (never "the first one"), and millimetres: the SDK reports every translation in mm."""
+        if self.kind != "vicon":
+            return self
+        if self.vicon_server is None:
+            raise ConfigError('[hand_source] vicon_server is not set; kind = "vicon" needs the address '
+                              "of the PC running Vicon Tracker, Nexus or Shogun. Set it (e.g. "
+                              'vicon_server = "192.168.1.30"): it has no default, so no tracker at an '
+                              "assumed address is ever read")
+        for field, example in (("vicon_subject", "hand"), ("vicon_segment", "hand")):
+            if not getattr(self, field):
+                raise ConfigError(f'[hand_source] {field} is not set; kind = "vicon" needs the '
+                                  f"hand's {field.removeprefix('vicon_')} name as Vicon streams it "
+                                  f'(e.g. {field} = "{example}"; in Tracker an object\'s segment has '
+                                  "the object's name)")
+        if self.units_to_m != 0.001:
+            raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but the Vicon DataStream "
+                              'reports millimetres: set units_to_m = 0.001 with kind = "vicon"')
         return self
 
 
