@@ -283,46 +283,44 @@ class HandSourceConfig(_Frozen):
         return rotation
 
     @model_validator(mode="after")
-    def _natnet_complete(self) -> HandSourceConfig:
-        """NatNet needs the Motive PC's address (never assumed, as [ur] host), the rigid body's
-        name (never "the first one"), and metres: NatNet streams positions in metres, so a
-        units_to_m meant for millimetres would put the hand a thousand times too close."""
-        if self.kind != "natnet":
-            return self
-        if self.natnet_server is None:
-            raise ConfigError('[hand_source] natnet_server is not set; kind = "natnet" needs the '
-                              'Motive PC\'s address. Set it (e.g. natnet_server = "192.168.1.20"): it '
-                              "has no default, so no tracker at an assumed address is ever read")
-        if not self.natnet_rigid_body:
-            raise ConfigError('[hand_source] natnet_rigid_body is not set; kind = "natnet" needs the '
-                              "name of the hand's rigid body as Motive streams it (e.g. "
-                              'natnet_rigid_body = "hand")')
-        if self.units_to_m != 1.0:
-            raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but NatNet streams metres: "
-                              'set units_to_m = 1.0 with kind = "natnet"')
+    def _tracker_complete(self) -> HandSourceConfig:
+        """NatNet and Vicon need their server's address (never assumed, as [ur] host), the names of
+        what they read (never "the first one streamed"), and the unit they stream: a units_to_m for
+        another unit would put the hand a thousand times too close or too far."""
+        if self.kind == "natnet":
+            self._require_tracker(
+                ("natnet_server", "the Motive PC's address", "192.168.1.20"),
+                {"natnet_rigid_body": "the name of the hand's rigid body as Motive streams it (e.g. "
+                                      'natnet_rigid_body = "hand")'},
+                ("1.0", "NatNet streams metres"))
+        elif self.kind == "vicon":
+            in_tracker = "in Tracker an object's one segment has the object's name"
+            self._require_tracker(
+                ("vicon_server", "the address of the PC running Vicon Tracker, Nexus or Shogun",
+                 "192.168.1.30"),
+                {"vicon_subject": "the hand's subject name as Vicon streams it (e.g. vicon_subject = "
+                                  f'"hand"; {in_tracker})',
+                 "vicon_segment": "the hand's segment name as Vicon streams it (e.g. vicon_segment = "
+                                  f'"hand"; {in_tracker})'},
+                ("0.001", "the Vicon DataStream reports millimetres"))
         return self
 
-    @model_validator(mode="after")
-    def _vicon_complete(self) -> HandSourceConfig:
-        """Vicon needs the DataStream server's address (never assumed), the subject and segment
-        names (never "the first one"), and millimetres: the SDK reports every translation in mm."""
-        if self.kind != "vicon":
-            return self
-        if self.vicon_server is None:
-            raise ConfigError('[hand_source] vicon_server is not set; kind = "vicon" needs the address '
-                              "of the PC running Vicon Tracker, Nexus or Shogun. Set it (e.g. "
-                              'vicon_server = "192.168.1.30"): it has no default, so no tracker at an '
-                              "assumed address is ever read")
-        for field, example in (("vicon_subject", "hand"), ("vicon_segment", "hand")):
+    def _require_tracker(self, server: tuple[str, str, str], names: dict[str, str],
+                         unit: tuple[str, str]) -> None:
+        """Refuse an unset ``server`` (its field, whose address it is, an example), an unset name
+        (field → what it needs), or a units_to_m other than ``unit`` (the value, why)."""
+        field, whose, example = server
+        if getattr(self, field) is None:
+            raise ConfigError(f'[hand_source] {field} is not set; kind = "{self.kind}" needs {whose}. '
+                              f'Set it (e.g. {field} = "{example}"): it has no default, so no tracker '
+                              "at an assumed address is ever read")
+        for field, needs in names.items():
             if not getattr(self, field):
-                raise ConfigError(f'[hand_source] {field} is not set; kind = "vicon" needs the '
-                                  f"hand's {field.removeprefix('vicon_')} name as Vicon streams it "
-                                  f'(e.g. {field} = "{example}"; in Tracker an object\'s segment has '
-                                  "the object's name)")
-        if self.units_to_m != 0.001:
-            raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but the Vicon DataStream "
-                              'reports millimetres: set units_to_m = 0.001 with kind = "vicon"')
-        return self
+                raise ConfigError(f'[hand_source] {field} is not set; kind = "{self.kind}" needs {needs}')
+        value, why = unit
+        if self.units_to_m != float(value):
+            raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but {why}: set units_to_m = "
+                              f'{value} with kind = "{self.kind}"')
 
 
 #: A Robotiq register value (position, speed, force): one byte.

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from pydantic import ValidationError
 from support.hand_replay import TRACKER
+from support.lab_file import assert_hand_source_refused, check_devices, hand_line
 from support.vicon import (
     RECORDED,
     SERVER,
@@ -31,8 +31,6 @@ from support.vicon import (
 )
 from support.waiting import wait_for
 
-from app.cli import main
-from app.session.config import load_lab_config
 from robot_io import vicon_hand
 from robot_io.config import ControllerConfig, HandProfile, LoopConfig
 from robot_io.devices import open_hand
@@ -234,10 +232,9 @@ def test_without_the_extra_the_source_says_how_to_install_it(tmp_path, monkeypat
     monkeypatch.setitem(sys.modules, "pyvicon_datastream", None)  # its import fails, installed or not
     with pytest.raises(HandSourceError, match=re.escape(INSTALL)):
         open_hand(ControllerConfig(hand_source=vicon_source()))
-    lab = tmp_path / "lab.toml"
-    lab.write_text(vicon_toml())
-    assert main(["check-devices", "--config", str(lab)]) == 1
-    line = next(line for line in capsys.readouterr().out.splitlines() if line.startswith("hand:"))
+    code, out = check_devices(tmp_path, capsys, vicon_toml())
+    line = hand_line(out)
+    assert code == 1
     assert line.startswith('hand: NOT OK — [hand_source] kind = "vicon" needs the Vicon DataStream '
                            "SDK, which is not installed") and line.endswith(
         "pip install 'handover-lab[vicon]' (docs/hardware.md, \"Vicon\")"), line
@@ -247,14 +244,9 @@ def test_check_devices_reports_the_segment_the_rates_and_the_latency(tmp_path, m
     a_mm = (950.0, 100.0, 50.0)  # A, with the identity calibration of vicon_toml
     stream = [hand_at(1000 + n, a_mm) for n in range(400)]
     monkeypatch.setattr(vicon_hand, "connect_sdk", lambda host, port: RecordedClient(stream, 100.0))
-    lab = tmp_path / "lab.toml"
-    lab.write_text(vicon_toml())
-    code = main(["check-devices", "--config", str(lab)])
-    out = capsys.readouterr().out
-    lab.write_text(vicon_toml("left hand"))
-    refused = main(["check-devices", "--config", str(lab)])
-    refused_out = capsys.readouterr().out
-    line = next(line for line in out.splitlines() if line.startswith("hand:"))
+    code, out = check_devices(tmp_path, capsys, vicon_toml())
+    refused, refused_out = check_devices(tmp_path, capsys, vicon_toml("left hand"))
+    line = hand_line(out)
     assert code == 0, out
     assert re.fullmatch(rf"hand: vicon, \d+ samples/s, newest \d+ ms old, 0 occluded; subject 'hand', "
                         rf"segment 'hand' from {SERVER}:801 \(DataStream SDK 1\.11\.0\), \d+ Hz, "
@@ -280,9 +272,4 @@ def test_check_devices_reports_the_segment_the_rates_and_the_latency(tmp_path, m
     ('kind = "vicon"\nvicon_port = 70000\n', "vicon_port"),
 ])
 def test_an_incomplete_vicon_table_is_refused_naming_the_field(tmp_path, capsys, text, message):
-    lab = tmp_path / "lab.toml"
-    lab.write_text(f"[hand_source]\n{text}")
-    with pytest.raises(ValidationError, match=re.escape(message)):
-        load_lab_config(lab)
-    assert main(["check-devices", "--config", str(lab)]) == 2  # before anything is opened
-    assert message in capsys.readouterr().err
+    assert_hand_source_refused(tmp_path, capsys, text, message)
