@@ -266,7 +266,8 @@ class HandSourceConfig(_Frozen):
     translation: ScenePoint = Field(
         (0.0, 0.0, 0.0), description="tracker → robot base translation [m]")
     resolve_timeout_s: in_range(0, 60, "s") = Field(
-        5.0, description="LSL: give up resolving the stream after [s]")
+        5.0, description="LSL, NatNet, Vicon: give up finding the stream (Vicon: its first frame) "
+                         "after [s]")
 
     @field_validator("rotation")
     @classmethod

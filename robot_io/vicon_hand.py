@@ -213,7 +213,8 @@ def connect_sdk(host: str, port: int) -> PyViconClient:
         import pyvicon_datastream
     except ImportError as exc:
         raise HandSourceError(f'[hand_source] kind = "vicon" needs the Vicon DataStream SDK, which is not '
-                              f"installed ({exc}): {INSTALL} (docs/hardware.md, \"Vicon\")") from None
+                              f"installed ({exc}): {INSTALL} "
+                              '(docs/hardware.md, "Vicon (DataStream SDK)")') from None
     return PyViconClient(pyvicon_datastream, host, port)
 
 

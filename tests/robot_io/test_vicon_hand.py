@@ -1,5 +1,5 @@
-"""The Vicon hand source without Vicon's SDK (it does not install here; docs/hardware.md, "Vicon"):
-the mapping of the SDK's frames onto samples against frames in its return shapes
+"""The Vicon hand source without Vicon's SDK (it does not install here: docs/hardware.md, "Vicon
+(DataStream SDK)"): the mapping of the SDK's frames onto samples against frames in its return shapes
 (``tests/robot_io/data/vicon_frames.json``), the adapter of ``pyvicon-datastream`` against a module
 with its wrapper's shapes, the frame clock, ``handover check-devices``, the missing extra and the
 ``[hand_source]`` fields it needs."""
@@ -237,7 +237,7 @@ def test_without_the_extra_the_source_says_how_to_install_it(tmp_path, monkeypat
     assert code == 1
     assert line.startswith('hand: NOT OK — [hand_source] kind = "vicon" needs the Vicon DataStream '
                            "SDK, which is not installed") and line.endswith(
-        "pip install 'handover-lab[vicon]' (docs/hardware.md, \"Vicon\")"), line
+        "pip install 'handover-lab[vicon]' (docs/hardware.md, \"Vicon (DataStream SDK)\")"), line
 
 
 def test_check_devices_reports_the_segment_the_rates_and_the_latency(tmp_path, monkeypatch, capsys):

@@ -1,8 +1,9 @@
 # ruff: noqa: N802  (the clients keep the method names of the SDKs they stand for)
 """Vicon's DataStream SDK as the Vicon hand source sees it, without the SDK (which does not install
-here: docs/hardware.md, "Vicon"): :class:`RecordedClient` replays frames in the return shapes of
-Vicon's own Python client (``vicon_dssdk.ViconDataStream.Client``), and :func:`pyvicon_module` is a
-``pyvicon_datastream`` module (0.2.4) whose client returns what the real one's C++ wrapper does."""
+here: docs/hardware.md, "Vicon (DataStream SDK)"): :class:`RecordedClient` replays frames in the
+return shapes of Vicon's own Python client (``vicon_dssdk.ViconDataStream.Client``), and
+:func:`pyvicon_module` is a ``pyvicon_datastream`` module (0.2.4) whose client returns what the real
+one's C++ wrapper does."""
 
 from __future__ import annotations
 
