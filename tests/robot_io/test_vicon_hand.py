@@ -35,6 +35,8 @@ from robot_io import vicon_hand
 from robot_io.config import ControllerConfig, HandProfile, LoopConfig
 from robot_io.devices import open_hand
 from robot_io.errors import HandSourceError
+from robot_io.rig.devices import RigDevices
+from robot_io.rig.messages import RigSpec
 from robot_io.vicon_hand import INSTALL, FrameClock, ViconHand, read_frame
 
 MAX_SPEED = HandProfile().max_speed
@@ -273,3 +275,15 @@ def test_check_devices_reports_the_segment_the_rates_and_the_latency(tmp_path, m
 ])
 def test_an_incomplete_vicon_table_is_refused_naming_the_field(tmp_path, capsys, text, message):
     assert_hand_source_refused(tmp_path, capsys, text, message)
+
+
+def test_the_rig_opens_the_vicon_source_and_reports_it(monkeypatch):
+    monkeypatch.setattr(vicon_hand, "connect_sdk", lambda host, port: RecordedClient(RECORDED))
+    devices = RigDevices(RigSpec(config=ControllerConfig(hand_source=vicon_source())))
+    try:
+        report = devices.report()
+        assert isinstance(devices.for_trial(0).hand, ViconHand)
+    finally:
+        devices.close()
+    assert (report.hand_source, report.hand_detail) == (
+        "vicon", f"Vicon subject 'hand', segment 'hand' from {SERVER}:801 (DataStream SDK 1.11.0)")
