@@ -163,8 +163,12 @@ class PyViconClient:
         if result != sdk.Result.Success:
             raise HandSourceError(f"no Vicon DataStream server answered at {host}:{port} ({result.name}): "
                                   "is Tracker (or Nexus, Shogun) running, and this PC on its network?")
-        self._check(self._client.enable_segment_data(), "EnableSegmentData")
-        self._check(self._client.set_stream_mode(sdk.StreamMode.ClientPullPreFetch), "SetStreamMode")
+        try:
+            self._check(self._client.enable_segment_data(), "EnableSegmentData")
+            self._check(self._client.set_stream_mode(sdk.StreamMode.ClientPullPreFetch), "SetStreamMode")
+        except HandSourceError:
+            self.Disconnect()
+            raise
 
     def _check(self, result, call: str) -> None:
         if result != self._sdk.Result.Success:
@@ -258,11 +262,13 @@ class ViconHand(TrackedHand):
         return time.monotonic()
 
     def receive_once(self) -> None:
-        """One poll: the current frame's sample if its number is new."""
+        """One poll: the current frame's sample if its number is new (the rest of a frame is read
+        only then: most polls find the frame they found before)."""
         try:
             fresh = self.client.GetFrame()
             seen = time.monotonic()
-            reading = read_frame(self.client, self.subject, self.segment) if fresh else None
+            reading = (read_frame(self.client, self.subject, self.segment)
+                       if fresh and self.client.GetFrameNumber() != self._last_number else None)
         except Exception:
             if not self._failing:
                 log.exception("Vicon hand source: reading a frame failed (logged once until one is read)")
@@ -270,7 +276,7 @@ class ViconHand(TrackedHand):
             time.sleep(0.1)
             return
         self._failing = False
-        if reading is not None and reading.frame_number != self._last_number:
+        if reading is not None:
             self.take(reading, seen)
         time.sleep(POLL_S)
 
