@@ -227,8 +227,9 @@ class URConfig(_Frozen):
 class HandSourceConfig(_Frozen):
     """Where hand samples come from and the tracker → robot-base calibration (``docs/hardware.md``)."""
 
-    kind: Literal["simulated", "lsl", "udp", "natnet"] = Field(
-        "simulated", description="hand source (natnet: OptiTrack Motive's NatNet stream, unicast)")
+    kind: Literal["simulated", "lsl", "udp", "natnet", "vicon"] = Field(
+        "simulated", description="hand source (natnet: OptiTrack Motive's NatNet stream, unicast; "
+                                 "vicon: Vicon's DataStream through its SDK, the optional extra [vicon])")
     lsl_stream_type: str = Field("Mocap", description="LSL: type of the stream to resolve")
     lsl_stream_name: str | None = Field(None, description="LSL: name of the stream (None: any)")
     lsl_channels: tuple[int, int, int] = Field((0, 1, 2), description="LSL: channels of x, y, z")
@@ -245,6 +246,17 @@ class HandSourceConfig(_Frozen):
     natnet_rigid_body: str | None = Field(
         None, description="NatNet: the name of the hand's rigid body in Motive, required by kind = "
                           "\"natnet\" (never the first one streamed)")
+    vicon_server: str | None = Field(
+        None, description="Vicon: the address of the PC that runs Tracker, Nexus or Shogun (its "
+                          "DataStream server), required by kind = \"vicon\"; never assumed")
+    vicon_port: int = Field(
+        801, ge=1, le=65535, description="Vicon: the DataStream port (801, the one Vicon serves on)")
+    vicon_subject: str | None = Field(
+        None, description="Vicon: the name of the hand's subject (Tracker: its object), required by "
+                          "kind = \"vicon\" (never the first one streamed)")
+    vicon_segment: str | None = Field(
+        None, description="Vicon: the segment of that subject whose position is the hand, required "
+                          "by kind = \"vicon\" (Tracker: an object's one segment has its name)")
     units_to_m: in_range(0, 1, "m per unit") = Field(
         0.001, description="tracker units → metres (Vicon, OptiTrack over LSL: mm; NatNet streams "
                            "metres: 1.0)")
@@ -254,7 +266,8 @@ class HandSourceConfig(_Frozen):
     translation: ScenePoint = Field(
         (0.0, 0.0, 0.0), description="tracker → robot base translation [m]")
     resolve_timeout_s: in_range(0, 60, "s") = Field(
-        5.0, description="LSL: give up resolving the stream after [s]")
+        5.0, description="LSL, NatNet, Vicon: give up finding the stream (Vicon: its first frame) "
+                         "after [s]")
 
     @field_validator("rotation")
     @classmethod
@@ -271,24 +284,44 @@ class HandSourceConfig(_Frozen):
         return rotation
 
     @model_validator(mode="after")
-    def _natnet_complete(self) -> HandSourceConfig:
-        """NatNet needs the Motive PC's address (never assumed, as [ur] host), the rigid body's
-        name (never "the first one"), and metres: NatNet streams positions in metres, so a
-        units_to_m meant for millimetres would put the hand a thousand times too close."""
-        if self.kind != "natnet":
-            return self
-        if self.natnet_server is None:
-            raise ConfigError('[hand_source] natnet_server is not set; kind = "natnet" needs the '
-                              'Motive PC\'s address. Set it (e.g. natnet_server = "192.168.1.20"): it '
-                              "has no default, so no tracker at an assumed address is ever read")
-        if not self.natnet_rigid_body:
-            raise ConfigError('[hand_source] natnet_rigid_body is not set; kind = "natnet" needs the '
-                              "name of the hand's rigid body as Motive streams it (e.g. "
-                              'natnet_rigid_body = "hand")')
-        if self.units_to_m != 1.0:
-            raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but NatNet streams metres: "
-                              'set units_to_m = 1.0 with kind = "natnet"')
+    def _tracker_complete(self) -> HandSourceConfig:
+        """NatNet and Vicon need their server's address (never assumed, as [ur] host), the names of
+        what they read (never "the first one streamed"), and the unit they stream: a units_to_m for
+        another unit would put the hand a thousand times too close or too far."""
+        if self.kind == "natnet":
+            self._require_tracker(
+                ("natnet_server", "the Motive PC's address", "192.168.1.20"),
+                {"natnet_rigid_body": "the name of the hand's rigid body as Motive streams it (e.g. "
+                                      'natnet_rigid_body = "hand")'},
+                ("1.0", "NatNet streams metres"))
+        elif self.kind == "vicon":
+            in_tracker = "in Tracker an object's one segment has the object's name"
+            self._require_tracker(
+                ("vicon_server", "the address of the PC running Vicon Tracker, Nexus or Shogun",
+                 "192.168.1.30"),
+                {"vicon_subject": "the hand's subject name as Vicon streams it (e.g. vicon_subject = "
+                                  f'"hand"; {in_tracker})',
+                 "vicon_segment": "the hand's segment name as Vicon streams it (e.g. vicon_segment = "
+                                  f'"hand"; {in_tracker})'},
+                ("0.001", "the Vicon DataStream reports millimetres"))
         return self
+
+    def _require_tracker(self, server: tuple[str, str, str], names: dict[str, str],
+                         unit: tuple[str, str]) -> None:
+        """Refuse an unset ``server`` (its field, whose address it is, an example), an unset name
+        (field → what it needs), or a units_to_m other than ``unit`` (the value, why)."""
+        field, whose, example = server
+        if getattr(self, field) is None:
+            raise ConfigError(f'[hand_source] {field} is not set; kind = "{self.kind}" needs {whose}. '
+                              f'Set it (e.g. {field} = "{example}"): it has no default, so no tracker '
+                              "at an assumed address is ever read")
+        for field, needs in names.items():
+            if not getattr(self, field):
+                raise ConfigError(f'[hand_source] {field} is not set; kind = "{self.kind}" needs {needs}')
+        value, why = unit
+        if self.units_to_m != float(value):
+            raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but {why}: set units_to_m = "
+                              f'{value} with kind = "{self.kind}"')
 
 
 #: A Robotiq register value (position, speed, force): one byte.

@@ -41,6 +41,10 @@ def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: 
         from robot_io.natnet_hand import NatNetHand
 
         return NatNetHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
+    if kind == "vicon":
+        from robot_io.vicon_hand import ViconHand  # imports the SDK only when it connects
+
+        return ViconHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     if scenario is None:
         raise RobotIOError("hand_source.kind = 'simulated' needs a scenario")
     return SimulatedHand(scenario, config.scene, config.hand, seed)

@@ -1,4 +1,4 @@
-"""Hand samples and the interface every hand source (simulated, LSL, UDP, NatNet) implements."""
+"""Hand samples and the interface every hand source (simulated, LSL, UDP, NatNet, Vicon) implements."""
 
 from __future__ import annotations
 

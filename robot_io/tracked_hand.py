@@ -1,12 +1,13 @@
-"""What the LSL, UDP and NatNet hand sources share: a receiver thread, the frame transform, dropouts,
-and trial-time stamps.
+"""What the LSL, UDP, NatNet and Vicon hand sources share: a receiver thread, the frame transform,
+dropouts, and trial-time stamps.
 
 A receiver thread puts samples in (NatNet: the ``natnet`` client's own thread); the control loop
 takes the newest with :meth:`TrackedHand.latest`. Each sample carries the ``time.monotonic()``
 instant it was measured (LSL: the outlet's time stamp mapped to this machine's clock; UDP: the
 arrival time, or the sender's when it sends one on this machine's monotonic clock; NatNet: the
-arrival minus the latency the frame reports). ``latest(now)`` turns it into trial time, assuming
-the loop's clock runs on ``time.monotonic`` as the real clock does:
+arrival minus the latency the frame reports; Vicon: when the frame was seen minus the SDK's latency,
+on the cameras' frame clock). ``latest(now)`` turns it into trial time, assuming the loop's clock
+runs on ``time.monotonic`` as the real clock does:
 t_trial = t_sample − (time.monotonic() − now).
 
 Dropouts: an occluded marker (NaN, or exactly zero as Vicon sends it) becomes a NaN sample, which the

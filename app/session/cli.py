@@ -11,6 +11,7 @@ from typing import get_args
 from app.session.config import LabConfig
 from app.session.rehearsal import HandKind, Rehearsal
 from app.session.runner import SessionRunner
+from robot_io.errors import ConfigError
 
 
 def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,10 +31,18 @@ def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
 
 def rehearsed_hand(args: argparse.Namespace, lab: LabConfig) -> HandKind:
     """The tracker protocol a rehearsal plays the hand on: ``--rehearse-hand``, else the lab's own
-    ``[hand_source] kind`` when it is a tracker's (a lab on NatNet rehearses NatNet), else LSL."""
+    ``[hand_source] kind`` when it is a tracker's (a lab on NatNet rehearses NatNet), else LSL (a
+    simulated hand has no tracker to rehearse). A lab on Vicon is refused without ``--rehearse-hand``:
+    no stand-in speaks Vicon's DataStream (docs/hardware.md, "Vicon"), and a rehearsal that swapped
+    the tracker unasked would let the lab believe its Vicon link had been rehearsed."""
     if args.rehearse_hand is not None:
         return args.rehearse_hand
     kind = lab.hand_source.kind
+    if kind == "vicon":
+        raise ConfigError('--rehearse cannot play the hand on Vicon\'s DataStream ([hand_source] kind = '
+                          '"vicon"): there is no stand-in Vicon server. Say which protocol stands in '
+                          "for it, e.g. --rehearse-hand lsl (the rest of the session runs as on the "
+                          "rig; the Vicon link is checked by `handover check-devices` on the rig)")
     return kind if kind in get_args(HandKind) else "lsl"
 
 

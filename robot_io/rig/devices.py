@@ -4,8 +4,8 @@ cycle runs on (DESIGN.md §1).
 ``[arm] kind``: ``mock`` (kinematic :class:`~robot_io.mock_arm.MockArm`, made anew each trial on
 the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.ur_arm.URArm`
 over ur_rtde, connected once). ``[hand_source] kind``: ``simulated`` (a seeded
-:class:`~robot_io.simulated_hand.SimulatedHand` per trial), ``lsl``, ``udp`` or ``natnet`` (opened
-once).
+:class:`~robot_io.simulated_hand.SimulatedHand` per trial), ``lsl``, ``udp``, ``natnet`` or ``vicon``
+(opened once).
 ``[gripper] kind``: ``tool_output`` (the UR's tool digital output), ``robotiq_socket`` (a Robotiq
 2F-85 on its URCap's socket, :mod:`robot_io.robotiq`) or ``none``.
 """
@@ -85,6 +85,8 @@ class RigDevices:
             hand_detail = f"LSL stream {getattr(tracked, 'name', '?')!r} ({source.lsl_stream_type})"
         elif source.kind == "natnet":
             hand_detail = f"NatNet {tracked.describe()}"
+        elif source.kind == "vicon":
+            hand_detail = f"Vicon {tracked.describe()}"
         elif source.kind == "udp":
             hand_detail = "UDP on {}:{}".format(*getattr(tracked, "address", ("?", "?")))
         else:

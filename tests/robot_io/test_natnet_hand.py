@@ -12,12 +12,10 @@ import time
 import numpy as np
 import pytest
 from natnet import DataFrame, PacketBuffer, Version
-from pydantic import ValidationError
+from support.lab_file import assert_hand_source_refused, check_devices, hand_line
 from support.natnet import HAND, OBJECT, TRACKER_M, motive, natnet_source, natnet_toml, to_tracker_m
 from support.waiting import wait_for
 
-from app.cli import main
-from app.session.config import load_lab_config
 from robot_io.config import HandProfile, LoopConfig
 from robot_io.errors import HandSourceError
 from robot_io.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
@@ -181,14 +179,9 @@ def test_no_server_is_refused_in_plain_words():
 def test_check_devices_reports_the_rigid_body_rate_and_latency(tmp_path, capsys):
     hand = pose_at((0.95, 0.10, 0.05))  # A, with the identity calibration of natnet_toml
     with motive(lambda: {HAND.id: hand, OBJECT.id: pose_at((0.5, 0.0, 0.3))}) as server:
-        lab = tmp_path / "lab.toml"
-        lab.write_text(natnet_toml(server))
-        code = main(["check-devices", "--config", str(lab)])
-        out = capsys.readouterr().out
-        lab.write_text(natnet_toml(server, "left hand"))
-        refused = main(["check-devices", "--config", str(lab)])
-        refused_out = capsys.readouterr().out
-    line = next(line for line in out.splitlines() if line.startswith("hand:"))
+        code, out = check_devices(tmp_path, capsys, natnet_toml(server))
+        refused, refused_out = check_devices(tmp_path, capsys, natnet_toml(server, "left hand"))
+    line = hand_line(out)
     assert code == 0, out
     assert re.fullmatch(rf"hand: natnet, \d+ samples/s, newest \d+ ms old, 0 occluded; rigid body "
                         rf"'hand' \(id 7\) from Motive \(NatNet 3\.1\.0\.0\) at 127\.0\.0\.1:"
@@ -208,9 +201,4 @@ def test_check_devices_reports_the_rigid_body_rate_and_latency(tmp_path, capsys)
     ('kind = "natnet"\nnatnet_command_port = 70000\n', "natnet_command_port"),
 ])
 def test_an_incomplete_natnet_table_is_refused_naming_the_field(tmp_path, capsys, text, message):
-    lab = tmp_path / "lab.toml"
-    lab.write_text(f"[hand_source]\n{text}")
-    with pytest.raises(ValidationError, match=re.escape(message)):
-        load_lab_config(lab)
-    assert main(["check-devices", "--config", str(lab)]) == 2  # before anything is opened
-    assert message in capsys.readouterr().err
+    assert_hand_source_refused(tmp_path, capsys, text, message)
