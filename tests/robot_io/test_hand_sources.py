@@ -66,19 +66,22 @@ def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
     config = source_config(config, kind="lsl", lsl_stream_name=name, lsl_stream_type=stream_type)
     outlet = lsl_outlet(name, stream_type)
     simulated = SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, 3)
-    with realtime_threads():  # the replay and the receiver, as a rig runs them (a stale hand
-        # sample of 0.186 s ended the trial tracker_lost beside a full suite's load on the normal policy)
+    # The replay, the receiver and the loop's own thread under SCHED_FIFO, as a rig runs them: on
+    # the normal policy a stale hand sample of 0.186 s ended the trial tracker_lost beside a full
+    # suite's load; with the main thread alone on it, building the loop while holding the GIL kept
+    # the receiver from storing samples (0.106 s stale at the first cycle, a loaded full run).
+    with realtime_threads():
         hand = LSLHand(config.hand_source, _transform(config), config.hand.max_speed)
         replay = Replay(simulated, lambda xyz: outlet.push_sample(xyz.tolist()), 100.0).start()
-    try:
-        record = trial_once_live(config, hand)
-        replay.stop()
-        # every sample sent arrives, once (the inlet was open before the first was pushed)
-        wait_for(lambda: hand.received >= len(replay.sent), "every sent sample at the inlet",
-                 seen=lambda: f"received {hand.received} of {len(replay.sent)} sent")
-    finally:
-        replay.stop()
-        hand.close()
+        try:
+            record = trial_once_live(config, hand)
+            replay.stop()
+            # every sample sent arrives, once (the inlet was open before the first was pushed)
+            wait_for(lambda: hand.received >= len(replay.sent), "every sent sample at the inlet",
+                     seen=lambda: f"received {hand.received} of {len(replay.sent)} sent")
+        finally:
+            replay.stop()
+            hand.close()
     summary = record.summary
     assert summary.outcome is Outcome.COMPLETED, summary.reason
     assert hand.received == len(replay.sent)  # none lost, none twice
@@ -242,7 +245,7 @@ def test_a_tracker_jump_mid_reach_ends_the_trial_tracker_lost_not_at_a_hand_2m_o
     config = source_config(ControllerConfig(), kind="udp", udp_host="127.0.0.1", udp_port=0)
     simulated = SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, 3)
     sender = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    with realtime_threads():  # the replay and the receiver, as a rig runs them
+    with realtime_threads():  # the replay, the receiver and the loop, as a rig runs them (above)
         hand = UDPHand(config.hand_source, _transform(config), config.hand.max_speed)
 
         began: list[float] = []
@@ -254,12 +257,12 @@ def test_a_tracker_jump_mid_reach_ends_the_trial_tracker_lost_not_at_a_hand_2m_o
             sender.sendto(json.dumps({"x": x, "y": y, "z": z}).encode(), hand.address)
 
         replay = Replay(simulated, send, 100.0).start()
-    try:
-        record = trial_once_live(config, hand)
-    finally:
-        replay.stop()
-        hand.close()
-        sender.close()
+        try:
+            record = trial_once_live(config, hand)
+        finally:
+            replay.stop()
+            hand.close()
+            sender.close()
     summary = record.summary
     assert summary.outcome is Outcome.TRACKER_LOST, summary.reason
     assert "samples refused, the latest as a jump of 2." in summary.reason
