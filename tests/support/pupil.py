@@ -1,0 +1,68 @@
+"""A stand-in for a lab's eye tracker on LSL: a pupil diameter stream that dilates each time the robot
+starts to move.
+
+It listens to the study's robot stream like any other LSL client: a trial's first sample is its Go
+(the stream runs from Go on), and from there its diameter follows a dilation that begins
+:data:`ONSET_S` later (the pupil's response latency) and is over :data:`END_S` after it — whenever
+the sample arrived, since each value is computed from its own time stamp. ``handover report --xdf``
+must find the dilation at the same time after Go in every trial.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+
+import pylsl
+
+from support.waiting import CEILING_S
+
+RATE_HZ = 60.0
+BASELINE_MM = 3.2
+DILATION_MM = 0.6
+ONSET_S = 0.3  # the dilation begins this long after the robot starts
+END_S = 1.5  # and is over this long after it
+
+
+def diameter(since_start: float) -> float:
+    """The stand-in's pupil diameter [mm] ``since_start`` seconds after the robot started."""
+    if not ONSET_S <= since_start <= END_S:
+        return BASELINE_MM
+    return BASELINE_MM + DILATION_MM * math.sin(math.pi * (since_start - ONSET_S) / (END_S - ONSET_S))
+
+
+class PupilTracker:
+    """Publishes stream ``name`` (type ``Gaze``, one channel ``pupil_diameter_mm``) at
+    :data:`RATE_HZ` while listening to the robot stream ``robot``."""
+
+    def __init__(self, name: str, robot: str) -> None:
+        info = pylsl.StreamInfo(name, "Gaze", 1, RATE_HZ, pylsl.cf_float32, f"{name}-eyetracker")
+        info.desc().append_child("channels").append_child("channel").append_child_value(
+            "label", "pupil_diameter_mm")
+        self.outlet = pylsl.StreamOutlet(info)
+        found = pylsl.resolve_byprop("name", robot, 1, CEILING_S)
+        assert found, f"no robot stream {robot!r} within {CEILING_S} s"
+        self.inlet = pylsl.StreamInlet(found[0])
+        self.inlet.open_stream(CEILING_S)
+        self.trial, self.started = 0.0, None  # the robot's latest trial and when it started
+        self._stopping = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="pupil-tracker", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        period = 1.0 / RATE_HZ
+        next_at = pylsl.local_clock()
+        while not self._stopping.wait(max(next_at - pylsl.local_clock(), 0.0)):
+            samples, stamps = self.inlet.pull_chunk(timeout=0.0)
+            for sample, stamp in zip(samples, stamps, strict=True):
+                if sample[0] != self.trial:  # channel 0: the trial index
+                    self.trial, self.started = sample[0], stamp
+            now = pylsl.local_clock()
+            value = BASELINE_MM if self.started is None else diameter(now - self.started)
+            self.outlet.push_sample([value], now)
+            next_at += period
+
+    def close(self) -> None:
+        self._stopping.set()
+        self._thread.join()
+        self.inlet.close_stream()
