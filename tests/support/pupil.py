@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 import threading
 
+import numpy as np
 import pylsl
 
 from support.waiting import CEILING_S
@@ -24,18 +25,24 @@ ONSET_S = 0.3  # the dilation begins this long after the robot starts
 END_S = 1.5  # and is over this long after it
 
 
-def diameter(since_start: float) -> float:
+def diameter(since_start: float, dilation: float = DILATION_MM) -> float:
     """The stand-in's pupil diameter [mm] ``since_start`` seconds after the robot started."""
     if not ONSET_S <= since_start <= END_S:
         return BASELINE_MM
-    return BASELINE_MM + DILATION_MM * math.sin(math.pi * (since_start - ONSET_S) / (END_S - ONSET_S))
+    return BASELINE_MM + dilation * math.sin(math.pi * (since_start - ONSET_S) / (END_S - ONSET_S))
 
 
 class PupilTracker:
     """Publishes stream ``name`` (type ``Gaze``, one channel ``pupil_diameter_mm``) at
-    :data:`RATE_HZ` while listening to the robot stream ``robot``."""
+    :data:`RATE_HZ` while listening to the robot stream ``robot``. ``spread``: each trial's
+    dilation is DILATION_MM × (1 + spread × a normal draw); ``noise_mm``: the standard deviation of
+    a measurement noise (both 0 in tests: exact values; benchmarks/lsl_outlets.py draws the docs'
+    figure with some)."""
 
-    def __init__(self, name: str, robot: str) -> None:
+    def __init__(self, name: str, robot: str, spread: float = 0.0, noise_mm: float = 0.0,
+                 seed: int = 0) -> None:
+        self._rng, self._spread, self._noise = np.random.default_rng(seed), spread, noise_mm
+        self._dilation = DILATION_MM
         info = pylsl.StreamInfo(name, "Gaze", 1, RATE_HZ, pylsl.cf_float32, f"{name}-eyetracker")
         info.desc().append_child("channels").append_child("channel").append_child_value(
             "label", "pupil_diameter_mm")
@@ -57,8 +64,10 @@ class PupilTracker:
             for sample, stamp in zip(samples, stamps, strict=True):
                 if sample[0] != self.trial:  # channel 0: the trial index
                     self.trial, self.started = sample[0], stamp
+                    self._dilation = DILATION_MM * (1.0 + self._spread * self._rng.standard_normal())
             now = pylsl.local_clock()
-            value = BASELINE_MM if self.started is None else diameter(now - self.started)
+            value = BASELINE_MM if self.started is None else diameter(now - self.started, self._dilation)
+            value += self._noise * self._rng.standard_normal() if self._noise else 0.0
             self.outlet.push_sample([value], now)
             next_at += period
 
