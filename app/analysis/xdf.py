@@ -10,19 +10,19 @@ per trial (:data:`WINDOW_S`) and joined with the trial's row of the participant'
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 import pandas as pd
 
-from app.protocol.markers import decode
+from app.protocol.markers import MARKER_TYPE, ROBOT_TYPE, SOFTWARE, decode
 
+T = TypeVar("T")
 #: The window around Go that is kept of every trial [s]: a baseline before, the reach and hold after.
 WINDOW_S = (-1.0, 3.0)
-#: The ``software`` of the study's own streams' descriptions (app/session/lsl_outlets.py).
-SOFTWARE = "handover-lab"
 
 
 class XDFError(ValueError):
@@ -80,33 +80,39 @@ def _name(stream: dict) -> str:
     return stream["info"]["name"][0]
 
 
+def _readable(path: Path, read: Callable[[], T]) -> T:
+    """``read()``, or an :class:`XDFError` saying that ``path`` is not a readable XDF file."""
+    try:
+        return read()
+    except (OSError, ValueError, EOFError, RuntimeError) as exc:
+        raise XDFError(f"{path}: not a readable XDF file ({exc})") from exc
+
+
 def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
     """The study's markers and the lab's numeric streams in ``path`` (only those named ``names``
-    when given; every stream of another software otherwise). An :class:`XDFError` names what is
-    missing: pyxdf (the ``xdf`` extra), the study's marker stream, a named stream."""
+    when given; every numeric stream but the study's robot stream otherwise). Only those are read:
+    the robot stream, which pauses between trials, is parsed only when named. An :class:`XDFError`
+    names what is missing: pyxdf (the ``xdf`` extra), the study's marker stream, a named stream."""
     try:
         import pyxdf
     except ImportError as exc:
         raise XDFError("reading XDF needs pyxdf: pip install 'handover-lab[xdf]'") from exc
-    try:
-        streams, _ = pyxdf.load_xdf(str(path))
-    except (OSError, ValueError, EOFError, RuntimeError) as exc:
-        raise XDFError(f"{path}: not a readable XDF file ({exc})") from exc
-    ours = [s for s in streams if _desc(s, "software") == SOFTWARE and s["info"]["type"][0] == "Markers"]
-    found = sorted(_name(s) for s in streams)
+    headers = _readable(path, lambda: pyxdf.resolve_streams(str(path)))
+    found = sorted(h["name"] for h in headers)
+    missing = [name for name in names if name not in found]
+    if missing:
+        raise XDFError(f"{path}: no stream named {missing}; the file holds {found}")
+    chosen = [h["stream_id"] for h in headers if h["type"] == MARKER_TYPE or (
+        h["name"] in names if names else h["type"] != ROBOT_TYPE and h["channel_format"] != "string")]
+    streams = _readable(path, lambda: pyxdf.load_xdf(str(path), select_streams=chosen)[0]) if chosen else []
+    ours = [s for s in streams if _desc(s, "software") == SOFTWARE and s["info"]["type"][0] == MARKER_TYPE]
     if len(ours) != 1:
         raise XDFError(f"{path}: {len(ours)} study marker streams (type Markers from {SOFTWARE}), "
                        f"1 needed; the file holds {found}")
-    markers = ours[0]
-    wanted = list(names) or [_name(s) for s in streams
-                             if _desc(s, "software") != SOFTWARE and _numeric(s)]
-    missing = [name for name in wanted if name not in found]
-    if missing:
-        raise XDFError(f"{path}: no stream named {missing}; the file holds {found}")
-    lab = {}
+    markers, lab = ours[0], {}
     for stream in streams:
         name = _name(stream)
-        if name not in wanted:
+        if stream["info"]["type"][0] == MARKER_TYPE and name not in names:
             continue
         if not _numeric(stream):
             raise XDFError(f"{path}: stream {name!r} holds strings; only numeric streams are drawn")

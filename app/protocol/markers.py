@@ -16,6 +16,9 @@ from typing import Any
 from app.protocol import events as ev
 from app.protocol.state import SessionState
 
+#: The study's streams (app/session/lsl_outlets.py): the ``software`` their descriptions name, the
+#: marker stream's type (LSL's usual one) and the robot stream's.
+SOFTWARE, MARKER_TYPE, ROBOT_TYPE = "handover-lab", "Markers", "HandoverRobot"
 #: The kinds of stored event that make a marker, and the marker's ``event`` for each (a stage's
 #: marker is named after the stage).
 MARKED = {"trial_started": "trial_start", "trial_stage": None, "trial_ended": "trial_end",

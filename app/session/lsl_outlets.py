@@ -26,7 +26,7 @@ import numpy as np
 import pylsl
 
 from app.protocol import events as ev
-from app.protocol.markers import encode, marker
+from app.protocol.markers import MARKER_TYPE, ROBOT_TYPE, SOFTWARE, encode, marker
 from app.protocol.state import SessionState
 from app.session.config import RecordSettings
 from robot_io.clock import monotonic_of_utc
@@ -58,7 +58,7 @@ def stream_info(name: str, kind: str, channels: tuple[str, ...], rate_hz: float,
     info = pylsl.StreamInfo(name, kind, len(channels), rate_hz, fmt, source_id)
     desc = info.desc()
     desc.append_child_value("participant", code)
-    desc.append_child_value("software", "handover-lab")
+    desc.append_child_value("software", SOFTWARE)
     labels = desc.append_child("channels")
     for label in channels:
         labels.append_child("channel").append_child_value("label", label)
@@ -122,10 +122,10 @@ class StudyOutlets:
         session = f"{code}:{created_at}"
         self.robot_name, self.markers_name = f"{settings.lsl_name}-robot", f"{settings.lsl_name}-markers"
         self._markers = pylsl.StreamOutlet(stream_info(
-            self.markers_name, "Markers", ("marker",), pylsl.IRREGULAR_RATE, pylsl.cf_string,
+            self.markers_name, MARKER_TYPE, ("marker",), pylsl.IRREGULAR_RATE, pylsl.cf_string,
             f"{self.markers_name}:{session}", code))
         self._robot = pylsl.StreamOutlet(stream_info(
-            self.robot_name, "HandoverRobot", ROBOT_LABELS, rate_hz, pylsl.cf_double64,
+            self.robot_name, ROBOT_TYPE, ROBOT_LABELS, rate_hz, pylsl.cf_double64,
             f"{self.robot_name}:{session}", code))
         self.feed = RobotFeed(self._robot, samples)
         log.info("LSL outlets %r and %r for participant %s (%d Hz)", self.robot_name,

@@ -44,3 +44,15 @@ def test_report_xdf_names_a_stream_the_file_does_not_hold(recorded_session, tmp_
     error = capsys.readouterr().err
     assert "no stream named ['Pupil']" in error and session.pupil in error
     assert not (tmp_path / "r").exists()  # refused before anything was written
+
+
+def test_report_xdf_refuses_a_file_without_the_study_markers(recorded_session, tmp_path, capsys):
+    session, other = recorded_session, tmp_path / "other.xdf"
+    other.write_bytes(b"XDF:")  # an XDF file with nothing recorded in it
+    assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
+                 str(other)]) == 2
+    assert "0 study marker streams" in capsys.readouterr().err
+    other.write_text("not an XDF file")
+    assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
+                 str(other)]) == 2
+    assert "not a readable XDF file" in capsys.readouterr().err
