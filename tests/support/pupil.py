@@ -22,7 +22,7 @@ RATE_HZ = 60.0
 BASELINE_MM = 3.2
 DILATION_MM = 0.6
 ONSET_S = 0.3  # the dilation begins this long after the robot starts
-END_S = 1.5  # and is over this long after it
+END_S = 1.2  # and is over this long after it (the next trial's Go comes 2.7 s or more after this one)
 
 
 def diameter(since_start: float, dilation: float = DILATION_MM) -> float:

@@ -85,10 +85,11 @@ def last_marked_seq(study: Path, code: str) -> int:
 
 
 def record_session(folder: Path, protocol: dict = PROTOCOL, pupil_spread: float = 0.0,
-                   pupil_noise_mm: float = 0.0) -> RecordedSession:
+                   pupil_noise_mm: float = 0.0, lsl_name: str | None = None) -> RecordedSession:
     """Run the session (``protocol``: the lab's [protocol]) with the recorders on; return once both
-    files are written. ``pupil_*``: the stand-in eye tracker's variation (support/pupil.py)."""
-    name = f"test-{uuid.uuid4().hex[:12]}"  # stream names of this run's own
+    files are written. ``pupil_*``: the stand-in eye tracker's variation (support/pupil.py).
+    ``lsl_name``: the streams' names begin with it (by default a name of this run's own)."""
+    name = lsl_name or f"test-{uuid.uuid4().hex[:12]}"
     markers, robot, pupil = f"{name}-markers", f"{name}-robot", f"{name}-pupil"
     lab = LabConfig.model_validate({"loop": {"rate_hz": RATE_HZ}, "protocol": protocol,
                                     "record": {"lsl_name": name}})
