@@ -90,9 +90,9 @@ def _readable(path: Path, read: Callable[[], T]) -> T:
 
 def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
     """The study's markers and the lab's numeric streams in ``path`` (only those named ``names``
-    when given; every numeric stream but the study's robot stream otherwise). Only those are read:
-    the robot stream, which pauses between trials, is parsed only when named. An :class:`XDFError`
-    names what is missing: pyxdf (the ``xdf`` extra), the study's marker stream, a named stream."""
+    when given; every numeric stream but the study's robot stream otherwise). Only those are read,
+    never the robot stream: its samples are the database's. An :class:`XDFError` names what is
+    missing or wrong: pyxdf (the ``xdf`` extra), the study's marker stream, a named stream."""
     try:
         import pyxdf
     except ImportError as exc:
@@ -102,6 +102,10 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
     missing = [name for name in names if name not in found]
     if missing:
         raise XDFError(f"{path}: no stream named {missing}; the file holds {found}")
+    robot = [h["name"] for h in headers if h["type"] == ROBOT_TYPE and h["name"] in names]
+    if robot:
+        raise XDFError(f"{path}: {robot} is the study's robot stream, whose samples the database "
+                       "holds (Fig. 4 draws them): name the lab's own streams")
     chosen = [h["stream_id"] for h in headers if h["type"] == MARKER_TYPE or (
         h["name"] in names if names else h["type"] != ROBOT_TYPE and h["channel_format"] != "string")]
     streams = _readable(path, lambda: pyxdf.load_xdf(str(path), select_streams=chosen)[0]) if chosen else []

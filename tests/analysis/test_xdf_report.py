@@ -11,6 +11,7 @@ from support.pupil import BASELINE_MM, ONSET_S, RATE_HZ
 from support.recorded_session import XDIST_GROUP
 
 from app.cli import main
+from session_store.store import ParticipantStore
 
 pytestmark = pytest.mark.xdist_group(XDIST_GROUP)
 
@@ -25,8 +26,13 @@ def test_report_xdf_aligns_the_pupil_stream_to_each_go(recorded_session, tmp_pat
     aligned = pd.read_csv(out / "tables" / "xdf_around_go.csv")
     assert set(aligned["stream"]) == {session.pupil}
     assert set(aligned["channel"]) == {"pupil_diameter_mm"}
+    store = ParticipantStore.open(session.study, session.code)
+    try:
+        went = [t.trial_index for t in store.rows("trials") if t.go_at is not None]
+    finally:
+        store.close()
     trials = aligned.groupby("trial_index")
-    assert len(trials) == 2  # both trials of the session
+    assert sorted(trials.groups) == went  # every trial that reached Go
     for index, trial in trials:
         t, value = trial["t"].to_numpy(), trial["value"].to_numpy()
         assert t.min() < -0.9 and t.max() > 2.9, index  # the whole window was recorded
@@ -44,6 +50,9 @@ def test_report_xdf_names_a_stream_the_file_does_not_hold(recorded_session, tmp_
     error = capsys.readouterr().err
     assert "no stream named ['Pupil']" in error and session.pupil in error
     assert not (tmp_path / "r").exists()  # refused before anything was written
+    assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
+                 str(session.xdf), "--xdf-stream", session.robot]) == 2
+    assert "is the study's robot stream" in capsys.readouterr().err
 
 
 def test_report_xdf_refuses_a_file_without_the_study_markers(recorded_session, tmp_path, capsys):
