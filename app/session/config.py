@@ -11,12 +11,21 @@ is an error naming it.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any
 
 import annotated_types
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, create_model, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    create_model,
+    field_validator,
+    model_validator,
+)
 from pydantic.fields import FieldInfo
 
 from app.protocol.study import StudyConfig
@@ -102,9 +111,17 @@ class RecordSettings(BaseModel):
                           "stream on Lab Streaming Layer while a session runs on the wall clock "
                           "(a session on simulated time has no LSL time and publishes nothing)")
     lsl_name: str = Field(
-        "handover", pattern=r"^[A-Za-z0-9_.-]{1,64}$",
-        description="the streams are named '<lsl_name>-robot' and '<lsl_name>-markers' (1 to 64 "
-                    "letters, digits, '_', '.', '-'); their source_id adds the participant code")
+        "handover", description="the streams are named '<lsl_name>-robot' and '<lsl_name>-markers' "
+                                "(1 to 64 letters, digits, '_', '.', '-'); their source_id adds the "
+                                "participant code")
+
+    @field_validator("lsl_name")
+    @classmethod
+    def _stream_name(cls, value: str) -> str:
+        if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", value):
+            raise ValueError(f"lsl_name = {value!r}: must be 1 to 64 letters, digits, '_', '.' or "
+                             "'-' (it begins the names of the study's LSL streams)")
+        return value
 
 
 #: The tables of a lab config that are not the controller's.
