@@ -13,7 +13,7 @@ from support.recorded_session import XDIST_GROUP
 from app.cli import main
 from session_store.store import ParticipantStore
 
-pytestmark = pytest.mark.xdist_group(XDIST_GROUP)
+pytestmark = [pytest.mark.xdist_group(XDIST_GROUP), pytest.mark.slow, pytest.mark.soak]
 
 
 def test_report_xdf_aligns_the_pupil_stream_to_each_go(recorded_session, tmp_path, capsys):

@@ -13,13 +13,11 @@ import pytest
 import pyxdf
 from support.recorded_session import XDIST_GROUP, agreement, named
 
-from app.protocol import events as ev
-from app.protocol.markers import MARKED, marker
-from app.protocol.vocabulary import Actor
+from app.protocol.markers import MARKED
 from app.session.lsl_outlets import ROBOT_LABELS
 from session_store.store import ParticipantStore
 
-pytestmark = pytest.mark.xdist_group(XDIST_GROUP)
+pytestmark = [pytest.mark.xdist_group(XDIST_GROUP), pytest.mark.slow, pytest.mark.soak]
 
 
 def participant_of(recorded: dict) -> str:
@@ -75,9 +73,3 @@ def test_labrecorder_records_the_same_streams_and_markers(recorded_session):
     count = len(its["time_series"])
     assert count > 0 and its["time_series"] == mine["time_series"][:count]
     np.testing.assert_allclose(its["time_stamps"], mine["time_stamps"][:count], atol=1e-3)
-
-
-def test_a_validation_rating_is_marked_with_its_interaction_and_who_rated():
-    rated = ev.ValidationRated(seq=41, actor=Actor.PARTICIPANT, interaction=30, rating="better")
-    assert marker(rated, state=None) == {"event": "rating", "seq": 41, "interaction": 30,
-                                         "rating": "better", "by": "participant"}
