@@ -388,7 +388,10 @@ class SessionEngine:
         self.state = state
         for event, seq in zip(events, stored, strict=True):
             for listener in self.listeners:
-                listener(event.model_copy(update={"seq": seq}), state)
+                try:
+                    listener(event.model_copy(update={"seq": seq}), state)
+                except Exception:  # the event is stored: a listener's failure must not undo the action
+                    log.exception("a listener of event %d (%s) failed", seq, event.kind)
 
     def _ensure_learner(self) -> LearnerClient:
         """The learner process: fresh, or restored from the last stored snapshot plus the

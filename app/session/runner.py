@@ -530,9 +530,13 @@ class SessionRunner:
         if not (self.lab.record.lsl_outlets and self.realtime):
             return
         participant = engine.participant
-        self._outlets = StudyOutlets(self.lab.record, participant.code, participant.created_at,
-                                     self._devices.rate_hz,
-                                     lambda: None if self._rig is None else self._rig.stream)
+        try:
+            self._outlets = StudyOutlets(self.lab.record, participant.code, participant.created_at,
+                                         self._devices.rate_hz,
+                                         lambda: None if self._rig is None else self._rig.stream)
+        except RuntimeError as exc:  # liblsl could not open them; the session itself is not at risk
+            log.error("the study's LSL outlets could not open (%s): the session runs without them", exc)
+            return
         engine.listeners.append(self._outlets.on_event)
 
     def _rig_identity(self) -> dict:
