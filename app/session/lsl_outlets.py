@@ -35,33 +35,36 @@ from robot_io.rig.stream import SampleStream
 
 log = logging.getLogger(__name__)
 
-#: The robot stream's channels: (sample column, channel labels, unit).
+#: The robot stream's channels: (sample column, channel labels, unit; "1": dimensionless).
 ROBOT_COLUMNS: tuple[tuple[str, tuple[str, ...], str], ...] = (
     ("measured", ("tcp_x", "tcp_y", "tcp_z"), "m"),
     ("q", tuple(f"q{joint}" for joint in range(6)), "rad"),
-    ("s", ("phase",), ""),
+    ("s", ("phase",), "1"),
     ("d_filtered", ("d_filtered",), "m"),
-    ("c_t", ("c_t",), ""),
-    ("stage", ("stage",), "1 reach, 2 hold, 3 released"),
+    ("c_t", ("c_t",), "1"),
+    ("stage", ("stage",), "code: 1 reach, 2 hold, 3 released"),
 )
 #: The first channel is the trial index; the rest are these columns of a sample row, in order.
 ROBOT_INDEX = np.concatenate([np.arange(SLICES[c].start, SLICES[c].stop) for c, _, _ in ROBOT_COLUMNS])
-ROBOT_LABELS = ("trial", *(label for _, labels, _ in ROBOT_COLUMNS for label in labels))
+ROBOT_CHANNELS = (("trial", "index"), *((label, unit) for _, labels, unit in ROBOT_COLUMNS
+                                         for label in labels))
 #: How often the feed looks for new rows [s]: a few control cycles per chunk.
 FEED_POLL_S = 0.02
 T = SLICES["t"].start
 
 
-def stream_info(name: str, kind: str, channels: tuple[str, ...], rate_hz: float, fmt: int,
-                source_id: str, code: str) -> pylsl.StreamInfo:
-    """A stream's description: its channels' labels and the participant code in ``desc``."""
+def stream_info(name: str, kind: str, channels: tuple[tuple[str, str], ...], rate_hz: float,
+                fmt: int, source_id: str, code: str) -> pylsl.StreamInfo:
+    """A stream's description: the participant code and each channel's label and unit in ``desc``."""
     info = pylsl.StreamInfo(name, kind, len(channels), rate_hz, fmt, source_id)
     desc = info.desc()
     desc.append_child_value("participant", code)
     desc.append_child_value("software", SOFTWARE)
-    labels = desc.append_child("channels")
-    for label in channels:
-        labels.append_child("channel").append_child_value("label", label)
+    described = desc.append_child("channels")
+    for label, unit in channels:
+        channel = described.append_child("channel")
+        channel.append_child_value("label", label)
+        channel.append_child_value("unit", unit)
     return info
 
 
@@ -122,10 +125,10 @@ class StudyOutlets:
         session = f"{code}:{created_at}"
         self.robot_name, self.markers_name = f"{settings.lsl_name}-robot", f"{settings.lsl_name}-markers"
         self._markers = pylsl.StreamOutlet(stream_info(
-            self.markers_name, MARKER_TYPE, ("marker",), pylsl.IRREGULAR_RATE, pylsl.cf_string,
+            self.markers_name, MARKER_TYPE, (("marker", "JSON"),), pylsl.IRREGULAR_RATE, pylsl.cf_string,
             f"{self.markers_name}:{session}", code))
         self._robot = pylsl.StreamOutlet(stream_info(
-            self.robot_name, ROBOT_TYPE, ROBOT_LABELS, rate_hz, pylsl.cf_double64,
+            self.robot_name, ROBOT_TYPE, ROBOT_CHANNELS, rate_hz, pylsl.cf_double64,
             f"{self.robot_name}:{session}", code))
         self.feed = RobotFeed(self._robot, samples)
         log.info("LSL outlets %r and %r for participant %s (%d Hz)", self.robot_name,

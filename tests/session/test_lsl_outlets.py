@@ -14,7 +14,7 @@ import pyxdf
 from support.recorded_session import XDIST_GROUP, agreement, named
 
 from app.protocol.markers import MARKED
-from app.session.lsl_outlets import ROBOT_LABELS
+from app.session.lsl_outlets import ROBOT_CHANNELS
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.xdist_group(XDIST_GROUP), pytest.mark.slow, pytest.mark.soak]
@@ -56,8 +56,8 @@ def test_markers_and_robot_samples_recorded_to_xdf_agree_with_the_store(recorded
     assert session.code in markers["info"]["source_id"][0]
     assert session.code in robot["info"]["source_id"][0]
     assert float(robot["info"]["nominal_srate"][0]) == session.rate_hz
-    labels = [c["label"][0] for c in robot["info"]["desc"][0]["channels"][0]["channel"]]
-    assert labels == list(ROBOT_LABELS)
+    channels = robot["info"]["desc"][0]["channels"][0]["channel"]
+    assert [(c["label"][0], c["unit"][0]) for c in channels] == list(ROBOT_CHANNELS)
 
 
 def test_labrecorder_records_the_same_streams_and_markers(recorded_session):
