@@ -12,9 +12,25 @@ import logging
 import os
 import sys
 import time
+from datetime import UTC, datetime, timedelta
 from typing import NamedTuple, Protocol
 
 log = logging.getLogger(__name__)
+
+
+def utc_of_monotonic(monotonic: float) -> datetime:
+    """The UTC time (stored rows) of a ``time.monotonic()`` reading of this machine (the rig's stage
+    times, the LSL clock: ``pylsl.local_clock()`` is CLOCK_MONOTONIC on Linux), through the offset
+    between the two clocks now."""
+    return datetime.now(UTC) - timedelta(seconds=time.monotonic() - monotonic)
+
+
+def monotonic_of_utc(at: str | datetime) -> float:
+    """The ``time.monotonic()`` reading of a stored UTC time (ISO-8601), the inverse of
+    :func:`utc_of_monotonic`: exact to the microseconds a stored time keeps, as long as nobody sets
+    the wall clock in between."""
+    when = datetime.fromisoformat(at) if isinstance(at, str) else at
+    return time.monotonic() - (datetime.now(UTC) - when).total_seconds()
 
 
 class CycleStart(NamedTuple):

@@ -72,3 +72,12 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     # instead of running alone at the end of a run.
     items.sort(key=lambda item: (item.get_closest_marker("slow") is None,
                                  item.get_closest_marker("browser") is None))
+
+
+@pytest.fixture(scope="session")
+def recorded_session(tmp_path_factory):
+    """A short session on the wall clock recorded to XDF (support/recorded_session.py), run once per
+    test process: the modules that use it are in its xdist group."""
+    from support.recorded_session import record_session
+
+    return record_session(tmp_path_factory.mktemp("recorded-session"))

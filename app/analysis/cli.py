@@ -19,6 +19,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="output folder (default out/report)")
     parser.add_argument("--benchmark", type=Path, default=None,
                         help="a `handover benchmark-pl` output folder: adds Fig. 3")
+    parser.add_argument("--xdf", type=Path, default=None, metavar="FILE",
+                        help="an XDF recording of the study's LSL markers and the lab's own streams "
+                             "(LabRecorder): each stream around each trial's Go (needs the 'xdf' extra)")
+    parser.add_argument("--xdf-stream", action="append", default=[], metavar="NAME",
+                        help="a stream of the --xdf file to draw (repeatable; default: every numeric "
+                             "stream that is not the study's own)")
     parser.add_argument("--include-simulated", action="store_true",
                         help="count the simulated participant's validation ratings and answers "
                              "too (by default only the participants' own count)")
@@ -38,7 +44,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"warning: reported although {path.name}: {reason}", file=sys.stderr)
     report = build_report(args.study, args.out, args.benchmark,
                           include_simulated=args.include_simulated,
-                          exclude=None if args.force else bad)
+                          exclude=None if args.force else bad, xdf=args.xdf,
+                          xdf_streams=args.xdf_stream)
     print(report.ratings_counted)
     for path, reason in report.unreadable.items():
         print(f"warning: {unreadable_text(path, reason)}", file=sys.stderr)

@@ -4,6 +4,8 @@
   with the Sobol θ; human in red, robot in blue, as in the paper;
 - :func:`draw_learning_curve`: θ shown at each interaction, θ* after each update, and θ*'s posterior
   mean utility (learner snapshots);
+- :func:`draw_around_go`: a stream of the lab's XDF recording around each trial's Go, one line per
+  trial coloured by θ origin, the mean of the completed trials in black;
 - :func:`save`: PNG and SVG side by side.
 """
 
@@ -15,6 +17,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 from pydantic import BaseModel, ConfigDict
@@ -119,4 +122,43 @@ def draw_learning_curve(trials: pd.DataFrame, snapshots: pd.DataFrame, config: S
     fig.suptitle(title, fontsize=10)
     fig.legend(handles, labels, fontsize=8, ncol=4, loc="upper center", bbox_to_anchor=(0.5, 0.97))
     fig.tight_layout(rect=(0, 0, 1, 0.945))
+    return fig
+
+
+#: At most this many channels of a stream are drawn (one panel each).
+AROUND_GO_PANELS = 4
+
+
+def draw_around_go(aligned: pd.DataFrame, release_t: list[float], title: str) -> Figure:
+    """One stream of an XDF recording around Go (``app.analysis.xdf.around_go`` rows of one
+    participant and stream): a panel per channel, a line per trial coloured by θ origin, the mean of
+    the completed trials (black, on a common grid), Go at 0 and the median release time."""
+    channels = list(dict.fromkeys(aligned["channel"]))[:AROUND_GO_PANELS]
+    fig, axes = plt.subplots(len(channels), 1, figsize=(7.0, 2.4 * len(channels) + 0.6), sharex=True,
+                             squeeze=False)
+    for ax, channel in zip(axes[:, 0], channels, strict=True):
+        mine = aligned[aligned["channel"] == channel]
+        for (_, origin), trial in mine.groupby(["trial_index", "origin"]):
+            colour = ORIGIN_STYLE.get(origin, ("tab:gray",))[0]
+            ax.plot(trial["t"], trial["value"], color=colour, linewidth=0.8, alpha=0.6)
+        completed = mine[mine["outcome"] == "completed"]
+        if not completed.empty:
+            grid = np.linspace(mine["t"].min(), mine["t"].max(), 200)
+            mean = np.nanmean([np.interp(grid, trial["t"], trial["value"], left=np.nan, right=np.nan)
+                               for _, trial in completed.groupby("trial_index")], axis=0)
+            ax.plot(grid, mean, color="black", linewidth=1.8,
+                    label=f"mean of {completed['trial_index'].nunique()} completed trials")
+        ax.axvline(0.0, color="black", linewidth=0.8)
+        if release_t:
+            ax.axvline(float(np.median(release_t)), color="tab:gray", linestyle="--", linewidth=0.8,
+                       label="release (median)")
+        ax.set_ylabel(channel, fontsize=9)
+        ax.grid(alpha=0.3)
+    for origin, (colour, _, label) in ORIGIN_STYLE.items():
+        if (aligned["origin"] == origin).any():
+            axes[0, 0].plot([], [], color=colour, label=label)
+    axes[0, 0].legend(fontsize=7, loc="upper left")
+    axes[-1, 0].set_xlabel("time since Go [s]")
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
     return fig

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -34,6 +34,7 @@ from app.analysis.tables import (
     validation_scores,
 )
 from app.analysis.trajectories import validation_distances
+from app.analysis.xdf import Recording, around_go, load_recording
 from session_store.export import load_study
 
 log = logging.getLogger(__name__)
@@ -122,24 +123,48 @@ def draw_participant_figures(analysis: StudyAnalysis, directory: Path) -> dict[s
     return drawn
 
 
+def draw_recording_figures(recording: Recording, aligned: pd.DataFrame, out_dir: Path
+                           ) -> tuple[Path, dict[str, fig.FigureFiles]]:
+    """The lab's streams of an XDF recording around each trial's Go (``aligned``:
+    :func:`~app.analysis.xdf.around_go`): ``tables/xdf_around_go.csv`` and a figure per stream
+    (``figures/xdf-STREAM-CODE``)."""
+    table = out_dir / "tables" / "xdf_around_go.csv"
+    aligned.to_csv(table, index=False)
+    release = list(recording.trial_times("release").values())
+    code = recording.participant
+    drawn = {}
+    for name, frame in aligned.groupby("stream"):
+        title = f"{name} around Go, {code} ({frame['trial_index'].nunique()} trials, {recording.path.name})"
+        drawn[f"xdf-{name}-{code}"] = fig.save(fig.draw_around_go(frame, release, title),
+                                                out_dir / "figures", f"xdf-{name}-{code}")
+    return table, drawn
+
+
 def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = None,
-                 include_simulated: bool = False, exclude: Mapping[Path, str] | None = None
-                 ) -> Report:
+                 include_simulated: bool = False, exclude: Mapping[Path, str] | None = None,
+                 xdf: Path | None = None, xdf_streams: Sequence[str] = ()) -> Report:
     """Analyse ``study_dir`` and write ``report.html``, ``tables/*.csv`` and ``figures/*`` under
-    ``out_dir`` (plus Fig. 3 when ``benchmark_dir`` is a benchmark-pl result folder). Both inputs
-    are read before anything is written: a refusal leaves ``out_dir`` as it was. Only the
+    ``out_dir`` (plus Fig. 3 when ``benchmark_dir`` is a benchmark-pl result folder, and the lab's
+    streams ``xdf_streams`` — all numeric ones when empty — of the XDF recording ``xdf`` around each
+    trial's Go). The inputs are read before anything is written: a refusal leaves ``out_dir`` as it
+    was. Only the
     participants' own ratings and answers count unless ``include_simulated``. The databases in
     ``exclude`` (path → why) are left out and listed as the unreadable ones are."""
     out_dir = Path(out_dir)
     loaded = load_study(study_dir, REPORT_TABLES, sample_phases=("validation",),
                         skip_unreadable=True, exclude=exclude)
     benchmark = None if benchmark_dir is None else load_benchmark(benchmark_dir)
+    recording = None if xdf is None else load_recording(xdf, xdf_streams)
+    aligned = None if recording is None else around_go(recording, loaded.tables["trials"])
     tables, counted = counted_ratings(loaded.tables, include_simulated)
     analysis = StudyAnalysis.of(tables)
     tables = write_tables(analysis, out_dir / "tables")
     figures = draw_participant_figures(analysis, out_dir / "figures")
     if benchmark is not None:
         figures["fig3"] = draw_benchmark_figure3(benchmark, out_dir / "figures")
+    if recording is not None:
+        tables["xdf_around_go"], drawn = draw_recording_figures(recording, aligned, out_dir)
+        figures |= drawn
     unreadable = {str(path): reason for path, reason in loaded.unreadable.items()}
     html = out_dir / "report.html"
     html.write_text(render_page(analysis, figures, study_dir=Path(study_dir), unreadable=unreadable,

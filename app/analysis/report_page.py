@@ -1,5 +1,6 @@
 """The HTML page of ``handover report``: sections in the paper's order (Sect. VI: Tables II–III and
-the validation sign test, Table IV and the survey tests, Fig. 4), then learning curves and Fig. 3."""
+the validation sign test, Table IV and the survey tests, Fig. 4), then learning curves, the streams of
+an XDF recording (``--xdf``) and Fig. 3."""
 
 from __future__ import annotations
 
@@ -147,6 +148,10 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
              html.section("Fig. 4: trajectories of the validation trials (Sect. VI-C)",
                           *(fig4 or [html.paragraph("No completed validation trial.")])),
              html.section("Learning curves", *(curves or [html.paragraph("No learner update.")]))]
+    recorded = figure_list(figures, "xdf-", "A stream of the lab's XDF recording around each trial's "
+                           "Go, by θ origin; black: the mean of the completed trials:")
+    if recorded:
+        parts.append(html.section("Other streams of the XDF recording", *recorded))
     if "fig3" in figures:
         parts.append(html.section("Fig. 3: simulated study (Sect. IV)", html.figure(
             figures["fig3"].png, "Mean distance to the target (95 % CI) and success rate")))

@@ -58,6 +58,7 @@ from session_store.store import ParticipantStore
 log = logging.getLogger(__name__)
 
 LearnerFactory = Callable[[LearnerConfig, LearnerSnapshot | None], LearnerClient]
+EventListener = Callable[[ev.ProtocolEvent, SessionState], None]
 ORIGIN_OF_KIND = {SlotKind.INITIAL: ThetaOrigin.SOBOL, SlotKind.BEST: ThetaOrigin.BEST,
                   SlotKind.QUERY: ThetaOrigin.LEARNED}
 
@@ -140,6 +141,9 @@ class SessionEngine:
         self._learner: LearnerClient | None = None
         #: the posterior utility through θ* after the latest learner reply (for the dashboard)
         self.posterior_slices: list[PosteriorSlice] = []
+        #: called with every event once it is stored (with its ``seq``) and the state it leads to,
+        #: on the thread that acted (the study's LSL markers: app/session/lsl_outlets.py)
+        self.listeners: list[EventListener] = []
 
     # -- lifecycle --------------------------------------------------------------------------------
     @classmethod
@@ -377,11 +381,17 @@ class SessionEngine:
         for event in events:
             apply(state, event)
         with self.store.transaction():
-            for event in events:
-                state.last_event = self.store.append_event(ev.to_row(event)).seq
+            stored = [self.store.append_event(ev.to_row(event)).seq for event in events]
+            state.last_event = stored[-1]
             for write in writes:
                 write()
         self.state = state
+        for event, seq in zip(events, stored, strict=True):
+            for listener in self.listeners:
+                try:
+                    listener(event.model_copy(update={"seq": seq}), state)
+                except Exception:  # the event is stored: a listener's failure must not undo the action
+                    log.exception("a listener of event %d (%s) failed", seq, event.kind)
 
     def _ensure_learner(self) -> LearnerClient:
         """The learner process: fresh, or restored from the last stored snapshot plus the

@@ -1,21 +1,31 @@
 """One configuration file for a lab (``--config lab.toml``), read by ``serve``, ``run-session``,
 ``simulate-trial`` and ``check-devices``: the controller's tables (``[arm]``, ``[cycle]``, ``[dmp]``,
 ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``, ``[gripper]``,
-``[release]``, see :mod:`robot_io.config`) plus ``[protocol]`` (the study's counts, Sect. V-C) and
-``[learner]`` (acquisition, θ box, recommendation, prior). Every key has a documented default
-(the paper's where it has one); an unknown table or key is an error naming it.
+``[release]``, see :mod:`robot_io.config`) plus ``[protocol]`` (the study's counts, Sect. V-C),
+``[learner]`` (acquisition, θ box, recommendation, prior) and ``[record]`` (the study's LSL
+outlets). Every key has a documented default (the paper's where it has one); an unknown table or key
+is an error naming it.
 ``docs/hardware.md`` has a full example.
 """
 
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any
 
 import annotated_types
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, create_model, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    create_model,
+    field_validator,
+    model_validator,
+)
 from pydantic.fields import FieldInfo
 
 from app.protocol.study import StudyConfig
@@ -90,16 +100,44 @@ LearnerSettings = _settings("LearnerSettings", LEARNER_FIELDS,
                             "recommended and the opt-in prior from earlier participants.")
 
 
+class RecordSettings(BaseModel):
+    """[record]: what a session publishes for the lab's own recording (docs/hardware.md, "The
+    study's LSL outlets")."""
+
+    model_config = _FROZEN
+
+    lsl_outlets: bool = Field(
+        True, description="publish the robot stream (one sample per control cycle) and the marker "
+                          "stream on Lab Streaming Layer while a session runs on the wall clock "
+                          "(a session on simulated time has no LSL time and publishes nothing)")
+    lsl_name: str = Field(
+        "handover", description="the streams are named '<lsl_name>-robot' and '<lsl_name>-markers' "
+                                "(1 to 64 letters, digits, '_', '.', '-'); their source_id adds the "
+                                "participant code")
+
+    @field_validator("lsl_name")
+    @classmethod
+    def _stream_name(cls, value: str) -> str:
+        if not re.fullmatch(r"[A-Za-z0-9_.-]{1,64}", value):
+            raise ValueError(f"lsl_name = {value!r}: must be 1 to 64 letters, digits, '_', '.' or "
+                             "'-' (it begins the names of the study's LSL streams)")
+        return value
+
+
+#: The tables of a lab config that are not the controller's.
+APPLICATION_TABLES = frozenset({"protocol", "learner", "record"})
+
+
 class LabConfig(ControllerConfig):
     """Everything a lab configures, in one file."""
 
     protocol: ProtocolSettings = ProtocolSettings()
     learner: LearnerSettings = LearnerSettings()
+    record: RecordSettings = RecordSettings()
 
     @property
     def controller(self) -> ControllerConfig:
-        return ControllerConfig.model_validate(
-            self.model_dump(exclude={"protocol", "learner"}))
+        return ControllerConfig.model_validate(self.model_dump(exclude=APPLICATION_TABLES))
 
     def study_config(self, scenario: Scenario, seed: int) -> StudyConfig:
         """A new participant's session plan under this configuration."""

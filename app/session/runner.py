@@ -24,7 +24,6 @@ import time
 from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from datetime import UTC, datetime, timedelta
 from pathlib import Path
 from typing import Literal, NamedTuple, TypeVar
 
@@ -46,10 +45,12 @@ from app.session import faults
 from app.session.config import LabConfig
 from app.session.drawing import with_links
 from app.session.faults import StagedFault
+from app.session.lsl_outlets import StudyOutlets
 from app.session.overview import ParticipantSummary, study_overview
 from app.session.pairing import TabletPairing, TabletStatus
 from app.session.rehearsal import Rehearsal, rehearsal_rig
 from app.session.replay import stored_rows
+from robot_io.clock import utc_of_monotonic
 from robot_io.config import ControllerConfig, SceneConfig
 from robot_io.cycle import not_started
 from robot_io.errors import RobotIOError, explain
@@ -169,6 +170,7 @@ class SessionRunner:
         self._engine: SessionEngine | None = None
         self._participant: SimulatedParticipant | None = None
         self._rig: RigClient | None = None
+        self._outlets: StudyOutlets | None = None  # the open session's LSL outlets ([record])
         self._devices: DeviceReport | None = None
         self._rig_fault: str | None = None
         self._plan: TrialPlan | None = None
@@ -516,10 +518,26 @@ class SessionRunner:
                               changed_from=changed)
         engine.switch_simulated_participant(self._auto)
         self._engine = engine
+        self._open_outlets(engine)
         self._participant = SimulatedParticipant(engine.config.seed)
         self._theta_star_key = -1
         self._overview = None
         log.info("session %s open at step %s", code, engine.state.step)
+
+    def _open_outlets(self, engine: SessionEngine) -> None:
+        """The session's LSL outlets, when the lab has them on and trials run on the wall clock
+        (simulated time has no LSL time)."""
+        if not (self.lab.record.lsl_outlets and self.realtime):
+            return
+        participant = engine.participant
+        try:
+            self._outlets = StudyOutlets(self.lab.record, participant.code, participant.created_at,
+                                         self._devices.rate_hz,
+                                         lambda: None if self._rig is None else self._rig.stream)
+        except RuntimeError as exc:  # liblsl could not open them; the session itself is not at risk
+            log.error("the study's LSL outlets could not open (%s): the session runs without them", exc)
+            return
+        engine.listeners.append(self._outlets.on_event)
 
     def _rig_identity(self) -> dict:
         """The rig tables a resume compares (a rehearsal's per-run addresses left out)."""
@@ -581,6 +599,9 @@ class SessionRunner:
         return engine.end_trial(trial_index, record, reason, actor)
 
     def _close_engine(self) -> None:
+        if self._outlets is not None:
+            self._outlets.close()
+            self._outlets = None
         if self._engine is not None:
             self._engine.close()
             self._engine = None
@@ -669,9 +690,11 @@ class SessionRunner:
             self._ready_wait = report.why
             self._changed(None)
         elif isinstance(report, TrialDone):
+            self._flush_outlets()
             self._finish(report.trial_index, TrialRecord(report.summary, self._rig.stream.columns()))
         elif isinstance(report, RigDied):
             self._rig_fault = report.reason
+            self._flush_outlets()
             if report.trial_index is not None:
                 record = not_started(self._rig.spec.config, self.realtime, Outcome.ERROR,
                                      report.reason)
@@ -683,15 +706,24 @@ class SessionRunner:
                     self._stop = "stopped"
                 self._changed(report.reason)
 
+    def _flush_outlets(self) -> None:
+        """The robot stream gets the rest of the trial's rows before anything else happens."""
+        outlets = self._outlets
+        if outlets is not None:
+            outlets.feed.flush()
+
     def _on_stage(self, report: StageReached) -> None:
         plan = self._plan
+        outlets = self._outlets
+        if report.stage is Stage.GO and outlets is not None:
+            outlets.feed.go(report.trial_index, report.monotonic)
         if report.stage is Stage.GO and self.rehearsal is not None and plan is not None:
             self.rehearsal.play(self._engine.config.scenario, plan.trial.hand_seed,
                                 report.monotonic)
         if report.stage is Stage.READY:
             self._ready_wait = None
         try:
-            at = datetime.now(UTC) - timedelta(seconds=time.monotonic() - report.monotonic)
+            at = utc_of_monotonic(report.monotonic)
             self._call(lambda: self._require_engine().record_stage(
                 report.trial_index, report.stage, report.t,
                 at=at.isoformat(timespec="microseconds")))

@@ -63,6 +63,8 @@ batch_position_noise = true
     ("[learner]\nprior_weight = 11\n", "learner.prior_weight"),
     ("[learner]\nbatch_position_noise = \"maybe\"\n", "learner.batch_position_noise"),
     ("[learner]\nprior_sources = [\"P01\"]\n", "prior_sources"),
+    ("[record]\nlsl_name = \"my streams!\"\n", r"record.lsl_name\n.*must be 1 to 64 letters"),
+    ("[record]\nlsl_outlet = true\n", "record.lsl_outlet"),
 ])
 def test_a_bad_file_is_refused_naming_the_field(tmp_path, text, message):
     with pytest.raises(ValidationError, match=message):
@@ -143,6 +145,7 @@ def test_the_controller_part_is_what_the_rig_gets():
     lab = LabConfig.model_validate({"protocol": {"batch_size": 4}, "loop": {"rate_hz": 125}})
     controller = lab.controller
     assert controller.loop.rate_hz == 125 and not hasattr(controller, "protocol")
+    assert not hasattr(controller, "record")
 
 
 @pytest.mark.parametrize(("text", "message"), [

@@ -1,0 +1,155 @@
+"""Other streams of a lab's XDF recording, aligned to the trials (``handover report --xdf``).
+
+A lab records the study's marker stream (docs/hardware.md, "The study's LSL outlets") together with
+streams of its own — an eye tracker's pupil diameter, EEG, skin conductance — into one XDF file
+(LabRecorder). pyxdf maps every stream onto the recorder's clock, so the ``go`` markers give each
+trial's Go in the same clock as every other sample: each stream is cut into one window around Go
+per trial (:data:`WINDOW_S`) and joined with the trial's row of the participant's database (phase,
+θ origin, outcome). Which participant: the ``participant`` of the marker stream's description.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TypeVar
+
+import numpy as np
+import pandas as pd
+
+from app.protocol.markers import MARKER_TYPE, ROBOT_TYPE, SOFTWARE, decode
+
+T = TypeVar("T")
+#: The window around Go that is kept of every trial [s]: a baseline before, the reach and hold after.
+WINDOW_S = (-1.0, 3.0)
+
+
+class XDFError(ValueError):
+    """An XDF file the report cannot align: unreadable, no study markers, a stream not in it."""
+
+
+@dataclass(frozen=True)
+class Channels:
+    """One stream of the recording: time stamps (recorder clock) and samples (n × channels)."""
+
+    stamps: np.ndarray
+    values: np.ndarray
+    labels: list[str]
+
+
+@dataclass(frozen=True)
+class Recording:
+    """The study's markers of one participant in an XDF file, and the lab's streams beside them."""
+
+    path: Path
+    participant: str
+    markers: list[tuple[float, dict]]  # (time stamp, marker), in the recorder's clock
+    streams: dict[str, Channels]
+
+    def times_of(self, event: str) -> dict[int, float]:
+        """Trial index → the time of its ``event`` marker (``go``, ``release``, …)."""
+        return {m["trial"]: stamp for stamp, m in self.markers if m["event"] == event}
+
+    def trial_times(self, event: str) -> dict[int, float]:
+        """Trial index → its ``event`` marker's ``t`` (seconds after Go)."""
+        return {m["trial"]: m["t"] for _, m in self.markers if m["event"] == event}
+
+
+def _desc(stream: dict, key: str) -> str | None:
+    desc = stream["info"].get("desc") or [None]
+    if not isinstance(desc[0], dict) or key not in desc[0]:
+        return None
+    return desc[0][key][0]
+
+
+def _labels(stream: dict, count: int) -> list[str]:
+    desc = stream["info"].get("desc") or [None]
+    try:
+        labels = [c["label"][0] for c in desc[0]["channels"][0]["channel"]]
+    except (KeyError, IndexError, TypeError):
+        labels = []
+    return labels if len(labels) == count else [f"channel {i}" for i in range(count)]
+
+
+def _numeric(stream: dict) -> bool:
+    return stream["info"]["channel_format"][0] != "string"
+
+
+def _name(stream: dict) -> str:
+    return stream["info"]["name"][0]
+
+
+def _readable(path: Path, read: Callable[[], T]) -> T:
+    """``read()``, or an :class:`XDFError` saying that ``path`` is not a readable XDF file."""
+    try:
+        return read()
+    except (OSError, ValueError, EOFError, RuntimeError) as exc:
+        raise XDFError(f"{path}: not a readable XDF file ({exc})") from exc
+
+
+def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
+    """The study's markers and the lab's numeric streams in ``path`` (only those named ``names``
+    when given; every numeric stream but the study's robot stream otherwise). Only those are read,
+    never the robot stream: its samples are the database's. An :class:`XDFError` names what is
+    missing or wrong: pyxdf (the ``xdf`` extra), the study's marker stream, a named stream."""
+    try:
+        import pyxdf
+    except ImportError as exc:
+        raise XDFError("reading XDF needs pyxdf: pip install 'handover-lab[xdf]'") from exc
+    headers = _readable(path, lambda: pyxdf.resolve_streams(str(path)))
+    found = sorted(h["name"] for h in headers)
+    missing = [name for name in names if name not in found]
+    if missing:
+        raise XDFError(f"{path}: no stream named {missing}; the file holds {found}")
+    robot = [h["name"] for h in headers if h["type"] == ROBOT_TYPE and h["name"] in names]
+    if robot:
+        raise XDFError(f"{path}: {robot} is the study's robot stream, whose samples the database "
+                       "holds (Fig. 4 draws them): name the lab's own streams")
+    chosen = [h["stream_id"] for h in headers if h["type"] == MARKER_TYPE or (
+        h["name"] in names if names else h["type"] != ROBOT_TYPE and h["channel_format"] != "string")]
+    streams = _readable(path, lambda: pyxdf.load_xdf(str(path), select_streams=chosen)[0]) if chosen else []
+    ours = [s for s in streams if _desc(s, "software") == SOFTWARE and s["info"]["type"][0] == MARKER_TYPE]
+    if len(ours) != 1:
+        raise XDFError(f"{path}: {len(ours)} study marker streams (type Markers from {SOFTWARE}), "
+                       f"1 needed; the file holds {found}")
+    markers, lab = ours[0], {}
+    for stream in streams:
+        name = _name(stream)
+        if stream["info"]["type"][0] == MARKER_TYPE and name not in names:
+            continue
+        if not _numeric(stream):
+            raise XDFError(f"{path}: stream {name!r} holds strings; only numeric streams are drawn")
+        values = np.asarray(stream["time_series"], dtype=float).reshape(len(stream["time_stamps"]), -1)
+        lab[name] = Channels(np.asarray(stream["time_stamps"]), values, _labels(stream, values.shape[1]))
+    return Recording(path=Path(path), participant=_desc(markers, "participant"),
+                     markers=[(float(stamp), decode(text[0])) for stamp, text
+                              in zip(markers["time_stamps"], markers["time_series"], strict=True)],
+                     streams=lab)
+
+
+def around_go(recording: Recording, trials: pd.DataFrame,
+              window: tuple[float, float] = WINDOW_S) -> pd.DataFrame:
+    """Every sample of the lab's streams within ``window`` of each trial's Go: one row per sample
+    and channel (``participant``, ``trial_index``, ``phase``, ``origin``, ``outcome``, ``stream``,
+    ``channel``, ``t`` since Go, ``value``). ``trials``: the study's trials table; a ``go`` marker
+    of a trial the database does not have is an :class:`XDFError` (another study's recording)."""
+    mine = trials[trials["participant"] == recording.participant].set_index("trial_index")
+    go = recording.times_of("go")
+    unknown = sorted(set(go) - set(mine.index))
+    if unknown:
+        raise XDFError(f"{recording.path}: trials {unknown} of {recording.participant} are not in the "
+                       f"study's database (it has {sorted(mine.index)})")
+    frames = []
+    for index, at in sorted(go.items()):
+        trial = mine.loc[index]
+        for name, channels in recording.streams.items():
+            keep = (channels.stamps >= at + window[0]) & (channels.stamps <= at + window[1])
+            t = channels.stamps[keep] - at
+            for column, label in enumerate(channels.labels):
+                frames.append(pd.DataFrame({
+                    "participant": recording.participant, "trial_index": index,
+                    "phase": trial["phase"], "origin": trial["origin"], "outcome": trial["outcome"],
+                    "stream": name, "channel": label, "t": t, "value": channels.values[keep, column]}))
+    columns = ["participant", "trial_index", "phase", "origin", "outcome", "stream", "channel", "t", "value"]
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=columns)

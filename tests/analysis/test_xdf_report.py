@@ -1,0 +1,67 @@
+"""``handover report --xdf`` (issue 24, item 4) on a recorded session (support/recorded_session.py):
+a stand-in eye tracker's pupil diameter, recorded beside the study's streams, dilates from ONSET_S
+after the robot starts (Go); aligned to the trials by the markers, every trial shows it there."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+from support.pupil import BASELINE_MM, ONSET_S, RATE_HZ
+from support.recorded_session import XDIST_GROUP
+
+from app.cli import main
+from session_store.store import ParticipantStore
+
+pytestmark = [pytest.mark.xdist_group(XDIST_GROUP), pytest.mark.slow, pytest.mark.soak]
+
+
+def test_report_xdf_aligns_the_pupil_stream_to_each_go(recorded_session, tmp_path, capsys):
+    session, out = recorded_session, tmp_path / "report"
+    assert main(["report", str(session.study), "--out", str(out), "--xdf", str(session.xdf),
+                 "--xdf-stream", session.pupil]) == 0, capsys.readouterr().err
+    figure = out / "figures" / f"xdf-{session.pupil}-{session.code}.png"
+    assert figure.stat().st_size > 0
+    assert "Other streams of the XDF recording" in (out / "report.html").read_text()
+    aligned = pd.read_csv(out / "tables" / "xdf_around_go.csv")
+    assert set(aligned["stream"]) == {session.pupil}
+    assert set(aligned["channel"]) == {"pupil_diameter_mm"}
+    store = ParticipantStore.open(session.study, session.code)
+    try:
+        went = [t.trial_index for t in store.rows("trials") if t.go_at is not None]
+    finally:
+        store.close()
+    trials = aligned.groupby("trial_index")
+    assert sorted(trials.groups) == went  # every trial that reached Go
+    for index, trial in trials:
+        t, value = trial["t"].to_numpy(), trial["value"].to_numpy()
+        assert t.min() < -0.9 and t.max() > 2.9, index  # the whole window was recorded
+        before = value[t < ONSET_S - 1 / RATE_HZ]  # Go, and the pupil's latency after it
+        assert np.abs(before - BASELINE_MM).max() < 1e-4, (index, before.max())
+        # dilated by 0.15 mm 0.1 s after the onset: a misalignment of more than ~0.1 s shows here
+        assert value[(t > ONSET_S + 0.1) & (t < ONSET_S + 0.15)].min() > BASELINE_MM + 0.1, index
+        assert value[(t > 0.6) & (t < 0.9)].mean() > BASELINE_MM + 0.4, index  # its peak
+
+
+def test_report_xdf_names_a_stream_the_file_does_not_hold(recorded_session, tmp_path, capsys):
+    session = recorded_session
+    assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
+                 str(session.xdf), "--xdf-stream", "Pupil"]) == 2
+    error = capsys.readouterr().err
+    assert "no stream named ['Pupil']" in error and session.pupil in error
+    assert not (tmp_path / "r").exists()  # refused before anything was written
+    assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
+                 str(session.xdf), "--xdf-stream", session.robot]) == 2
+    assert "is the study's robot stream" in capsys.readouterr().err
+
+
+def test_report_xdf_refuses_a_file_without_the_study_markers(recorded_session, tmp_path, capsys):
+    session, other = recorded_session, tmp_path / "other.xdf"
+    other.write_bytes(b"XDF:")  # an XDF file with nothing recorded in it
+    assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
+                 str(other)]) == 2
+    assert "0 study marker streams" in capsys.readouterr().err
+    other.write_text("not an XDF file")
+    assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
+                 str(other)]) == 2
+    assert "not a readable XDF file" in capsys.readouterr().err
