@@ -21,7 +21,6 @@ import pandas as pd
 from pydantic import BaseModel
 
 from app.analysis import figures as fig
-from app.analysis.benchmark import draw_benchmark_figure3, load_benchmark
 from app.analysis.provenance import counted_ratings
 from app.analysis.report_page import render_page
 from app.analysis.stats import StatTest, paper_tests
@@ -151,6 +150,8 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
     participants' own ratings and answers count unless ``include_simulated``. The databases in
     ``exclude`` (path → why) are left out and listed as the unreadable ones are."""
     out_dir = Path(out_dir)
+    if benchmark_dir is not None:  # here: Fig. 3's study code imports torch, a report without it not
+        from app.analysis.benchmark import draw_benchmark_figure3, load_benchmark
     loaded = load_study(study_dir, REPORT_TABLES, sample_phases=("validation",),
                         skip_unreadable=True, exclude=exclude)
     benchmark = None if benchmark_dir is None else load_benchmark(benchmark_dir)
