@@ -3,7 +3,7 @@ initial, a learning batch of 3, 1 best, the questionnaire, 2 validation pairs: a
 a next trial) has every kind of boundary of the paper's (Sect. V-C: 5 initial, 4 batches of 5, 1
 best, the questionnaire, 4 validation pairs), in a third of its interactions. The paper's 34 ran
 here until the suite had to fit in 12 minutes (195 s of a 3-worker run); they run end to end in
-tests/protocol/test_two_writers.py.
+tests/protocol/test_resume_exact.py (uninterrupted and killed).
 
 One session runs uninterrupted. A second, with the same seed, crashes and resumes after every engine
 action (:func:`_crashes_here` says which two boundaries alternate): between plan and start, between

@@ -1,8 +1,9 @@
 """Two writers on one participant, as a careless lab would start them: the second — another
 ``run-session --resume`` or ``serve`` with the participant — is refused with the holder named and
-writes nothing; the first finishes its 34 interactions, none completed twice. And the other way
-round: ``serve`` holding a participant refuses ``run-session``. (How fast the refusal comes is
-measured by benchmarks/writer_refusal.py.)"""
+writes nothing; the first finishes its session (every phase of the short protocol), none completed
+twice. And the other way round: ``serve`` holding a participant refuses ``run-session``. (How fast
+the refusal comes is measured by benchmarks/writer_refusal.py. The paper's 34 interactions run end
+to end through ``run-session`` in tests/protocol/test_resume_exact.py, uninterrupted and killed.)"""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from support.engine import SESSION_LOOP_TOML
+from support.engine import SESSION_LOOP_TOML, SHORT_PROTOCOL, protocol_toml
 from support.store import event_count
 from support.waiting import CEILING_S, tail, wait_for
 
@@ -38,10 +39,10 @@ def running(process: subprocess.Popen, log: Path) -> bool:
 
 @pytest.mark.slow
 @pytest.mark.soak
-def test_a_second_writer_is_refused_and_the_first_finishes_34_interactions(tmp_path, capsys):
+def test_a_second_writer_is_refused_and_the_first_finishes_its_session(tmp_path, capsys):
     study, database = tmp_path / "study", tmp_path / "study" / "P09.sqlite"
     log, lab = tmp_path / "first.log", tmp_path / "lab.toml"
-    lab.write_text(SESSION_LOOP_TOML)
+    lab.write_text(f"{SESSION_LOOP_TOML}\n[protocol]\n{protocol_toml(SHORT_PROTOCOL)}")
     with log.open("w") as out:  # a file, not a pipe nobody reads while the session runs
         first = subprocess.Popen([*HANDOVER, "run-session", "--study", str(study), "--participant",
                                   "P09", "--scenario", "perturbed", "--auto", "--seed", "7",
@@ -50,6 +51,9 @@ def test_a_second_writer_is_refused_and_the_first_finishes_34_interactions(tmp_p
     try:
         wait_for(lambda: running(first, log) and event_count(database) >= 3,
                  "the first writer to have stored 3 events", seen=lambda: event_count(database))
+        # The first writer is held mid-session while the second ones try, whatever the machine's
+        # load: a short session could otherwise end before a slow second writer had started.
+        first.send_signal(signal.SIGSTOP)
         for second in ([*HANDOVER, "run-session", "--study", str(study), "--participant", "P09",
                         "--auto", "--resume", "--no-progress"],
                        _serve(study, "--participant", "P09")):
@@ -60,10 +64,12 @@ def test_a_second_writer_is_refused_and_the_first_finishes_34_interactions(tmp_p
             assert "run-session --study" in refused.stderr
             assert "refused before writing" in refused.stderr
             assert "Traceback" not in refused.stderr
-        # A ceiling for a hung session (it takes about a minute idle), not a measurement.
+        first.send_signal(signal.SIGCONT)
+        # A ceiling for a hung session (it takes about half a minute idle), not a measurement.
         assert first.wait(timeout=900) == 0, tail(log.read_text())
     finally:
         if first.poll() is None:  # the test failed: end the writer it started, by its own pid
+            first.send_signal(signal.SIGCONT)
             first.kill()
             first.wait()
     with sqlite3.connect(database) as conn:
@@ -71,7 +77,10 @@ def test_a_second_writer_is_refused_and_the_first_finishes_34_interactions(tmp_p
                                  ).fetchall()
         resumed = conn.execute("SELECT count(*) FROM events WHERE kind = 'session_resumed'"
                                ).fetchone()[0]
-    assert len(completed) == len(set(completed)) == 34
+    interactions = (SHORT_PROTOCOL["initial_trials"] + SHORT_PROTOCOL["learning_batches"]
+                    * SHORT_PROTOCOL["batch_size"] + SHORT_PROTOCOL["best_trials"]
+                    + 2 * SHORT_PROTOCOL["validation_batches"])
+    assert len(completed) == len(set(completed)) == interactions
     assert resumed == 0  # the refused writers wrote nothing
     assert main(["doctor", str(study)]) == 0
     assert "P09.sqlite: OK" in capsys.readouterr().out

@@ -40,7 +40,7 @@ def test_run_session_rehearse_completes_a_session_through_the_standin(tmp_path):
     best, the questionnaire): every trial is the same cycle on the rig, whatever its phase. The
     paper's 34 were run here until the suite had to fit in 12 minutes (5 min of real time per run):
     the protocol's phases are the engine's (tests/protocol/test_session_full.py), they run end to
-    end through run-session in tests/protocol/test_two_writers.py and test_resume_exact.py, and
+    end through run-session in tests/protocol/test_resume_exact.py (uninterrupted and killed), and
     through serve --rehearse in tests/ui/test_rig_browser.py (three handovers placed by touch)."""
     config = tmp_path / "lab.toml"
     config.write_text(f"[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")

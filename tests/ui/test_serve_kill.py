@@ -3,8 +3,8 @@ restart, reopen the participant, run to the end — nothing lost, nothing repeat
 
 One session with every phase of the protocol, twice over where the paper has more (3 initial
 interactions, 2 learning batches of 3, the best, 2 validation pairs: 14 interactions; the paper's 34
-run end to end through ``run-session`` in tests/protocol/test_two_writers.py and
-tests/protocol/test_resume_exact.py) on the mock arm, on the wall clock, with the
+run end to end through ``run-session`` in tests/protocol/test_resume_exact.py, uninterrupted
+and killed) on the mock arm, on the wall clock, with the
 experimenter's part done on the dashboard in headless Chromium (Start trial; with the simulated
 participant rating, Object loaded and Go are given by themselves). The serve process — the Python
 interpreter itself, which holds the participant's writer lock — is killed three times, at moments
