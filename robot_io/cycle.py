@@ -28,7 +28,7 @@ import numpy as np
 from robot_io.arm import Arm
 from robot_io.clock import Clock
 from robot_io.config import ControllerConfig
-from robot_io.errors import ArmFault, MoveStopped, RobotIOError
+from robot_io.errors import ArmFault, GripperFault, MoveStopped, RobotIOError
 from robot_io.gripper import Gripper
 from robot_io.hand import HandSource
 from robot_io.loop import HoldPhase, Outcome, StageCallback, StopRequest, TrialRecord, TrialSummary
@@ -127,7 +127,8 @@ def run_cycle(config: ControllerConfig, theta: Theta | None, devices: CycleDevic
         return not_started(config, realtime, Outcome.STOPPED, gates.stop.reason)
     except RobotIOError as exc:
         arm.stop()
-        outcome = Outcome.ARM_FAULT if isinstance(exc, ArmFault) else Outcome.ERROR
+        outcome = (Outcome.ARM_FAULT if isinstance(exc, ArmFault) else Outcome.GRIPPER_FAULT
+                   if isinstance(exc, GripperFault) else Outcome.ERROR)
         return not_started(config, realtime, outcome, f"prepare: {exc}")
     on_stage(Stage.LOADED, float("nan"))
     waiting = _await_ready(hand, config, gates, on_waiting or (lambda why: None))

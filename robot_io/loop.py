@@ -49,6 +49,7 @@ class Outcome(StrEnum):
     TIMEOUT = "timeout"
     TRACKER_LOST = "tracker_lost"
     ARM_FAULT = "arm_fault"
+    GRIPPER_FAULT = "gripper_fault"  # it stopped answering, reported a fault or lost the object
     STOPPED = "stopped"  # on request (experimenter's Stop)
     ERROR = "error"
 
@@ -273,7 +274,7 @@ class HandoverLoop:
         except ArmFault as exc:
             outcome, reason = Outcome.ARM_FAULT, self.arm.fault or str(exc)
         except GripperFault as exc:
-            outcome, reason = Outcome.ERROR, str(exc)
+            outcome, reason = Outcome.GRIPPER_FAULT, str(exc)
         except Exception as exc:
             log.exception("handover loop failed")
             outcome, reason = Outcome.ERROR, f"{type(exc).__name__}: {exc}"

@@ -735,7 +735,10 @@ class SessionRunner:
         if self.rehearsal is not None:
             self.rehearsal.rest()
         summary = record.summary
-        if summary.outcome is Outcome.ARM_FAULT or summary.retract_fault is not None:
+        # A fault of the arm or of the gripper locks Start until the experimenter has inspected it:
+        # after a gripper fault mid-hold the arm holds the object out where it stopped, and the next
+        # Start's prepare would move it back to R with the object.
+        if summary.outcome in (Outcome.ARM_FAULT, Outcome.GRIPPER_FAULT) or summary.retract_fault:
             self._rig_fault = summary.retract_fault or summary.reason
         try:
             ended = self._call(lambda: self._end_trial(trial_index, record,

@@ -20,7 +20,7 @@ import numpy as np
 from robot_io.arm import ArmState
 from robot_io.cycle import CycleDevices
 from robot_io.devices import open_gripper, open_hand
-from robot_io.errors import ArmFault, ConfigError
+from robot_io.errors import ArmFault, ConfigError, GripperFault
 from robot_io.gripper import Gripper, NoGripper
 from robot_io.hand import HandSource
 from robot_io.mock_arm import MockArm
@@ -123,17 +123,31 @@ class RigDevices:
         return CycleDevices(arm=arm, hand=hand, gripper=self.gripper, clock=clock)
 
     def recover(self, inspected: bool) -> str:
-        """Clear the arm's fault; moves nothing. A safety stop (protective or emergency) is cleared
-        only once someone inspected its cause. Returns what was done; raises ArmFault if refused."""
+        """Clear the arm's fault and the gripper's; moves nothing. A safety stop (protective or
+        emergency) is cleared only once someone inspected its cause. Returns what was done; raises
+        ArmFault or GripperFault if refused."""
+        gripper = self._recover_gripper()
         arm = self.ur or self._mock
         if arm is None or arm.state is not ArmState.FAULT:
-            return "the arm has no fault"
+            return gripper or "the arm has no fault"
         fault = arm.fault
         if arm.safety_stopped and not inspected:
             raise ArmFault(f"not recovered: {fault} — inspect the cause, then recover from the "
                            "dashboard")
         arm.recover()
-        return f"recovered from: {fault}"
+        return f"recovered from: {fault}" + (f"; {gripper}" if gripper else "")
+
+    def _recover_gripper(self) -> str | None:
+        """A gripper with a fault is connected (and activated) again: a Robotiq's fault stays with
+        its connection, whose state is unknown after it. None: it had no fault. Raises the
+        GripperFault of the new connection if its cause remains (the URCap still silent)."""
+        try:
+            self.gripper.check()
+        except GripperFault as fault:
+            self.gripper.disconnect()
+            self.gripper = open_gripper(self.spec.config)
+            return f"gripper connected again after: {fault}"
+        return None
 
     def stop_arm(self) -> None:
         """Stop the arm between trials (never raises)."""

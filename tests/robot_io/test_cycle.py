@@ -120,6 +120,10 @@ class FaultingGripper(NoGripper):
         if self.fault is not None:
             raise self.fault
 
+    def close(self) -> None:
+        self.check()  # a URCap that does not answer fails the close as it fails a check
+        super().close()
+
 
 def test_a_gripper_fault_in_the_hold_ends_the_trial_stops_the_arm_and_nothing_retracts():
     config = ControllerConfig()
@@ -133,10 +137,24 @@ def test_a_gripper_fault_in_the_hold_ends_the_trial_stops_the_arm_and_nothing_re
             gripper.fault = GripperFault("gripper: the object was lost while holding")
 
     record = run_cycle(config, THETA, rig, Gates.automatic(), on_stage)
-    assert record.summary.outcome is Outcome.ERROR
+    assert record.summary.outcome is Outcome.GRIPPER_FAULT
     assert record.summary.reason == "gripper: the object was lost while holding"
     assert stages[-1] is Stage.HOLD  # no release, no retract: the arm stays where it stopped
     assert rig.arm.stop_requested_at is not None and not rig.arm.is_moving
+
+
+def test_a_gripper_that_fails_to_close_at_r_ends_the_trial_as_a_gripper_fault_before_go():
+    """The runner locks Start on a gripper fault as on an arm fault (app/session/runner.py), so the
+    cycle tells it apart from any other error, at R as in the hold."""
+    config = ControllerConfig()
+    gripper = FaultingGripper()
+    gripper.fault = GripperFault("gripper: the Robotiq URCap did not answer 'GET OBJ'")
+    rig = devices(config, gripper=gripper)
+    stages: list[Stage] = []
+    record = run_cycle(config, THETA, rig, Gates.automatic(), lambda stage, t: stages.append(stage))
+    assert record.summary.outcome is Outcome.GRIPPER_FAULT
+    assert record.summary.reason == "prepare: gripper: the Robotiq URCap did not answer 'GET OBJ'"
+    assert stages == [Stage.PREPARE] and not gripper.holding
 
 
 def test_stop_while_waiting_for_go_ends_the_trial_before_anything_streams():

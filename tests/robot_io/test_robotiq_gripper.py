@@ -11,8 +11,12 @@ from support.waiting import wait_for
 
 from app.cli import main
 from app.session.rehearsal import free_loopback_host
+from robot_io.config import ControllerConfig
 from robot_io.errors import GripperFault
+from robot_io.rig.devices import RigDevices
+from robot_io.rig.messages import RigSpec
 from robot_io.robotiq import Obj, RobotiqSocketGripper, probe
+from robot_io.simulated_hand import Scenario
 from robot_io.ur_standin.robotiq import DEFAULT_OBJECT_POSITION
 
 # the stand-in in real time, as the other stand-in tests: `make soak` repeats them
@@ -87,6 +91,28 @@ def test_a_urcap_that_stops_answering_mid_hold_is_a_clear_fault():
         assert not gripper.holding
         with pytest.raises(GripperFault, match="did not answer"):  # and the next trial's close
             gripper.close()
+
+
+def test_recover_connects_the_gripper_again_once_the_urcap_answers():
+    """The rig's recovery (the dashboard's Recover arm, which a gripper fault now requires before the
+    next Start) is refused while the URCap is still silent, and connects the gripper again once it
+    answers: the next close holds the object."""
+    with standin() as ur:
+        devices = RigDevices(RigSpec(config=ControllerConfig(gripper=robotiq_config(
+            ur.host, reply_timeout_s=0.5)), scenario=Scenario.STRAIGHTFORWARD))
+        try:
+            devices.gripper.close()
+            ur.control("configure_robotiq", answering=False)
+            fault = await_fault(devices.gripper, ur, "the silent URCap's fault")
+            with pytest.raises(GripperFault, match=r"URCap on .* did not answer"):
+                devices.recover(inspected=True)  # still silent: refused, saying why
+            ur.control("configure_robotiq", answering=True)
+            assert devices.recover(inspected=True) == f"gripper connected again after: {fault}"
+            devices.gripper.check()  # no fault
+            devices.gripper.close()
+            assert devices.gripper.holding and devices.gripper.detected
+        finally:
+            devices.close()
 
 
 def test_a_fault_code_is_reported_while_holding_and_when_connecting():
