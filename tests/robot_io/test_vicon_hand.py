@@ -17,6 +17,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from support.hand_replay import TRACKER
 from support.lab_file import assert_hand_source_refused, check_devices, hand_line
+from support.priority import realtime_threads
 from support.vicon import (
     RECORDED,
     SERVER,
@@ -246,8 +247,9 @@ def test_check_devices_reports_the_segment_the_rates_and_the_latency(tmp_path, m
     a_mm = (950.0, 100.0, 50.0)  # A, with the identity calibration of vicon_toml
     stream = [hand_at(1000 + n, a_mm) for n in range(400)]
     monkeypatch.setattr(vicon_hand, "connect_sdk", lambda host, port: RecordedClient(stream, 100.0))
-    code, out = check_devices(tmp_path, capsys, vicon_toml())
-    refused, refused_out = check_devices(tmp_path, capsys, vicon_toml("left hand"))
+    with realtime_threads():  # the receiver under SCHED_FIFO, as in test_natnet_hand's check
+        code, out = check_devices(tmp_path, capsys, vicon_toml())
+        refused, refused_out = check_devices(tmp_path, capsys, vicon_toml("left hand"))
     line = hand_line(out)
     assert code == 0, out
     assert re.fullmatch(rf"hand: vicon, \d+ samples/s, newest \d+ ms old, 0 occluded; subject 'hand', "
