@@ -123,24 +123,26 @@ class RigDevices:
         return CycleDevices(arm=arm, hand=hand, gripper=self.gripper, clock=clock)
 
     def recover(self, inspected: bool) -> str:
-        """Clear the arm's fault and the gripper's; moves nothing. A safety stop (protective or
-        emergency) is cleared only once someone inspected its cause. Returns what was done; raises
-        ArmFault or GripperFault if refused."""
-        gripper = self._recover_gripper()
+        """Clear the arm's fault and the gripper's; moves no joint. A safety stop (protective or
+        emergency) is cleared only once someone inspected its cause; a refusal touches nothing.
+        Returns what was done; raises ArmFault or GripperFault if refused."""
         arm = self.ur or self._mock
-        if arm is None or arm.state is not ArmState.FAULT:
-            return gripper or "the arm has no fault"
-        fault = arm.fault
-        if arm.safety_stopped and not inspected:
+        faulted = arm is not None and arm.state is ArmState.FAULT
+        fault = arm.fault if faulted else None
+        if faulted and arm.safety_stopped and not inspected:
             raise ArmFault(f"not recovered: {fault} — inspect the cause, then recover from the "
                            "dashboard")
+        gripper = self._recover_gripper()
+        if not faulted:
+            return gripper or "the arm has no fault"
         arm.recover()
         return f"recovered from: {fault}" + (f"; {gripper}" if gripper else "")
 
     def _recover_gripper(self) -> str | None:
-        """A gripper with a fault is connected (and activated) again: a Robotiq's fault stays with
-        its connection, whose state is unknown after it. None: it had no fault. Raises the
-        GripperFault of the new connection if its cause remains (the URCap still silent)."""
+        """A gripper with a fault is connected again: a Robotiq's fault stays with its connection,
+        whose state is unknown after it (one that lost its activation is activated again, which
+        opens and closes its fingers once). None: it had no fault. Raises the GripperFault of the
+        new connection if its cause remains (the URCap still silent)."""
         try:
             self.gripper.check()
         except GripperFault as fault:

@@ -22,7 +22,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from robot_io.config import ROBOTIQ_PORT
 from robot_io.ur_standin.listener import read_lines
 
 if TYPE_CHECKING:
@@ -30,7 +29,6 @@ if TYPE_CHECKING:
 
 Event = Callable[[str], None]
 
-PORT = ROBOTIQ_PORT
 #: How long activation takes in the model [s] (a real 2F-85 opens and closes once: seconds).
 ACTIVATION_S = 0.5
 #: A 2F-85's stroke [mm] and its finger speed at SPE 0 and 255 [mm/s].

@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from robot_io.config import ROBOTIQ_PORT
 from robot_io.ur_standin import control, dashboard, robotiq, script_server
 from robot_io.ur_standin.listener import Listener
 from robot_io.ur_standin.model import Controller, Series
@@ -34,7 +35,7 @@ class StandinController:
             Listener(host, DASHBOARD_PORT, functools.partial(dashboard.serve, self.controller)),
             *(Listener(host, port, functools.partial(script_server.serve, self.controller))
               for port in script_server.PORTS),
-            Listener(host, robotiq.PORT, functools.partial(robotiq.serve, self.controller)),
+            Listener(host, ROBOTIQ_PORT, functools.partial(robotiq.serve, self.controller)),
         ]
         self.control = Listener(host, control_port, serve_control)
         self._running = True
