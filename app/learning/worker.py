@@ -55,11 +55,12 @@ logger = logging.getLogger(__name__)
 _LIVENESS_PERIOD = 0.2
 #: How workers are started: forked from a server process that imported :data:`PRELOAD` once.
 START_METHOD = "forkserver"
-#: What the forkserver imports before it forks the first worker: the learner and, through it,
-#: torch, GPyTorch and BoTorch; and the module torch imports at a process's first GP fit
-#: (``torch.broadcast_shapes`` → symbolic shapes → sympy, 0.8 CPU-s), which every worker would
-#: otherwise import again. The server computes nothing, so no thread pool exists to be forked.
-PRELOAD = ["app.learning.learner", "torch.fx.experimental.symbolic_shapes"]
+#: What the forkserver imports before it forks the first worker (app.learning.forkserver_preload):
+#: the learner and, through it, torch, GPyTorch and BoTorch; and the module torch imports at a
+#: process's first GP fit (``torch.broadcast_shapes`` → symbolic shapes → sympy, 0.8 CPU-s), which
+#: every worker would otherwise import again; the forkserver dies with its parent while it imports.
+#: The server computes nothing, so no thread pool exists to be forked.
+PRELOAD = ["app.learning.forkserver_preload"]
 
 
 class ObserveRequest(BaseModel):
