@@ -30,11 +30,12 @@ from session_store.models import (
     Trial,
     ValidationRating,
 )
+from session_store.paths import EXPORT_FORMATS
 from session_store.reading import reading
 from session_store.schema import TABLES, columns_of, sample_column_names, sample_columns
 from session_store.store import SUFFIX, ParticipantStore, participant_codes
 
-FORMATS = ("csv", "parquet")
+FORMATS = EXPORT_FORMATS
 
 #: The participants table: dtype and meaning of each column.
 PARTICIPANT_COLUMNS: dict[str, tuple[str, str]] = {

@@ -12,6 +12,8 @@ from pathlib import Path
 from session_store.errors import UnsafeParticipantCode
 
 SUFFIX = ".sqlite"
+#: The file formats of an export (session_store.export), one file per table.
+EXPORT_FORMATS = ("csv", "parquet")
 #: A participant code is pseudonymous and becomes a file name: letters, digits, '-' and '_' only.
 CODE_PATTERN = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]{0,63}")
 

@@ -15,9 +15,9 @@ from collections.abc import Callable
 from enum import Enum
 
 from pydantic import BaseModel
-from sqlite_utils import Database
 
 from robot_io.recorder import COLUMNS as SAMPLE_COLUMNS
+from session_store.database import Database
 from session_store.models import (
     Answer,
     Comparison,

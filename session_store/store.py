@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 from pydantic import BaseModel
-from sqlite_utils import Database
 
 from session_store import lock as writer_lock
+from session_store.database import Database
 from session_store.errors import CorruptStoreError, SchemaVersionError, StoreError
 from session_store.inspection import (
     check_participant_file,

@@ -19,7 +19,7 @@ from app.session.runner import RunnerView, SessionRunner, recorded_session
 from robot_io.cli import argument_type
 from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
-from session_store.export import FORMATS, LEFT_OUT_FILE, export_study
+from session_store.paths import EXPORT_FORMATS
 from session_store.reading import reading
 from session_store.store import ParticipantStore, participant_path
 
@@ -65,7 +65,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "name says (a copy), is left out and listed in left_out.csv; the others are "
                     "exported all the same.")
     export.add_argument("study", type=Path, help="study folder")
-    export.add_argument("--format", choices=FORMATS, default="csv")
+    export.add_argument("--format", choices=EXPORT_FORMATS, default="csv")
     export.add_argument("--out", type=Path, required=True, help="output folder")
     export.add_argument("--force", action="store_true",
                         help="export participants that `handover doctor` finds BAD too (they are "
@@ -166,6 +166,7 @@ def wait_until_done(runner: SessionRunner, progress: bool) -> RunnerView:
 
 def export_command(args: argparse.Namespace) -> int:
     from app.protocol.doctor import contradicted
+    from session_store.export import LEFT_OUT_FILE, export_study  # pandas: for this command only
 
     bad = contradicted(args.study) if Path(args.study).is_dir() else {}
     for path, reason in bad.items() if args.force else ():
