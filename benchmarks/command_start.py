@@ -6,9 +6,10 @@ user + system time, so they hold on a loaded machine, where wall time does not.
 
 Baselines of the same run: a bare interpreter (``python -c pass``), and each start with the modules
 that these processes now import only when they need them imported up front, as before (viser: serve
-only; scipy.stats: the validation phase's Sobol points, a late learner's fallback; scipy.linalg: the
-distance filter's exp(A·dt), now in closed form; scipy.spatial: rotation vectors, which only the UR
-stand-in's kinematics need).
+only; pandas: export and report only, sqlite_utils no longer pulls it in; scipy.stats: the
+validation phase's Sobol points, a late learner's fallback; scipy.linalg: the distance filter's
+exp(A·dt), now in closed form; scipy.spatial: rotation vectors, which only the UR stand-in's
+kinematics need).
 
 Usage: ``.venv/bin/python benchmarks/command_start.py [--runs 9]``
 """
@@ -25,7 +26,7 @@ import sys
 KINEMATICS = "import scipy.linalg, scipy.spatial.transform"
 #: What each process imports when it starts, and what it imported besides before.
 STARTS = {"handover --help": ("from app.cli import main; main(['--help'])",
-                              f"import scipy.stats, viser; {KINEMATICS}"),
+                              f"import scipy.stats, viser, pandas; {KINEMATICS}"),
           "rig process": ("import robot_io.rig.process", KINEMATICS),
           "hand publisher": ("import robot_io.hand_publisher", KINEMATICS)}
 

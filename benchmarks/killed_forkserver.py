@@ -1,0 +1,103 @@
+"""CPU a learner's forkserver spends after the process that started it was killed during its preload:
+now (app.learning.forkserver_preload: it dies with its parent) and as before (the same modules
+imported without it, as ``PRELOAD`` had them).
+
+A session process (a ``python -c`` that starts a session's learner, as ``run-session`` and ``serve``
+do) is SIGKILLed as soon as its forkserver has torch's library mapped, i.e. inside the imports; the
+forkserver's user + system time is then read from /proc until it has gone. The variants alternate
+``--runs`` times; printed are the medians of the CPU seconds and of the lifetime after the kill, and
+the ratio (before / now). Every kill of a session in its first seconds (a crash and restart, the
+suite's kill tests) paid "before".
+
+Usage: ``.venv/bin/python benchmarks/killed_forkserver.py [--runs 5]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import signal
+import statistics
+import subprocess
+import sys
+import time
+
+import psutil
+
+SESSION = ("from app.learning import worker\n"
+           "{patch}"
+           "from app.learning.config import LearnerConfig\n"
+           "from app.learning.models import ParameterBox\n"
+           "worker.LearnerClient.for_session(LearnerConfig(box=ParameterBox.unit_cube(3)))\n"
+           "import time; time.sleep(600)\n")
+BEFORE = 'worker.PRELOAD = ["app.learning.learner", "torch.fx.experimental.symbolic_shapes"]\n'
+CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """User + system seconds of ``pid`` from /proc, None once it has gone (or is a zombie)."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return None
+    if fields[0] == "Z":
+        return None
+    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
+
+
+def forkserver_in_preload(session: psutil.Process) -> int | None:
+    for child in session.children():
+        try:
+            if ("multiprocessing.forkserver" in " ".join(child.cmdline())
+                    and any("libtorch" in region.path for region in child.memory_maps())):
+                return child.pid
+        except psutil.Error:
+            continue
+    return None
+
+
+def one_kill(before: bool) -> tuple[float, float]:
+    """CPU seconds and seconds of life of the forkserver after its session's SIGKILL."""
+    code = SESSION.format(patch=BEFORE if before else "")
+    session = subprocess.Popen([sys.executable, "-c", code])
+    forkserver = None
+    while forkserver is None:
+        if session.poll() is not None:
+            raise SystemExit(f"the session ended (exit code {session.returncode}) before its "
+                             "forkserver was seen importing torch")
+        forkserver = forkserver_in_preload(psutil.Process(session.pid))
+        time.sleep(0.005)
+    at_kill = cpu_seconds(forkserver) or 0.0
+    session.send_signal(signal.SIGKILL)
+    killed = time.monotonic()
+    session.wait()
+    last = at_kill
+    while (now := cpu_seconds(forkserver)) is not None:
+        last = now
+        time.sleep(0.01)
+    return last - at_kill, time.monotonic() - killed
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=5)
+    args = parser.parse_args()
+    results: dict[bool, list[tuple[float, float]]] = {False: [], True: []}
+    for _ in range(args.runs):  # alternated: a change of the machine's load touches both
+        for before in (False, True):
+            results[before].append(one_kill(before))
+    for before, name in ((False, "now"), (True, "before")):
+        cpu = statistics.median(r[0] for r in results[before])
+        life = statistics.median(r[1] for r in results[before])
+        print(f"{name:>6}: forkserver CPU after the kill {cpu:.2f} s, alive {life:.2f} s "
+              f"(median of {args.runs})")
+    now_cpu = statistics.median(r[0] for r in results[False])
+    before_cpu = statistics.median(r[0] for r in results[True])
+    print(f"saved per killed session {before_cpu - now_cpu:.2f} CPU-s "
+          f"(ratio {before_cpu / max(now_cpu, 0.01):.0f}x; now's figure is at the /proc clock's "
+          f"resolution, {1 / CLOCK_TICKS:.2f} s)")
+
+
+if __name__ == "__main__":
+    main()
