@@ -94,9 +94,9 @@ def main() -> None:
               f"(median of {args.runs})")
     now_cpu = statistics.median(r[0] for r in results[False])
     before_cpu = statistics.median(r[0] for r in results[True])
-    print(f"saved per killed session {before_cpu - now_cpu:.2f} CPU-s "
-          f"(ratio {before_cpu / max(now_cpu, 0.01):.0f}x; now's figure is at the /proc clock's "
-          f"resolution, {1 / CLOCK_TICKS:.2f} s)")
+    ratio = (f"ratio {before_cpu / now_cpu:.1f}x" if now_cpu > 0 else
+             f"now none within /proc's resolution, {1 / CLOCK_TICKS:.2f} s")
+    print(f"saved per killed session {before_cpu - now_cpu:.2f} CPU-s ({ratio})")
 
 
 if __name__ == "__main__":
