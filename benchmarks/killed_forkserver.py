@@ -21,8 +21,11 @@ import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 
-import psutil
+sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))  # the suite's support package
+
+from support.processes import forkserver_in_preload
 
 SESSION = ("from app.learning import worker\n"
            "{patch}"
@@ -46,17 +49,6 @@ def cpu_seconds(pid: int) -> float | None:
     return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
 
 
-def forkserver_in_preload(session: psutil.Process) -> int | None:
-    for child in session.children():
-        try:
-            if ("multiprocessing.forkserver" in " ".join(child.cmdline())
-                    and any("libtorch" in region.path for region in child.memory_maps())):
-                return child.pid
-        except psutil.Error:
-            continue
-    return None
-
-
 def one_kill(before: bool) -> tuple[float, float]:
     """CPU seconds and seconds of life of the forkserver after its session's SIGKILL."""
     code = SESSION.format(patch=BEFORE if before else "")
@@ -66,7 +58,7 @@ def one_kill(before: bool) -> tuple[float, float]:
         if session.poll() is not None:
             raise SystemExit(f"the session ended (exit code {session.returncode}) before its "
                              "forkserver was seen importing torch")
-        forkserver = forkserver_in_preload(psutil.Process(session.pid))
+        forkserver = forkserver_in_preload(session.pid)
         time.sleep(0.005)
     at_kill = cpu_seconds(forkserver) or 0.0
     session.send_signal(signal.SIGKILL)

@@ -17,6 +17,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -32,24 +33,11 @@ SESSION = ("from app.learning.config import LearnerConfig\n"
 CEILING_S = 120.0
 
 
-def forkserver_importing_torch(session: int) -> int | None:
-    """The pid of ``session``'s forkserver once torch's library is mapped in it (it is inside its
-    preload), else None."""
-    import psutil
-
-    for child in psutil.Process(session).children():
-        try:
-            if "multiprocessing.forkserver" not in " ".join(child.cmdline()):
-                continue
-            if any("libtorch" in region.path for region in child.memory_maps()):
-                return child.pid
-        except psutil.Error:
-            continue
-    return None
-
-
 def referee() -> None:
     """Start a session, SIGKILL it while its forkserver imports, print how the forkserver ended."""
+    sys.path.insert(0, str(Path(__file__).parents[1]))  # run as a script: the suite's support
+    from support.processes import forkserver_in_preload
+
     ctypes.CDLL(None, use_errno=True).prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
     session = subprocess.Popen([sys.executable, "-c", SESSION])
     deadline, forkserver = time.monotonic() + CEILING_S, None
@@ -58,7 +46,7 @@ def referee() -> None:
             session.kill()
             sys.exit(f"no forkserver importing torch under pid {session.pid} within {CEILING_S} s "
                      f"(session exit code {session.poll()})")
-        forkserver = forkserver_importing_torch(session.pid)
+        forkserver = forkserver_in_preload(session.pid)
         time.sleep(0.01)
     session.send_signal(signal.SIGKILL)  # the session's own process (Popen runs no shell)
     session.wait()

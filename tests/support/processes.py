@@ -67,3 +67,18 @@ def still_alive(pids: list[int], timeout_s: float) -> list[int]:
         log.error("still running after %g s: %s", timeout_s, "; ".join(map(describe, running)))
         return running
     return []
+
+
+def forkserver_in_preload(pid: int) -> int | None:
+    """The pid of ``pid``'s multiprocessing forkserver once torch's library is mapped in it (it is
+    inside its preload, app.learning.forkserver_preload), else None."""
+    import psutil
+
+    for child in psutil.Process(pid).children():
+        try:
+            if ("multiprocessing.forkserver" in " ".join(child.cmdline())
+                    and any("libtorch" in region.path for region in child.memory_maps())):
+                return child.pid
+        except psutil.Error:  # ended between the listing and the reading
+            continue
+    return None
