@@ -15,7 +15,6 @@ Usage: ``.venv/bin/python benchmarks/killed_forkserver.py [--runs 5]``
 from __future__ import annotations
 
 import argparse
-import os
 import signal
 import statistics
 import subprocess
@@ -25,7 +24,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))  # the suite's support package
 
-from support.processes import forkserver_in_preload
+from support.processes import CLOCK_TICKS, cpu_seconds, forkserver_in_preload
 
 SESSION = ("from app.learning import worker\n"
            "{patch}"
@@ -34,21 +33,6 @@ SESSION = ("from app.learning import worker\n"
            "worker.LearnerClient.for_session(LearnerConfig(box=ParameterBox.unit_cube(3)))\n"
            "import time; time.sleep(600)\n")
 BEFORE = 'worker.PRELOAD = ["app.learning.learner", "torch.fx.experimental.symbolic_shapes"]\n'
-CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
-
-
-def cpu_seconds(pid: int) -> float | None:
-    """User + system seconds of ``pid`` from /proc, None once it has gone (or is a zombie)."""
-    try:
-        with open(f"/proc/{pid}/stat") as stat:
-            fields = stat.read().rsplit(")", 1)[1].split()
-    except OSError:
-        return None
-    if fields[0] == "Z":
-        return None
-    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
-
-
 def one_kill(before: bool) -> tuple[float, float]:
     """CPU seconds and seconds of life of the forkserver after its session's SIGKILL."""
     code = SESSION.format(patch=BEFORE if before else "")

@@ -17,20 +17,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import statistics
 import subprocess
 import sys
+from pathlib import Path
 
-TICKS = os.sysconf("SC_CLK_TCK")
+sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))  # the suite's support package
+
+from support.processes import cpu_seconds
+
 TABLE_I = {"a": (1.0, 10.0), "delta": (-1.0, 1.0), "k": (0.01, 15.0)}
-
-
-def process_cpu(pid: int) -> float:
-    """User + system CPU seconds of process ``pid``."""
-    with open(f"/proc/{pid}/stat") as stat:
-        fields = stat.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / TICKS
 
 
 def learners_cpu(learners: int) -> list[float]:
@@ -50,7 +46,7 @@ def learners_cpu(learners: int) -> list[float]:
             client.submit([Interaction(interaction_id="2", theta=second.theta)],
                           [Comparison(winner="2", loser="1")])
             client.get(timeout=600.0)
-            spent.append(process_cpu(client._process.pid))
+            spent.append(cpu_seconds(client._process.pid))
     return spent
 
 

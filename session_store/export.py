@@ -35,8 +35,6 @@ from session_store.reading import reading
 from session_store.schema import TABLES, columns_of, sample_column_names, sample_columns
 from session_store.store import SUFFIX, ParticipantStore, participant_codes
 
-FORMATS = EXPORT_FORMATS
-
 #: The participants table: dtype and meaning of each column.
 PARTICIPANT_COLUMNS: dict[str, tuple[str, str]] = {
     "participant": ("string", "pseudonymous participant code"),
@@ -229,8 +227,8 @@ def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv",
     in ``exclude`` (path → why), is left out and listed (in the result and in ``left_out.csv``);
     the others are exported all the same.
     Nothing is written when nothing is readable, and nothing ever to the study folder."""
-    if fmt not in FORMATS:
-        raise StoreError(f"format = {fmt!r} is not one of {FORMATS}")
+    if fmt not in EXPORT_FORMATS:
+        raise StoreError(f"format = {fmt!r} is not one of {EXPORT_FORMATS}")
     out_dir = Path(out_dir)
     if (out_dir / "sqlite").resolve() == Path(study_dir).resolve():
         raise StoreError(f"--out {out_dir} would write the copies into the study folder "

@@ -5,6 +5,7 @@ rig process and its learner process behind, which are to end by themselves when 
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 
 from support.waiting import WaitTimeout, wait_for
@@ -12,16 +13,31 @@ from support.waiting import WaitTimeout, wait_for
 log = logging.getLogger(__name__)
 
 PROC = Path("/proc")
+#: Clock ticks per second of /proc's CPU times.
+CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
 
-def _stat(pid: int) -> tuple[str, int] | None:
-    """The state letter and the parent pid of ``pid`` (None: no such process)."""
+def _fields(pid: int) -> list[str] | None:
+    """The fields of /proc/<pid>/stat after "pid (comm) ": state, ppid, … (None: no such process)."""
     try:
         text = (PROC / str(pid) / "stat").read_text()
     except (FileNotFoundError, ProcessLookupError):
         return None
-    fields = text[text.rindex(")") + 2:].split()  # after "pid (comm) ": state ppid ...
-    return fields[0], int(fields[1])
+    return text[text.rindex(")") + 2:].split()
+
+
+def _stat(pid: int) -> tuple[str, int] | None:
+    """The state letter and the parent pid of ``pid`` (None: no such process)."""
+    fields = _fields(pid)
+    return None if fields is None else (fields[0], int(fields[1]))
+
+
+def cpu_seconds(pid: int) -> float | None:
+    """The user + system seconds ``pid`` has used (None: it has ended, a zombie included)."""
+    fields = _fields(pid)
+    if fields is None or fields[0] in ("Z", "X"):
+        return None
+    return (int(fields[11]) + int(fields[12])) / CLOCK_TICKS
 
 
 def descendants(pid: int) -> list[int]:
