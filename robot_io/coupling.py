@@ -19,6 +19,7 @@ import numpy as np
 from robot_io.config import DMPConstants
 from robot_io.dmp import NO_COUPLING, CouplingTerms
 from robot_io.theta import Theta
+from robot_io.vector import norm
 
 
 def sigmoid(y: float, a: float, delta: float) -> float:
@@ -98,7 +99,7 @@ class HandCoupling:
 
     def distance(self, hand: np.ndarray) -> float:
         """d = ‖g − x_hand‖₂, eq. (6)."""
-        return float(np.linalg.norm(self.goal - hand))
+        return norm(self.goal - hand)
 
     def reset(self, hand: np.ndarray) -> None:
         """Start of the interaction: d0 = d(t0) (at least ``d0_min``), d̃(0) = d0, d̃̇(0) = 0."""

@@ -12,6 +12,7 @@ The phase is integrated online: τ changes every step, so s is never computed in
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -86,32 +87,41 @@ class DMP:
         self.c_s = np.zeros_like(self.start)
 
     def step(self, dt: float, coupling: CouplingTerms = NO_COUPLING) -> np.ndarray:
-        """Advance by ``dt`` under the given coupling; returns the new position x."""
+        """Advance by ``dt`` under the given coupling; returns the new position x.
+
+        The DOFs share τ, the phase and the gains, so RK4 runs on each DOF's floats: NumPy's
+        per-call cost on 3-element arrays was most of a step (the same IEEE operations, so the same
+        numbers to the last bit).
+        """
         c = self.constants
         tau = c.tau0 * (1.0 + coupling.temporal)  # (5)
         stiffness = c.alpha_x * c.beta_x / tau**2
         damping = c.alpha_x * (1.0 + coupling.spatial_gain) / tau  # (1) + C_s of (9), over τ²
-        s_half = self.s * np.exp(-c.alpha_s * 0.5 * dt / tau)  # (3), exact for constant τ
-        s_end = self.s * np.exp(-c.alpha_s * dt / tau)
-        f0, f_half, f_end = self.forcing(np.array([self.s, s_half, s_end])) / tau**2
+        s_half = self.s * math.exp(-c.alpha_s * 0.5 * dt / tau)  # (3), exact for constant τ
+        s_end = self.s * math.exp(-c.alpha_s * dt / tau)
+        forcing = (self.forcing(np.array([self.s, s_half, s_end])) / tau**2).T.tolist()
         pull = stiffness * self.goal
         if coupling.external is not None:
             pull = pull + coupling.external / tau**2  # k_ext F, constant over the step
 
-        x, v, h = self.x, self.xd, 0.5 * dt
-        a1 = pull - stiffness * x - damping * v + f0
-        x2, v2 = x + h * v, v + h * a1
-        a2 = pull - stiffness * x2 - damping * v2 + f_half
-        x3, v3 = x + h * v2, v + h * a2
-        a3 = pull - stiffness * x3 - damping * v3 + f_half
-        x4, v4 = x + dt * v3, v + dt * a3
-        a4 = pull - stiffness * x4 - damping * v4 + f_end
+        h = 0.5 * dt
+        positions, velocities, accelerations = [], [], []
+        for x, v, p, (f0, f_half, f_end) in zip(self.x.tolist(), self.xd.tolist(), pull.tolist(),
+                                                forcing, strict=True):
+            a1 = p - stiffness * x - damping * v + f0
+            x2, v2 = x + h * v, v + h * a1
+            a2 = p - stiffness * x2 - damping * v2 + f_half
+            x3, v3 = x + h * v2, v + h * a2
+            a3 = p - stiffness * x3 - damping * v3 + f_half
+            x4, v4 = x + dt * v3, v + dt * a3
+            a4 = p - stiffness * x4 - damping * v4 + f_end
+            positions.append(x + dt / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4))
+            velocities.append(v + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4))
+            accelerations.append(a4)
 
-        self.x = x + dt / 6.0 * (v + 2.0 * v2 + 2.0 * v3 + v4)
-        self.xd = v + dt / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
-        self.xdd = a4
+        self.x, self.xd, self.xdd = np.array(positions), np.array(velocities), np.array(accelerations)
         self.c_s = -c.alpha_x * tau * self.xd * coupling.spatial_gain  # (9), for the record
-        self.s = float(s_end)
+        self.s = s_end
         self.tau = tau
         self.t += dt
         return self.x

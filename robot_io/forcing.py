@@ -17,6 +17,7 @@ class ForcingTerm:
                  scale: np.ndarray) -> None:
         self.centers = np.asarray(centers, dtype=float)
         self.widths = np.asarray(widths, dtype=float)
+        self._negative_widths = -self.widths  # features() runs every control cycle
         self.weights = np.asarray(weights, dtype=float)  # (n_basis, dim)
         self.scale = np.asarray(scale, dtype=float)  # (g − x0), shape (dim,)
 
@@ -33,7 +34,7 @@ class ForcingTerm:
     def features(self, s: np.ndarray) -> np.ndarray:
         """Φ(s)_i = ψ_i(s) s / Σ_j ψ_j(s), shape ``(len(s), n_basis)``; f(s) = Φ(s) W ⊙ (g − x0)."""
         s = np.atleast_1d(s)
-        psi = np.exp(-self.widths * (s[:, None] - self.centers) ** 2)
+        psi = np.exp(self._negative_widths * np.square(s[:, None] - self.centers))
         return psi * (s / (psi.sum(axis=1) + 1e-300))[:, None]
 
     def __call__(self, s: np.ndarray) -> np.ndarray:

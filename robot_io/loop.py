@@ -32,6 +32,7 @@ from robot_io.recorder import SLICES, TrialRecorder
 from robot_io.release import ForceRelease
 from robot_io.safety import SafetyLimiter
 from robot_io.stages import SAMPLE_CODE, Stage
+from robot_io.vector import norm
 
 StageCallback = Callable[[Stage, float], None]
 
@@ -229,14 +230,14 @@ class HandoverLoop:
                         first_target, stage = t, Stage.REACH
                         self.on_stage(Stage.REACH, t)
                     self._record(row, last, commanded, flags)
-                    if robot_arrival is None and np.linalg.norm(measured - goal) < \
+                    if robot_arrival is None and norm(measured - goal) < \
                             cfg.robot_arrival_tolerance_m:
                         robot_arrival = t
-                    if hand_arrival is None and np.linalg.norm(last.position - goal) < \
+                    if hand_arrival is None and norm(last.position - goal) < \
                             cfg.hand_arrival_tolerance_m:
                         hand_arrival = last.t
                 row[SLICES["stage"]] = SAMPLE_CODE.get(stage, np.nan)
-                speed = 0.0 if prev_measured is None else np.linalg.norm(measured - prev_measured) / dt
+                speed = 0.0 if prev_measured is None else norm(measured - prev_measured) / dt
                 prev_measured = measured
                 if hold is None:
                     if robot_arrival is not None and hand_arrival is not None and speed < SETTLE_SPEED:

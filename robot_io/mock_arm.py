@@ -22,6 +22,7 @@ import numpy as np
 from robot_io.arm import ArmState
 from robot_io.clock import Clock
 from robot_io.errors import ArmFault
+from robot_io.vector import all_finite, norm
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +58,7 @@ class MockArm:
     @property
     def is_moving(self) -> bool:
         self._advance()
-        return bool(np.any(self.velocity != 0.0))
+        return bool(self.velocity.any())
 
     def move_to(self, pose: np.ndarray, stop: threading.Event | None = None) -> None:
         """The mock places the TCP at ``pose`` at once (a real arm does a bounded moveL, which
@@ -65,7 +66,7 @@ class MockArm:
         if self._state in (ArmState.STREAMING, ArmState.STOPPING):
             raise ArmFault(f"move_to refused while the arm is {self._state}")
         pose = np.asarray(pose, dtype=float)
-        if not np.all(np.isfinite(pose)):
+        if not all_finite(pose):
             raise ArmFault(f"move_to refused: non-finite start pose {pose.tolist()}")
         self.position = pose.copy()
         self.velocity = np.zeros(3)
@@ -86,7 +87,7 @@ class MockArm:
             raise ArmFault(f"servo target refused: arm is {self._state}"
                            + (f" ({self._fault})" if self._fault else ""))
         target = np.asarray(target, dtype=float)
-        if not np.all(np.isfinite(target)):
+        if not all_finite(target):
             self._trip(f"non-finite servo target {target.tolist()}; not taken")
             raise ArmFault(self._fault)
         self._target = target.copy()
@@ -107,7 +108,7 @@ class MockArm:
         position = self.read_pose()
         if self._force is None:
             return np.zeros(3)
-        return np.asarray(self._force(position, float(np.linalg.norm(self.velocity))), dtype=float)
+        return np.asarray(self._force(position, norm(self.velocity)), dtype=float)
 
     def stop(self) -> None:
         self._advance()
@@ -147,8 +148,8 @@ class MockArm:
         """Reach the pending target in one nominal period."""
         dt = self.period
         velocity = (self._target - self.position) / dt
-        speed = float(np.linalg.norm(velocity))
-        acceleration = float(np.linalg.norm(velocity - self.velocity)) / dt
+        speed = norm(velocity)
+        acceleration = norm(velocity - self.velocity) / dt
         if speed > self.max_speed * (1 + 1e-9):
             self._trip(f"following error: target needs {speed:.3f} m/s "
                        f"(max_speed = {self.max_speed} m/s)")
@@ -168,7 +169,7 @@ class MockArm:
         self.velocity = np.zeros(3)
 
     def _decelerate(self, dt: float) -> None:
-        speed = float(np.linalg.norm(self.velocity))
+        speed = norm(self.velocity)
         new_speed = max(0.0, speed - self.stop_deceleration * dt)
         if speed > 0:
             mean = 0.5 * (speed + new_speed)

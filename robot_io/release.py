@@ -15,6 +15,7 @@ from enum import StrEnum
 import numpy as np
 
 from robot_io.config import ReleaseConfig
+from robot_io.vector import norm
 
 
 class ReleasePhase(StrEnum):
@@ -57,7 +58,7 @@ class ForceRelease:
             if self._count >= self.baseline_cycles:
                 self.baseline, self.phase = self._sum / self._count, ReleasePhase.ARMED
             return False
-        self.pull = float(np.linalg.norm(self.filtered - self.baseline))
+        self.pull = norm(self.filtered - self.baseline)
         if self.pull >= self.config.threshold_n:
             self.phase = ReleasePhase.RELEASED
             return True

@@ -10,6 +10,7 @@ import numpy as np
 
 from robot_io.config import SafetyLimits
 from robot_io.errors import ArmFault
+from robot_io.vector import all_finite, norm
 
 
 class LimitFlags(NamedTuple):
@@ -47,16 +48,16 @@ class SafetyLimiter:
         wanted = (_finite(target, "target") - self.position) / dt
         change = wanted - self.velocity
         max_change = self.limits.max_acceleration * dt
-        change_norm = float(np.linalg.norm(change))
+        change_norm = norm(change)
         accel_limited = change_norm > max_change
         velocity = self.velocity + (change * (max_change / change_norm) if accel_limited else change)
-        speed = float(np.linalg.norm(velocity))
+        speed = norm(velocity)
         speed_limited = speed > self.limits.max_speed
         if speed_limited:
             velocity *= self.limits.max_speed / speed
         wanted_position = self.position + velocity * dt
-        position = np.clip(wanted_position, self._low, self._high)
-        box_limited = bool(np.any(position != wanted_position))
+        position = np.minimum(np.maximum(wanted_position, self._low), self._high)  # np.clip
+        box_limited = bool((position != wanted_position).any())
         self.velocity = (position - self.position) / dt
         self.position = position
         return position.copy(), LimitFlags(accel_limited, speed_limited, box_limited)
@@ -65,6 +66,6 @@ class SafetyLimiter:
 def _finite(values: np.ndarray, what: str) -> np.ndarray:
     """``values`` as floats; a NaN or infinite one would pass every ``>`` check, so it is refused."""
     array = np.asarray(values, dtype=float)
-    if not np.all(np.isfinite(array)):
+    if not all_finite(array):
         raise ArmFault(f"safety limiter: non-finite {what} {array.tolist()}; not sent")
     return array

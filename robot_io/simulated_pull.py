@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from robot_io.vector import all_finite, norm
+
 #: The participant takes hold of the object once the TCP is slower than this [m/s].
 STILL_MPS = 0.02
 
@@ -34,8 +36,8 @@ class SimulatedPull:
         """The force [N] on the TCP at time ``t`` [s] (any monotonic time base). The participant
         takes hold once the object is held out still (TCP slower than ``STILL_MPS``), and keeps
         hold while the arm yields to the pull."""
-        touching = (holding and hand is not None and bool(np.all(np.isfinite(hand)))
-                    and float(np.linalg.norm(np.asarray(hand) - tcp)) <= self.reach_m)
+        touching = (holding and hand is not None and all_finite(np.asarray(hand))
+                    and norm(np.asarray(hand) - tcp) <= self.reach_m)
         if not touching:
             self.contact_at = None
             return np.zeros(3)

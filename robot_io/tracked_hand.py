@@ -36,6 +36,7 @@ import numpy as np
 from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
 from robot_io.hand import HandSample
+from robot_io.vector import all_finite, norm
 
 log = logging.getLogger(__name__)
 
@@ -72,11 +73,11 @@ class TrackedHand:
         problem = None
         if not math.isfinite(measured_at):
             problem, measured_at = f"non-finite time stamp {measured_at}", time.monotonic()
-        if problem or raw.shape != (3,) or not np.all(np.isfinite(raw)) or not np.any(raw):
+        if problem or raw.shape != (3,) or not all_finite(raw) or not raw.any():
             position = np.full(3, np.nan)
         else:
             position = self.transform.apply(raw)
-            if not np.all(np.abs(position) <= PLAUSIBLE_RANGE_M):
+            if not (np.abs(position) <= PLAUSIBLE_RANGE_M).all():
                 problem = problem or (f"implausible position {raw.tolist()} (tracker units), more "
                                       f"than {PLAUSIBLE_RANGE_M} m from the robot base")
                 position = np.full(3, np.nan)
@@ -105,7 +106,7 @@ class TrackedHand:
         if self._accepted is None:
             return None
         since = abs(measured_at - self._accepted[0])
-        distance = float(np.linalg.norm(position - self._accepted[1]))
+        distance = norm(position - self._accepted[1])
         if distance <= self.max_speed * since + TRACKER_JITTER_M:
             return None
         return (f"a jump of {distance:.3f} m in {since:.3f} s from the last accepted sample "

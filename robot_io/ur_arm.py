@@ -32,6 +32,7 @@ from robot_io.arm import ArmState
 from robot_io.config import SafetyLimits, URConfig
 from robot_io.errors import ArmFault, MoveStopped
 from robot_io.ur_worker import ControlWorker
+from robot_io.vector import all_finite, norm
 
 log = logging.getLogger(__name__)
 
@@ -140,8 +141,7 @@ class URArm:
     def is_moving(self) -> bool:
         """True while the TCP moves; an unreadable (non-finite) speed counts as moving, and faults."""
         try:
-            speed = float(np.linalg.norm(self._finite(self._receive.getActualTCPSpeed()[:3],
-                                                      "TCP speed")))
+            speed = norm(self._finite(self._receive.getActualTCPSpeed()[:3], "TCP speed"))
         except ArmFault:
             return True
         return speed > REST_SPEED and self._receive.isConnected()
@@ -174,7 +174,7 @@ class URArm:
         """``values`` as an array, or an arm fault if any is NaN or infinite: a motion computed from
         it would be meaningless (``nan > limit`` is false, so every check would pass)."""
         array = np.asarray(values, dtype=float)
-        if not np.all(np.isfinite(array)):
+        if not all_finite(array):
             if self._state is not ArmState.FAULT:
                 self._trip(f"the controller reported a non-finite {what} {array.tolist()}; nothing "
                            "is sent: check the controller and the RTDE link, then call recover()")
@@ -254,7 +254,7 @@ class URArm:
 
     # -- motion --------------------------------------------------------------------------------
     def _refuse_outside_box(self, pose: np.ndarray, what: str) -> None:
-        if not (np.all(np.isfinite(pose)) and np.all(pose >= self._low) and np.all(pose <= self._high)):
+        if not (all_finite(pose) and (pose >= self._low).all() and (pose <= self._high).all()):
             raise ArmFault(f"{what} {np.round(pose, 4).tolist()} is outside the workspace box "
                            f"[{self.limits.workspace_min}, {self.limits.workspace_max}]; not sent")
 
@@ -335,8 +335,8 @@ class URArm:
 
     def _refuse_too_fast(self, target: np.ndarray) -> None:
         velocity = (target - self._last) / self.period
-        speed = float(np.linalg.norm(velocity))
-        acceleration = float(np.linalg.norm(velocity - self._last_velocity)) / self.period
+        speed = norm(velocity)
+        acceleration = norm(velocity - self._last_velocity) / self.period
         if speed > self.limits.max_speed * (1 + CAP_SLACK):
             raise ArmFault(f"servo target needs {speed:.3f} m/s (max_speed = "
                            f"{self.limits.max_speed} m/s); not sent")
