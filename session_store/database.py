@@ -1,4 +1,4 @@
-"""sqlite_utils's :class:`Database`, imported without pandas.
+"""sqlite_utils's :class:`Database` (and its ``quote_identifier``), imported without pandas.
 
 sqlite_utils imports pandas when it is installed (it is: the analysis needs it), only to map
 ``pandas.Timestamp`` values to TEXT columns; the store writes validated models, never pandas
@@ -14,11 +14,13 @@ import sys
 
 if "pandas" in sys.modules or "sqlite_utils" in sys.modules:
     from sqlite_utils import Database
+    from sqlite_utils.db import quote_identifier
 else:
     sys.modules["pandas"] = None  # type: ignore[assignment]
     try:
         from sqlite_utils import Database
+        from sqlite_utils.db import quote_identifier
     finally:
         del sys.modules["pandas"]
 
-__all__ = ["Database"]
+__all__ = ["Database", "quote_identifier"]
