@@ -46,7 +46,7 @@ from app.session.config import LabConfig
 from app.session.drawing import with_links
 from app.session.faults import StagedFault
 from app.session.lsl_outlets import StudyOutlets
-from app.session.overview import ParticipantSummary, study_overview
+from app.session.overview import ParticipantSummary, StudyOverview
 from app.session.pairing import TabletPairing, TabletStatus
 from app.session.rehearsal import Rehearsal, rehearsal_rig
 from app.session.replay import stored_rows
@@ -191,6 +191,7 @@ class SessionRunner:
         self._stop: StopState = "armed"
         self._pairing: TabletPairing | None = None
         self._overview: list[ParticipantSummary] | None = None  # None: to be read again
+        self._study_overview = StudyOverview(self.study)
         self._listeners: list[Listener] = []
         self._view = RunnerView()
         # Views are made on the engine thread, numbered in the order they were made, and shown
@@ -662,8 +663,8 @@ class SessionRunner:
     def _make_view(self) -> RunnerView:
         engine, status = self._engine, self._device_status()
         if self._overview is None:
-            self._overview = study_overview(self.study, None if engine is None else
-                                            engine.participant.code)
+            self._overview = (self._study_overview.lines() if engine is None else
+                              self._study_overview.lines(engine.store, engine.participant.code))
         status["overview"] = self._overview
         if engine is None:
             return RunnerView(version=next(self._made), **status)

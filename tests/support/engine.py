@@ -49,6 +49,12 @@ def short_config(seed: int = 1, scenario: Scenario = Scenario.STRAIGHTFORWARD) -
     return study_config(seed, scenario, **SHORT_PROTOCOL)
 
 
+def brief_config(seed: int = 1) -> StudyConfig:
+    """A participant's plan of :data:`BRIEF_PROTOCOL` (its lab-config switch is not the plan's)."""
+    return study_config(seed, **{key: value for key, value in BRIEF_PROTOCOL.items()
+                                 if key != "without_learning"})
+
+
 def step_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
     """Do whatever the session waits for, once, in this process: a trial is one reach of the mock
     arm on simulated time (sessions run their trials on the rig; this is the engine's own tests)."""
