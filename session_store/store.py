@@ -47,6 +47,16 @@ __all__ = ["SUFFIX", "ParticipantStore", "participant_codes", "participant_path"
 
 log = logging.getLogger(__name__)
 
+def sample_matrix(columns: dict[str, np.ndarray]) -> np.ndarray:
+    """A trial's recorded columns (the loop's, in ``sample_column_names`` order, a vector column
+    as one column per component) as one row per control cycle."""
+    flat = []
+    for name in columns:
+        values = np.asarray(columns[name], dtype=float)
+        flat.extend([values] if values.ndim == 1 else list(values.T))
+    return np.column_stack(flat) if flat else np.empty((0, len(sample_column_names())))
+
+
 class ParticipantStore:
     """The database of one participant. :meth:`create` and :meth:`open_for_writing` hold the
     participant's writer lock (:mod:`session_store.lock`) until :meth:`close`; :meth:`open` is for
@@ -197,12 +207,7 @@ class ParticipantStore:
         trial, in the process that serves the screens); SQLite binds them in C (~35 ms). The table
         and its columns are sqlite-utils' own (``schema``).
         """
-        flat = []
-        for name in columns:
-            values = np.asarray(columns[name], dtype=float)
-            flat.extend([values] if values.ndim == 1 else list(values.T))
-        names = sample_column_names()
-        matrix = np.column_stack(flat) if flat else np.empty((0, len(names)))
+        names, matrix = sample_column_names(), sample_matrix(columns)
         rows = np.empty((len(matrix), len(names) + 2), dtype=object)
         rows[:, 0], rows[:, 1], rows[:, 2:] = trial_index, range(len(matrix)), matrix
         rows[:, 2:][~np.isfinite(matrix)] = None
