@@ -9,7 +9,7 @@ import html
 
 import pandas as pd
 import pytest
-from support.engine import SHORT_PROTOCOL
+from support.engine import SESSION_CONTROLLER, SHORT_PROTOCOL
 from support.runner import Probe
 
 from app.analysis.report import build_report
@@ -23,7 +23,8 @@ from session_store.export import export_study, read_table
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     study = tmp_path_factory.mktemp("study")
-    lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
+    lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL,
+                                    "loop": {"rate_hz": SESSION_CONTROLLER.loop.rate_hz}})
     runner = SessionRunner(study, lab, realtime=False, auto_experimenter=True)
     probe = Probe(runner)
     # The waits' ceilings are for a hung session (a rig process to start, learner fits on a loaded
