@@ -1,7 +1,7 @@
 """The study overview that the dashboard refreshes after every trial: each line is what a fresh
 read of that participant's database says, a line whose database has not changed is not read again,
-and the open session's line comes from the store it writes. The sessions stay in their initial
-(Sobol) trials: no learner is started."""
+and the open session's line comes from the store it writes. The sessions stay in their first
+(Sobol) trials of the briefest protocol."""
 
 from __future__ import annotations
 
