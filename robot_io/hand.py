@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple, Protocol
 
 import numpy as np
+
+from robot_io.vector import all_finite
 
 
 class HandSample(NamedTuple):
@@ -16,7 +19,7 @@ class HandSample(NamedTuple):
 
     def is_valid(self) -> bool:
         """A sample with a non-finite time or coordinate is discarded by the control loop."""
-        return bool(np.isfinite(self.t) and np.all(np.isfinite(self.position)))
+        return math.isfinite(self.t) and all_finite(self.position)
 
 
 class HandSource(Protocol):

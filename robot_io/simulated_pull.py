@@ -26,8 +26,8 @@ class SimulatedPull:
     def __init__(self, direction: np.ndarray, pull_n: float, grasp_delay_s: float,
                  ramp_s: float = 0.2, reach_m: float = 0.05) -> None:
         direction = np.asarray(direction, dtype=float)
-        norm = float(np.linalg.norm(direction))
-        self.direction = direction / norm if norm > 0 else np.zeros(3)
+        length = norm(direction)
+        self.direction = direction / length if length > 0 else np.zeros(3)
         self.pull_n, self.grasp_delay_s, self.ramp_s, self.reach_m = pull_n, grasp_delay_s, ramp_s, reach_m
         self.contact_at: float | None = None
 
@@ -36,8 +36,9 @@ class SimulatedPull:
         """The force [N] on the TCP at time ``t`` [s] (any monotonic time base). The participant
         takes hold once the object is held out still (TCP slower than ``STILL_MPS``), and keeps
         hold while the arm yields to the pull."""
-        touching = (holding and hand is not None and all_finite(np.asarray(hand))
-                    and norm(np.asarray(hand) - tcp) <= self.reach_m)
+        hand = None if hand is None else np.asarray(hand, dtype=float)
+        touching = (holding and hand is not None and all_finite(hand)
+                    and norm(hand - tcp) <= self.reach_m)
         if not touching:
             self.contact_at = None
             return np.zeros(3)
