@@ -43,9 +43,10 @@ from session_store.models import (
 from session_store.paths import SUFFIX, participant_codes, participant_path
 from session_store.schema import MIGRATIONS, SCHEMA_VERSION, TABLES, sample_column_names
 
-__all__ = ["SUFFIX", "ParticipantStore", "participant_codes", "participant_path"]
+__all__ = ["SUFFIX", "ParticipantStore", "participant_codes", "participant_path", "sample_matrix"]
 
 log = logging.getLogger(__name__)
+
 
 def sample_matrix(columns: dict[str, np.ndarray]) -> np.ndarray:
     """A trial's recorded columns (the loop's, in ``sample_column_names`` order, a vector column
@@ -203,9 +204,9 @@ class ParticipantStore:
         """The control loop's per-cycle rows of a trial (NaN and ±inf are stored as NULL).
 
         One ``executemany`` of the table's INSERT: sqlite-utils' ``insert_all`` converts each of a
-        trial's ~75,000 values in Python (~170 ms for a 3.6 s trial at 500 Hz, at the end of every
-        trial, in the process that serves the screens); SQLite binds them in C (~35 ms). The table
-        and its columns are sqlite-utils' own (``schema``).
+        trial's ~78,000 values in Python (225 ms of CPU for a 3.6 s trial at 500 Hz, at the end of
+        every trial, in the process that serves the screens); SQLite binds them in C (34 ms;
+        ``benchmarks/trial_end.py``). The table and its columns are sqlite-utils' own (``schema``).
         """
         names, matrix = sample_column_names(), sample_matrix(columns)
         rows = np.empty((len(matrix), len(names) + 2), dtype=object)

@@ -27,8 +27,7 @@ def first_trial(study: Path, code: str) -> SessionEngine:
 def next_trial(engine: SessionEngine) -> None:
     """Place the last trial, plan and run the next one."""
     participant = SimulatedParticipant(engine.config.seed)
-    while engine.state.step is not Step.READY:
-        step_once(engine, participant)
+    drive_until(engine, Step.READY, participant)
     step_once(engine, participant)
 
 
