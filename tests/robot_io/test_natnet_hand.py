@@ -19,16 +19,24 @@ from support.waiting import wait_for
 
 from robot_io.config import HandProfile, LoopConfig
 from robot_io.errors import HandSourceError
-from robot_io.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
+from robot_io.natnet_hand import (
+    RATE_BASELINE_S,
+    FrameClock,
+    NatNetHand,
+    TickRate,
+    reported_latency,
+)
 from robot_io.natnet_standin import (
     NAT_FRAMEOFDATA,
     PROTOCOL_VERSION,
     FrameStamps,
     RigidBodySpec,
+    Snapshot,
     frame_of_data,
     hidden,
     pose_at,
 )
+from robot_io.tracked_hand import TRACKER_JITTER_M
 
 pytestmark = pytest.mark.soak  # real sockets and threads on the clock: `make soak` repeats them
 
@@ -57,14 +65,16 @@ def open_hand(server, rigid_body: str = HAND.name) -> NatNetHand:
 
 
 class StampRecordingHand(NatNetHand):
-    """The real NatNet source, recording each sample's stamp with the instant it was put."""
+    """The real NatNet source, recording each sample's stamp with the instant it was put and the
+    position it carried (tracker frame)."""
 
     def __init__(self, *args) -> None:
-        self.stamps: list[tuple[float, float]] = []  # (measured_at, put at), on time.monotonic
+        #: (measured_at, put at, tracker xyz), instants on time.monotonic
+        self.stamps: list[tuple[float, float, np.ndarray]] = []
         super().__init__(*args)
 
     def put(self, measured_at: float, tracker_xyz) -> None:
-        self.stamps.append((measured_at, time.monotonic()))
+        self.stamps.append((measured_at, time.monotonic(), np.array(tracker_xyz, dtype=float)))
         super().put(measured_at, tracker_xyz)
 
 
@@ -84,8 +94,84 @@ def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its
     # stand-in's, and the newest sample is stamped that much before it arrived (an order of
     # instants on one clock, not a duration measured)
     assert hand.latency_s == pytest.approx(server.latency_s, abs=1e-4)
-    measured_at, put_at = hand.stamps[-1]
+    measured_at, put_at, _ = hand.stamps[-1]
     assert put_at - measured_at >= server.latency_s - 1e-4
+
+
+class Swing:
+    """A hand swinging along the robot's x at up to PEAK_SPEED (a reach's peak), measured the
+    instant the stand-in takes it (a Snapshot: the frame's exposure is that instant)."""
+
+    AMPLITUDE, PEAK_SPEED = 0.1, 1.5  # m, m/s
+
+    def at(self, instant: float) -> np.ndarray:
+        """Where the hand is at ``instant`` (time.monotonic), in the robot base [m]."""
+        swing = self.AMPLITUDE * np.sin(self.PEAK_SPEED / self.AMPLITUDE * instant)
+        return WANTED + np.array([swing, 0.0, 0.0])
+
+    def poses(self) -> Snapshot:
+        now = time.monotonic()
+        return Snapshot({HAND.id: pose_at(to_tracker_m(self.at(now)))}, now)
+
+
+#: How long the receiving thread is held in the test of a stalled receiver [s] (at the stand-in's
+#: 120 Hz, 24 frames wait in the socket and then arrive together).
+STALL_S = 0.2
+
+
+def test_frames_delivered_late_together_keep_the_instants_they_were_measured():
+    """A receiver that stalls (this process got no CPU, or the network held the packets) is then
+    given every frame sent meanwhile at once. Stamped on their arrival, 0.2 s of a hand moving at
+    1.5 m/s would land within a millisecond and be refused as jumps (as the rehearsal's NatNet hand
+    was when two suites shared two cores); stamped from the frames' own clock each sample keeps the
+    instant it was measured, and none is refused."""
+    swing = Swing()
+    with motive(swing.poses) as server:
+        hand = StampRecordingHand(natnet_source(server), TRACKER_M, MAX_SPEED)
+        stalled, resumed = threading.Event(), threading.Event()
+
+        def stall(frame: DataFrame) -> None:  # the client's receiving thread, before the hand's
+            if stalled.is_set():
+                resumed.wait()
+
+        hand.client.on_data_frame_received_event.handlers.insert(0, stall)
+        try:
+            wait_for(lambda: hand.latency_s is not None, "the latency the frames report",
+                     seen=lambda: f"{hand.frames} frames")
+            stalled.set()
+            sent = server.frames_sent
+            wait_for(lambda: server.frames_sent >= sent + round(STALL_S * server.rate_hz),
+                     f"the frames of {STALL_S} s sent while the receiver stalls",
+                     seen=lambda: f"{server.frames_sent - sent} sent")
+            held, waiting = len(hand.stamps), server.frames_sent - sent
+            stalled.clear()
+            released = time.monotonic()
+            resumed.set()
+            wait_for(lambda: len(hand.stamps) >= held + waiting,
+                     f"the {waiting} frames sent during the stall, received",
+                     seen=lambda: f"{len(hand.stamps) - held} received")
+        finally:
+            hand.close()
+    assert (hand.invalid, hand.refusal) == (0, None)
+    assert hand.stamps[held][1] >= released, "the receiver was not held"
+    # each sample's position is where the hand was at its stamp (within the tracker's jitter: a
+    # stamp late by the least delay of loopback, at 1.5 m/s)
+    for measured_at, _, xyz in hand.stamps:
+        assert np.linalg.norm(xyz - to_tracker_m(swing.at(measured_at))) <= TRACKER_JITTER_M
+
+
+def test_the_frame_clock_keeps_the_least_delay_of_its_window_and_restarts_with_the_stream():
+    """FrameClock: the offset is the least (exposed − time stamp) of the last window_s; a frame
+    delivered late keeps its own spacing; a time stamp that does not advance starts anew."""
+    clock = FrameClock(window_s=1.0)
+    assert clock.stamp(10.0, 110.003) == pytest.approx(110.003)  # the first: its own arrival
+    assert clock.stamp(10.5, 110.501) == pytest.approx(110.501)  # a prompter one sets the offset
+    assert clock.stamp(10.6, 110.9) == pytest.approx(110.601)  # late (a burst): its own spacing
+    assert clock.stamp(11.4, 111.410) == pytest.approx(111.401)  # 10.5's offset is in the window
+    assert clock.stamp(11.45, 111.9) == pytest.approx(111.451)  # late again, and still is
+    assert clock.stamp(11.6, 111.610) == pytest.approx(111.610)  # 10.5 has left: the least since
+    assert clock.stamp(1.0, 112.5) == pytest.approx(112.5)  # Motive restarted: its arrival
+    assert clock.stamp(1.0, 112.6) == pytest.approx(112.6)  # a stamp that stands still likewise
 
 
 def parsed(exposure: float, transmit: float, *, received: float | None = None) -> DataFrame:
