@@ -10,16 +10,14 @@ tracking-valid flag off; Motive then sends zeros or its last pose) or leaves out
 NaN sample, never a position.
 
 Time stamps: the frame's own time stamp (seconds since Motive started, from the camera's frame
-counter) carried onto ``time.monotonic`` by :class:`FrameClock`. Its offset comes from the frames'
-arrival minus the latency each reports: NatNet 3.0 and later carry that latency as host-clock ticks
-— the camera's mid-exposure (0 where the cameras cannot measure it: then the data's arrival at the
-host) and the transmission — and the ``natnet`` client does not report the tick rate
-(``NAT_SERVERINFO``'s ``HighResClockFrequency``); the rate is therefore learned from the stream:
-ticks of mid-exposure over the frames' own time stamp across at least :data:`RATE_BASELINE_S`.
-Until then, and for older protocols, the arrival alone gives the offset. Frames that arrive late
-together (this process or the network stalled, then delivered them at once) keep their own spacing:
-stamped on arrival, 0.1 s of a moving hand would land within a millisecond and be refused as
-jumps (seen when two test suites shared two cores).
+counter) carried onto ``time.monotonic`` by :class:`robot_io.frame_clock.FrameClock`, from the
+frames' arrival minus the latency each reports: frames that arrive late together keep their own
+spacing. NatNet 3.0 and later carry that latency as host-clock ticks — the camera's mid-exposure (0
+where the cameras cannot measure it: then the data's arrival at the host) and the transmission —
+and the ``natnet`` client does not report the tick rate (``NAT_SERVERINFO``'s
+``HighResClockFrequency``); the rate is therefore learned from the stream: ticks of mid-exposure
+over the frames' own time stamp across at least :data:`RATE_BASELINE_S`. Until then, and for older
+protocols, the arrival alone counts.
 """
 
 from __future__ import annotations
@@ -28,7 +26,6 @@ import logging
 import socket
 import threading
 import time
-from collections import deque
 
 import numpy as np
 from natnet import DataDescriptions, DataFrame, NatNetClient
@@ -36,6 +33,7 @@ from natnet import DataDescriptions, DataFrame, NatNetClient
 from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
+from robot_io.frame_clock import FrameClock
 from robot_io.tracked_hand import TrackedHand
 
 log = logging.getLogger(__name__)
@@ -45,10 +43,6 @@ RATE_BASELINE_S = 0.5
 #: A reported latency beyond this is not one (a tick rate learned across a restart of Motive's
 #: clock or a change of its camera rate): the frame is stamped on arrival and the rate learned anew [s].
 MAX_REPORTED_LATENCY_S = 0.5
-#: The frames' time span over which the least arrival delay sets :class:`FrameClock`'s offset [s]:
-#: a burst after a stall shorter than this keeps its own spacing; the two clocks drift apart by
-#: well under a millisecond across it (tens of ppm).
-CLOCK_WINDOW_S = 2.0
 #: How often the model definitions are asked for again while none have come [s] (UDP may drop one).
 MODELDEF_RETRY_S = 0.5
 
@@ -81,37 +75,6 @@ class TickRate:
     def reset(self) -> None:
         """Learn the rate anew from the next pair on."""
         self._first, self.hz = None, None
-
-
-class FrameClock:
-    """A frame's own time stamp [s] (Motive's camera clock) on ``time.monotonic``.
-
-    A frame's arrival minus the latency it reports is its exposure plus a delay that is never
-    negative (network, this process's scheduling), least for the promptest frame; so the offset of
-    the two clocks is the least (arrival − latency − time stamp) over the frames of the last
-    ``window_s`` (a sliding minimum), and a frame's stamp is its time stamp plus that offset: never
-    later than its own arrival minus its latency, and spaced as the frames were exposed however late
-    they arrive. A time stamp that does not advance (Motive restarted or replays, or sends none)
-    starts the clock anew: that frame is stamped with its arrival minus its latency."""
-
-    def __init__(self, window_s: float = CLOCK_WINDOW_S) -> None:
-        self.window_s = window_s
-        #: (time stamp, offset) of the frames that can still be the window's least, offsets rising
-        self._offsets: deque[tuple[float, float]] = deque()
-
-    def stamp(self, timestamp: float, exposed: float) -> float:
-        """The instant on ``time.monotonic`` of the frame time-stamped ``timestamp``, whose arrival
-        minus its reported latency is ``exposed``."""
-        if self._offsets and not timestamp > self._offsets[-1][0]:
-            self._offsets.clear()
-            return exposed
-        offset = exposed - timestamp
-        while self._offsets and self._offsets[-1][1] >= offset:
-            self._offsets.pop()
-        self._offsets.append((timestamp, offset))
-        while self._offsets[0][0] < timestamp - self.window_s:
-            self._offsets.popleft()
-        return timestamp + self._offsets[0][1]
 
 
 def reported_latency(frame: DataFrame, rate: TickRate) -> float | None:

@@ -13,9 +13,9 @@ is then zeros) is a lost hand: a NaN sample, never a position.
 Time stamps: the instant a frame was first seen on ``time.monotonic`` minus the SDK's total latency
 (``GetLatencyTotal``: the server's pipeline stages plus the network transmission the SDK measures;
 0.0 when the server reports none: the frame is then stamped when seen). Seen instants are late by the
-polling and the OS, never early, so :class:`FrameClock` puts each frame at its camera time (frame
-number over the camera rate) plus the smallest offset between the two clocks over the last
-:data:`FRAME_CLOCK_WINDOW_S`: the stamps keep the cameras' even spacing.
+polling and the OS, never early, so :class:`CameraFrameClock` puts each frame at its camera time
+(frame number over the camera rate) plus the smallest offset between the two clocks over the last
+``robot_io.frame_clock.FRAME_CLOCK_WINDOW_S``: the stamps keep the cameras' even spacing.
 
 The SDK: :func:`read_frame` and :func:`resolve` talk to a :class:`ViconClient`, the methods and return
 shapes of Vicon's own Python API (``vicon_dssdk.ViconDataStream.Client``: ``GetFrame()`` → bool,
@@ -29,7 +29,6 @@ the control loop for up to a camera period.
 
 from __future__ import annotations
 
-import collections
 import logging
 import math
 import time
@@ -42,6 +41,7 @@ import numpy as np
 from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
+from robot_io.frame_clock import FRAME_CLOCK_WINDOW_S, FrameClock
 from robot_io.tracked_hand import TrackedHand
 
 log = logging.getLogger(__name__)
@@ -50,9 +50,6 @@ log = logging.getLogger(__name__)
 INSTALL = "pip install 'handover-lab[vicon]'"
 #: How often the receiver asks the SDK for a new frame [s].
 POLL_S = 0.001
-#: The span over which the smallest clock offset is taken [s]: long enough to hold a frame seen
-#: without delay, short enough that the cameras' clock drifts from this one by microseconds in it.
-FRAME_CLOCK_WINDOW_S = 1.0
 #: A reported latency beyond this is not one: the frame is stamped when seen [s].
 MAX_REPORTED_LATENCY_S = 0.5
 
@@ -119,35 +116,24 @@ def resolve(client: ViconClient, subject: str, segment: str, server: str) -> Non
                           f"subjects: {describe_subjects(client)}")
 
 
-class FrameClock:
-    """Each frame's instant on ``time.monotonic``: its camera time (frame number / rate) plus the
-    smallest offset (seen − camera time) over the last ``window_s`` of frames. A frame is seen late,
-    never early, so the smallest offset is the least delayed one. A frame number that does not grow,
-    or a new camera rate, starts anew (the server restarted, or the cameras were set to another rate);
-    without a rate a frame is stamped when seen."""
+class CameraFrameClock(FrameClock):
+    """:class:`FrameClock` for numbered frames at a camera rate (camera time: number / rate). A new
+    camera rate starts anew (the cameras were set to another rate); without a rate a frame is
+    stamped when seen."""
 
     def __init__(self, window_s: float = FRAME_CLOCK_WINDOW_S) -> None:
-        self.window_s = window_s
-        self._offsets: collections.deque[tuple[float, float]] = collections.deque()  # (seen, offset)
+        super().__init__(window_s)
         self._rate: float | None = None
-        self._last: int | None = None
 
-    def stamp(self, frame_number: int, rate_hz: float, seen: float) -> float:
+    def stamp_frame(self, frame_number: int, rate_hz: float, seen: float) -> float:
         if not (math.isfinite(rate_hz) and rate_hz > 0):
-            self._offsets.clear()
-            self._rate = self._last = None
+            self.reset()
+            self._rate = None
             return seen
-        if rate_hz != self._rate or (self._last is not None and frame_number <= self._last):
-            self._offsets.clear()
-        self._rate, self._last = rate_hz, frame_number
-        camera = frame_number / rate_hz
-        offset = seen - camera
-        while self._offsets and self._offsets[-1][1] >= offset:  # a sliding-window minimum
-            self._offsets.pop()
-        self._offsets.append((seen, offset))
-        while self._offsets[0][0] < seen - self.window_s:
-            self._offsets.popleft()
-        return min(seen, camera + self._offsets[0][1])  # (min: never later by a rounding)
+        if rate_hz != self._rate:
+            self.reset()
+        self._rate = rate_hz
+        return self.stamp(frame_number / rate_hz, seen)
 
 
 class PyViconClient:
@@ -238,7 +224,7 @@ class ViconHand(TrackedHand):
         self.latency_s: float | None = None
         self.camera_rate_hz: float | None = None
         self._last_number: int | None = None
-        self._clock = FrameClock()
+        self._clock = CameraFrameClock()
         self._failing = False
         self.client: ViconClient = (connect or connect_sdk)(config.vicon_server, config.vicon_port)
         try:
@@ -286,7 +272,7 @@ class ViconHand(TrackedHand):
         if last is not None and number > last + 1:
             self.missed += number - last - 1
         self._last_number = number
-        measured = self._clock.stamp(number, reading.frame_rate_hz, seen - (reading.latency_s or 0.0))
+        measured = self._clock.stamp_frame(number, reading.frame_rate_hz, seen - (reading.latency_s or 0.0))
         lost = reading.position_mm is None
         self.put(measured, np.full(3, np.nan) if lost else reading.position_mm)
         self.frames += 1

@@ -21,7 +21,6 @@ from robot_io.config import HandProfile, LoopConfig
 from robot_io.errors import HandSourceError
 from robot_io.natnet_hand import (
     RATE_BASELINE_S,
-    FrameClock,
     NatNetHand,
     TickRate,
     reported_latency,
@@ -158,20 +157,6 @@ def test_frames_delivered_late_together_keep_the_instants_they_were_measured():
     # stamp late by the least delay of loopback, at 1.5 m/s)
     for measured_at, _, xyz in hand.stamps:
         assert np.linalg.norm(xyz - to_tracker_m(swing.at(measured_at))) <= TRACKER_JITTER_M
-
-
-def test_the_frame_clock_keeps_the_least_delay_of_its_window_and_restarts_with_the_stream():
-    """FrameClock: the offset is the least (exposed − time stamp) of the last window_s; a frame
-    delivered late keeps its own spacing; a time stamp that does not advance starts anew."""
-    clock = FrameClock(window_s=1.0)
-    assert clock.stamp(10.0, 110.003) == pytest.approx(110.003)  # the first: its own arrival
-    assert clock.stamp(10.5, 110.501) == pytest.approx(110.501)  # a prompter one sets the offset
-    assert clock.stamp(10.6, 110.9) == pytest.approx(110.601)  # late (a burst): its own spacing
-    assert clock.stamp(11.4, 111.410) == pytest.approx(111.401)  # 10.5's offset is in the window
-    assert clock.stamp(11.45, 111.9) == pytest.approx(111.451)  # late again, and still is
-    assert clock.stamp(11.6, 111.610) == pytest.approx(111.610)  # 10.5 has left: the least since
-    assert clock.stamp(1.0, 112.5) == pytest.approx(112.5)  # Motive restarted: its arrival
-    assert clock.stamp(1.0, 112.6) == pytest.approx(112.6)  # a stamp that stands still likewise
 
 
 def parsed(exposure: float, transmit: float, *, received: float | None = None) -> DataFrame:

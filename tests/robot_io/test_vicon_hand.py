@@ -13,8 +13,6 @@ import time
 
 import numpy as np
 import pytest
-from hypothesis import given
-from hypothesis import strategies as st
 from support.hand_replay import TRACKER
 from support.lab_file import assert_hand_source_refused, check_devices, hand_line
 from support.priority import realtime_threads
@@ -38,7 +36,7 @@ from robot_io.devices import open_hand
 from robot_io.errors import HandSourceError
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import RigSpec
-from robot_io.vicon_hand import INSTALL, FrameClock, ViconHand, read_frame
+from robot_io.vicon_hand import INSTALL, CameraFrameClock, ViconHand, read_frame
 
 MAX_SPEED = HandProfile().max_speed
 #: The hand's translation in each new frame of RECORDED (None: lost), and the latency each reports.
@@ -176,30 +174,18 @@ def test_a_lost_connection_is_logged_once_and_the_source_closes(caplog):
         "Vicon hand source: reading a frame failed (logged once until one is read)"]
 
 
-@given(rate=st.sampled_from([50.0, 100.0, 120.0, 250.0]), first=st.integers(0, 10**7),
-       steps=st.lists(st.integers(1, 3), min_size=1, max_size=40),
-       delays=st.lists(st.floats(0.0, 0.02), min_size=41, max_size=41))
-def test_the_frame_clock_takes_off_the_least_delay_seen(rate, first, steps, delays):
-    """Frames seen late by d_i after their camera time: within the window each is stamped at its
-    camera time plus the least delay so far, never later than it was seen."""
-    clock, origin = FrameClock(window_s=10.0), 1000.0  # all of them within the window
-    numbers = [first, *(first + sum(steps[:i + 1]) for i in range(len(steps)))]
-    for i, number in enumerate(numbers):
-        camera = origin + (number - first) / rate
-        stamp = clock.stamp(number, rate, camera + delays[i])
-        assert stamp <= camera + delays[i]
-        assert stamp - camera == pytest.approx(min(delays[:i + 1]), abs=1e-9)
-
-
-def test_the_frame_clock_forgets_an_old_offset_and_starts_anew_on_a_new_stream():
-    clock = FrameClock(window_s=1.0)
-    assert clock.stamp(0, 100.0, 5.0) == 5.0
-    # 2 s on, every frame seen 3 ms late: the undelayed first frame has left the window
-    stamps = [clock.stamp(n, 100.0, 5.0 + n / 100.0 + 0.003) for n in range(1, 201)]
-    assert stamps[50] == pytest.approx(5.0 + 51 / 100.0)
-    assert stamps[-1] == pytest.approx(5.0 + 2.0 + 0.003)
-    assert clock.stamp(3, 100.0, 9.0) == 9.0  # the number went back: a new stream
-    assert clock.stamp(4, 0.0, 9.5) == 9.5  # no camera rate: when seen
+def test_the_camera_frame_clock_counts_frames_at_the_camera_rate_and_starts_anew_on_a_new_one():
+    """Vicon's frames are numbers at a camera rate: camera time is number / rate (the least-delay
+    offset is robot_io.frame_clock's, tests/robot_io/test_frame_clock.py); a new rate or a number
+    that goes back starts anew, and a frame without a rate is stamped when seen."""
+    clock = CameraFrameClock(window_s=1.0)
+    assert clock.stamp_frame(100, 100.0, 5.0) == 5.0
+    assert clock.stamp_frame(101, 100.0, 5.1) == pytest.approx(5.01)  # seen 90 ms late
+    assert clock.stamp_frame(202, 200.0, 5.2) == 5.2  # another camera rate: anew
+    assert clock.stamp_frame(203, 200.0, 5.3) == pytest.approx(5.205)
+    assert clock.stamp_frame(3, 200.0, 9.0) == 9.0  # the number went back: a new stream
+    assert clock.stamp_frame(4, 0.0, 9.5) == 9.5  # no camera rate: when seen
+    assert clock.stamp_frame(5, 200.0, 9.6) == 9.6
 
 
 def test_pyvicon_datastream_is_asked_for_prefetched_segments_and_adapted(monkeypatch):
