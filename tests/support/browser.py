@@ -31,6 +31,7 @@ from playwright.sync_api import Browser, Page, sync_playwright
 from playwright.sync_api import Error as PlaywrightError
 
 from app.protocol.vocabulary import QUESTIONS
+from app.session.runner import PLAN_TIMEOUT_S
 from app.ui.deliberate import SETTLE_S
 from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
 from support.waiting import CEILING_S, tail, wait_for
@@ -58,6 +59,15 @@ NEVER_TAKES = "[hand]\npull_n = 0.0\n\n[release]\ntimeout_s = 60.0\n"
 #: Playwright's ceiling for one wait (a locator, a function): far above what a state takes on a
 #: loaded 2-core machine; a timeout is re-raised by :func:`awaiting` with what the page showed.
 TIMEOUT_MS = 60_000
+#: Playwright's ceiling for a button that waits on the learner to become enabled: the session
+#: plans each interaction's θ before it enables Start trial, and the planner waits up to
+#: PLAN_TIMEOUT_S for the learner, then falls back to a flagged Sobol point (app/session/runner.py),
+#: so Start comes within that however slow the learner; TIMEOUT_MS more covers the page. (A
+#: session's first learner imports torch and fits first: with two suites on two cores it took more
+#: than TIMEOUT_MS, and the test gave up on a page that said "Preparing the next handover".)
+LEARNER_CEILING_MS = PLAN_TIMEOUT_S * 1000 + TIMEOUT_MS
+#: The buttons enabled only once the learner has answered, and their ceilings.
+CEILINGS_MS = {"Start trial": LEARNER_CEILING_MS}
 #: How much of a page's text a failure shows.
 PAGE_CHARS = 1000
 T = TypeVar("T")
@@ -423,16 +433,17 @@ def button(page: Page, name: str):
 
 
 def wait_enabled(page: Page, name: str) -> None:
-    """Wait until a button ``name`` is shown and enabled."""
+    """Wait until a button ``name`` is shown and enabled (within its ceiling, :data:`CEILINGS_MS`)."""
     wait_function(page, "n => [...document.querySelectorAll('button')].some("
                         "b => !b.disabled && b.innerText.trim() === n)",
-                  f"the button {name!r} enabled", arg=name)
+                  f"the button {name!r} enabled", arg=name,
+                  timeout_ms=CEILINGS_MS.get(name, TIMEOUT_MS))
 
 
 def click(page: Page, name: str) -> None:
-    """Click button ``name`` once it is visible and enabled."""
+    """Click button ``name`` once it is visible and enabled (within its ceiling, :data:`CEILINGS_MS`)."""
     with awaiting(page, f"clicking {name!r} (waits until it is visible and enabled)"):
-        button(page, name).click()
+        button(page, name).click(timeout=CEILINGS_MS.get(name, TIMEOUT_MS))
 
 
 def tap_point(page: Page, name: str, enabled: bool = True) -> tuple[float, float]:
