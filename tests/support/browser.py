@@ -86,6 +86,18 @@ def page_text(page: Page) -> str:
         return f"<page text unreadable: {str(exc).splitlines()[0]}>"
 
 
+def animation_frames(page: Page) -> str:
+    """Whether the page still runs animation frames, for a failure's message: viser applies every
+    batch of messages that touches its scene (the live view's) in a frame, and the GUI messages
+    queued behind it wait for that frame, so a page whose frames stopped shows stale text."""
+    try:  # true at the third look: the first may come at once, the next two come with frames
+        page.wait_for_function("() => (window.__hlFrames = (window.__hlFrames || 0) + 1) > 2",
+                               polling="raf", timeout=2_000)
+        return "animation frames running"
+    except PlaywrightError as exc:
+        return f"no animation frames within 2 s: {str(exc).splitlines()[0]}"
+
+
 def server_tail(page: Page) -> str:
     """The end of the log of the server that served ``page``, if :func:`serve` started it."""
     for url, log in list(_LOGS.items()):
@@ -100,7 +112,8 @@ def server_tail(page: Page) -> str:
 def what_it_showed(page: Page) -> str:
     """The page's text and its server's log tail (when known), for a failure's message."""
     log = server_tail(page)
-    return f"the page showed: {page_text(page)}" + (f"\nserver log tail:\n{log}" if log else "")
+    return (f"the page showed: {page_text(page)} ({animation_frames(page)})"
+            + (f"\nserver log tail:\n{log}" if log else ""))
 
 
 @contextmanager
@@ -276,14 +289,15 @@ STARTED = "dashboard token:"
 @contextmanager
 def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TOML,
           tables: str = "", token: str | None = TOKEN, ports: tuple[int, int] | None = None,
-          log_name: str = "serve.log", verbose: bool = False) -> Iterator[Served]:
+          log_name: str = "serve.log", verbose: bool = True) -> Iterator[Served]:
     """`handover serve` on two loopback ports the server binds itself (port 0: any free one; or
     ``ports``: tablet, dashboard, e.g. those a first run of the same test bound) with a lab config
     of the short protocol (``protocol_toml`` is its [protocol] table; ``tables``: more tables of
     the lab config, e.g. :data:`NEVER_TAKES`) at ``rate`` Hz (125 for speed); ``token`` None: the
     study's own dashboard token; its output in ``tmp/log_name``
-    (``verbose``: at INFO level, every message the dashboard shows). The URLs are read from the
-    server's output once it says it has started."""
+    (``verbose``, the default: at INFO level, every message the dashboard shows and every step of
+    the session, so that a failure's log tail says what the server did while a page showed
+    something else). The URLs are read from the server's output once it says it has started."""
     tmp.mkdir(parents=True, exist_ok=True)
     config = tmp / "lab.toml"
     config.write_text(f"[loop]\nrate_hz = {rate}\n\n[protocol]\n{protocol_toml}\n{tables}")

@@ -54,7 +54,7 @@ def watch_stages(dashboard: Page, until: str, seen: set[str]) -> None:
 def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_path: Path) -> None:
     screens = tmp_path / "screens"
     seen: set[str] = set()
-    with serve(tmp_path, "--rehearse", verbose=True) as served, \
+    with serve(tmp_path, "--rehearse") as served, \
             chromium() as browser:
         dashboard, tablet = open_screens(browser, served)
         open_participant(dashboard, "P01")
