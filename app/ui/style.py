@@ -130,11 +130,14 @@ DASHBOARD_CSS = f"""
   font-size: 26px !important; font-weight: 800 !important; background: {RED} !important; }}
 """
 
-#: The dashboard's cover when the server is unreachable: this page cannot stop the arm then.
+#: The dashboard's cover when the server is unreachable: this page cannot stop the arm then. viser
+#: (1.1.1) retries a lost connection only while its page has the focus (``WebsocketInterface.tsx``:
+#: ``!isConnected && document.hasFocus()``), so the cover says so: a dashboard behind another
+#: window stays disconnected until it is clicked.
 DASHBOARD_OFFLINE_CSS = offline_cover(
     "SERVER UNREACHABLE\n\nThis dashboard is not connected: its STOP ARM does nothing.\n"
     "Use the PHYSICAL E-STOP if the arm must stop.\n\nThe page reconnects by itself when the "
-    "server is back.", RED, "700 34px / 1.3 sans-serif")
+    "server is back, while this window is in front (click it).", RED, "700 34px / 1.3 sans-serif")
 
 
 def style_block(css: str) -> str:

@@ -86,14 +86,24 @@ def page_text(page: Page) -> str:
         return f"<page text unreadable: {str(exc).splitlines()[0]}>"
 
 
-def animation_frames(page: Page) -> str:
-    """Whether the page still runs animation frames, for a failure's message: viser applies every
-    batch of messages that touches its scene (the live view's) in a frame, and the GUI messages
-    queued behind it wait for that frame, so a page whose frames stopped shows stale text."""
-    try:  # true at the third look: the first may come at once, the next two come with frames
-        page.wait_for_function("() => (window.__hlFrames = (window.__hlFrames || 0) + 1) > 2",
-                               polling="raf", timeout=2_000)
-        return "animation frames running"
+#: Read in a page by :func:`page_state` at its third animation frame: whether viser shows the page
+#: as disconnected (its dimmed, input-blocking gate around the screen's ``.hl-live`` marker, over
+#: which app/ui/style.offline_cover draws) and whether the page has the focus (viser retries a
+#: lost connection only while it has).
+PAGE_STATE_JS = """() => (window.__hlFrames = (window.__hlFrames || 0) + 1) > 2 && [
+  document.querySelector('[style*="opacity: 0.5"][style*="pointer-events: none"] .hl-live')
+    ? 'disconnected' : 'connected',
+  document.hasFocus() ? 'focused' : 'not focused']"""
+
+
+def page_state(page: Page) -> str:
+    """Whether the page still runs animation frames, is connected and has the focus, for a
+    failure's message: viser applies every batch of messages that touches its scene (the live
+    view's), and the GUI messages queued behind it, in a frame, and keeps the last screen of a lost
+    connection; either way a page shows stale text."""
+    try:  # the first look may come at once, the next two come with animation frames
+        state = page.wait_for_function(PAGE_STATE_JS, polling="raf", timeout=2_000).json_value()
+        return ", ".join(["animation frames running", *state])
     except PlaywrightError as exc:
         return f"no animation frames within 2 s: {str(exc).splitlines()[0]}"
 
@@ -112,7 +122,7 @@ def server_tail(page: Page) -> str:
 def what_it_showed(page: Page) -> str:
     """The page's text and its server's log tail (when known), for a failure's message."""
     log = server_tail(page)
-    return (f"the page showed: {page_text(page)} ({animation_frames(page)})"
+    return (f"the page showed: {page_text(page)} ({page_state(page)})"
             + (f"\nserver log tail:\n{log}" if log else ""))
 
 
