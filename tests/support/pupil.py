@@ -4,10 +4,17 @@ starts to move.
 It listens to the study's robot stream like any other LSL client: a trial's first sample is its Go
 (the stream runs from Go on), and from there its diameter follows a dilation that begins
 :data:`ONSET_S` later (the pupil's response latency) and is over :data:`END_S` after it. Like a
-real tracker it delivers each sample :data:`LATENCY_S` after its capture time, which is its time
-stamp: by then the robot's samples of that moment have arrived, however late the machine's load
-made them, so every value follows the robot's actual start. ``handover report --xdf`` must find the
-dilation at the same time after Go in every trial.
+real tracker its camera captures at a fixed rate (:data:`RATE_HZ`, capture times on a regular grid,
+each sample's time stamp) and it delivers each sample :data:`LATENCY_S` after its capture, or later
+when this process is late: by then the robot's samples of that moment have arrived, however late the
+machine's load made them, so every value follows the robot's actual start. ``handover report
+--xdf`` must find the dilation at the same time after Go in every trial.
+
+The grid matters: pyxdf, as the report loads a recording, dejitters a stream of nominal rate (it
+replaces the time stamps by a line fitted through them), which is exact for a camera's regular
+captures. Captures stamped when a loaded Python thread happened to run (as here before) were
+irregular, and dejittering moved them by up to 0.57 s: the dilation came 0.05–0.44 s early
+against Go in `make soak` and when two suites shared two cores.
 """
 
 from __future__ import annotations
@@ -61,21 +68,21 @@ class PupilTracker:
 
     def _run(self) -> None:
         period = 1.0 / RATE_HZ
-        next_at = pylsl.local_clock()
-        while not self._stopping.wait(max(next_at - pylsl.local_clock(), 0.0)):
+        captured = pylsl.local_clock() - LATENCY_S  # the first capture, delivered now
+        # delivery LATENCY_S after each capture: pacing, as a tracker's own clock does
+        while not self._stopping.wait(max(captured + LATENCY_S - pylsl.local_clock(), 0.0)):
             samples, stamps = self.inlet.pull_chunk(timeout=0.0)
             for sample, stamp in zip(samples, stamps, strict=True):
                 if sample[0] != self.trial:  # channel 0: the trial index
                     self.trial = sample[0]
                     self.starts.append(stamp)
                     self.dilations.append(DILATION_MM * (1.0 + self._spread * self._rng.standard_normal()))
-            captured = pylsl.local_clock() - LATENCY_S
             started = [i for i, start in enumerate(self.starts) if start <= captured]
             value = (diameter(captured - self.starts[started[-1]], self.dilations[started[-1]])
                      if started else BASELINE_MM)
             value += self._noise * self._rng.standard_normal() if self._noise else 0.0
             self.outlet.push_sample([value], captured)
-            next_at += period
+            captured += period
 
     def close(self) -> None:
         self._stopping.set()
