@@ -37,6 +37,11 @@ canvas, .mantine-Notifications-root, [data-dock-region-handle], [data-dock-heade
 .mantine-Paper-root[style*="position: fixed"] .mantine-Divider-root { display: none !important; }
 """
 
+#: The screen's ``.hl-live`` marker inside viser's ``DisconnectedGate`` (inline ``opacity: 0.5;
+#: pointer-events: none`` while the connection is down): present only on a disconnected page.
+DISCONNECTED = '[style*="opacity: 0.5"][style*="pointer-events: none"] .hl-live'
+
+
 def offline_cover(message: str, colour: str, font: str) -> str:
     """CSS that covers the whole page with ``message`` while the connection is down.
 
@@ -46,7 +51,7 @@ def offline_cover(message: str, colour: str, font: str) -> str:
     screen again. ``.hl-live`` is an empty marker in every screen."""
     text = message.replace("\n", "\\A ")
     return f"""
-body:has([style*="opacity: 0.5"][style*="pointer-events: none"] .hl-live)::after {{
+body:has({DISCONNECTED})::after {{
   content: "{text}";
   white-space: pre-wrap; position: fixed; inset: 0; z-index: 2147483647; display: flex;
   align-items: center; justify-content: center; text-align: center; padding: 24px;

@@ -19,12 +19,7 @@ from support.waiting import wait_for
 
 from robot_io.config import HandProfile, LoopConfig
 from robot_io.errors import HandSourceError
-from robot_io.natnet_hand import (
-    RATE_BASELINE_S,
-    NatNetHand,
-    TickRate,
-    reported_latency,
-)
+from robot_io.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
 from robot_io.natnet_standin import (
     NAT_FRAMEOFDATA,
     PROTOCOL_VERSION,

@@ -33,6 +33,7 @@ from playwright.sync_api import Error as PlaywrightError
 from app.protocol.vocabulary import QUESTIONS
 from app.session.runner import PLAN_TIMEOUT_S
 from app.ui.deliberate import SETTLE_S
+from app.ui.style import DISCONNECTED
 from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
 from support.waiting import CEILING_S, tail, wait_for
 
@@ -90,9 +91,8 @@ def page_text(page: Page) -> str:
 #: as disconnected (its dimmed, input-blocking gate around the screen's ``.hl-live`` marker, over
 #: which app/ui/style.offline_cover draws) and whether the page has the focus (viser retries a
 #: lost connection only while it has).
-PAGE_STATE_JS = """() => (window.__hlFrames = (window.__hlFrames || 0) + 1) > 2 && [
-  document.querySelector('[style*="opacity: 0.5"][style*="pointer-events: none"] .hl-live')
-    ? 'disconnected' : 'connected',
+PAGE_STATE_JS = f"""() => (window.__hlFrames = (window.__hlFrames || 0) + 1) > 2 && [
+  document.querySelector({DISCONNECTED!r}) ? 'disconnected' : 'connected',
   document.hasFocus() ? 'focused' : 'not focused']"""
 
 
