@@ -31,6 +31,7 @@ from viser import _messages
 from viser.infra import WebsockClientConnection
 
 from app.session.access import AttemptLimit
+from app.ui.streams import safe_streams
 
 log = logging.getLogger(__name__)
 
@@ -45,13 +46,15 @@ class PortInUse(ValueError):
 
 
 def open_server(host: str, port: int, role: str, **kwargs) -> tuple[viser.ViserServer, Guard]:
-    """A viser server for ``role`` ("tablet", "dashboard") on exactly ``host:port``, guarded."""
+    """A viser server for ``role`` ("tablet", "dashboard") on exactly ``host:port``, guarded, its
+    message streams woken safely from any thread (:mod:`app.ui.streams`)."""
     server = viser.ViserServer(host=host, port=port, verbose=False, **kwargs)
     bound = server.get_port()
     if port != 0 and bound != port:
         server.stop()
         raise PortInUse(f"{role} port {port} on {host} is in use (by another program, or the other "
                         f"screen); free it or choose another {role} port")
+    safe_streams(server)
     return server, Guard(server, role)
 
 
