@@ -10,14 +10,13 @@ from pathlib import Path
 
 import pytest
 from support.engine import SHORT_PROTOCOL
-from support.runner import Probe
-from support.waiting import CEILING_S
+from support.runner import READY_CEILING_S, Probe
 
 from app.protocol.errors import RefusedAction
 from app.session.access import TOKEN_FILE, UnsafeTokenFile, dashboard_token
 from app.session.config import LabConfig
 from app.session.pairing import CODE_GUESSES, TabletPairing
-from app.session.runner import PLAN_TIMEOUT_S, SessionRunner
+from app.session.runner import SessionRunner
 from app.ui.status_text import status_line
 from robot_io.simulated_hand import Scenario
 
@@ -114,7 +113,7 @@ def test_start_needs_one_paired_tablet_and_after_a_stop_a_rearm(tmp_path: Path):
         pairing = runner.attach_tablet()
         runner.open("P01", Scenario.STRAIGHTFORWARD)
         probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ",
-                   timeout=PLAN_TIMEOUT_S + CEILING_S)  # above the product's fallback to a Sobol θ
+                   timeout=READY_CEILING_S)
         with pytest.raises(RefusedAction, match="no tablet is connected"):
             runner.start_trial()
         runner.tablet_connected(7, "127.0.0.1")

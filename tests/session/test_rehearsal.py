@@ -12,7 +12,7 @@ import sys
 import numpy as np
 import pytest
 from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
-from support.runner import Probe
+from support.runner import READY_CEILING_S, Probe
 from support.waiting import CEILING_S, wait_for
 
 from app.protocol.errors import RefusedAction
@@ -20,7 +20,7 @@ from app.session.config import LabConfig
 from app.session.faults import StagedFault
 from app.session.rehearsal import Rehearsal
 from app.session.replay import stored_rows
-from app.session.runner import PLAN_TIMEOUT_S, SessionRunner
+from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
 from robot_io.stages import SAMPLE_CODE, Stage
 from robot_io.ur_kinematics import forward
@@ -76,12 +76,6 @@ def test_run_session_rehearse_completes_a_session_through_the_standin(tmp_path):
     assert stand_in["gripper_opened"] >= n and stand_in["gripper_closed"] >= n
     assert stand_in["moves_to_R"] >= 2 * n  # prepare and retract, every trial
     assert stand_in["tcp_to_R_m"] < 1e-3
-
-
-#: The ceiling of a wait for the next θ ('ready'): above the product's own PLAN_TIMEOUT_S, after
-#: which a learner late with its reply (under load its first start took over a minute) is replaced
-#: by a flagged fallback θ — the wait must see that happen, not give up at the same moment.
-READY_CEILING_S = PLAN_TIMEOUT_S + CEILING_S
 
 
 def ended(view, index: int):

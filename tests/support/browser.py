@@ -21,20 +21,22 @@ import signal
 import subprocess
 import sys
 import time
+import weakref
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
-from playwright.sync_api import Browser, Page, sync_playwright
+import viser
+from playwright.sync_api import Browser, ConsoleMessage, Page, sync_playwright
 from playwright.sync_api import Error as PlaywrightError
 
 from app.protocol.vocabulary import QUESTIONS
-from app.session.runner import PLAN_TIMEOUT_S
 from app.ui.deliberate import SETTLE_S
 from app.ui.style import DISCONNECTED
 from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
+from support.runner import READY_CEILING_S
 from support.waiting import CEILING_S, tail, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
@@ -63,18 +65,41 @@ TIMEOUT_MS = 60_000
 #: Playwright's ceiling for a button that waits on the learner to become enabled: the session
 #: plans each interaction's θ before it enables Start trial, and the planner waits up to
 #: PLAN_TIMEOUT_S for the learner, then falls back to a flagged Sobol point (app/session/runner.py),
-#: so Start comes within that however slow the learner; TIMEOUT_MS more covers the page. (A
+#: so Start comes within that however slow the learner (support.runner.READY_CEILING_S). (A
 #: session's first learner imports torch and fits first: with two suites on two cores it took more
 #: than TIMEOUT_MS, and the test gave up on a page that said "Preparing the next handover".)
-LEARNER_CEILING_MS = PLAN_TIMEOUT_S * 1000 + TIMEOUT_MS
+LEARNER_CEILING_MS = READY_CEILING_S * 1000
 #: The buttons enabled only once the learner has answered, and their ceilings.
 CEILINGS_MS = {"Start trial": LEARNER_CEILING_MS}
 #: How much of a page's text a failure shows.
-PAGE_CHARS = 1000
+PAGE_CHARS = 3000
 T = TypeVar("T")
 
 #: The output of each server :func:`serve` runs now in this process, by its URLs (for failures).
 _LOGS: dict[str, Path] = {}
+#: What each page :func:`open_page` opened reported (for failures): its uncaught exceptions, its
+#: console errors and warnings, and viser's own notices below. An exception thrown in a frame of
+#: viser's render loop drops the rest of the batch of messages it was applying; a reconnection
+#: shows as a second "Connected!"; either way a page can show stale text while its own animation
+#: frames still run.
+_NOTICES: weakref.WeakKeyDictionary[Page, list[str]] = weakref.WeakKeyDictionary()
+#: What viser's client (its page and its websocket worker) logs about its connection and its
+#: messages: connected, disconnected, a message it could not send, a message it could not order.
+VISER_NOTICES = ("Connected!", "Disconnected!", "Tried to send", "Order lock timed out",
+                 "Received message did not match")
+#: The in-process viser client of a page, where a test said (:func:`watch_client`).
+_CLIENTS: weakref.WeakKeyDictionary[Page, viser.ClientHandle] = weakref.WeakKeyDictionary()
+#: Warnings every page logs, never a cause: software WebGL's driver notes, three.js deprecations.
+ROUTINE_WARNINGS = ("[.WebGL-", "THREE.")
+#: How many of a page's notices a failure shows (the latest).
+NOTICES_SHOWN = 8
+
+
+def notable(message: ConsoleMessage) -> bool:
+    """A console message worth a failure's mention: an error, a warning but the routine ones, or
+    one of viser's notices."""
+    return (message.type == "error" or message.text.startswith(VISER_NOTICES)
+            or (message.type == "warning" and not message.text.startswith(ROUTINE_WARNINGS)))
 
 
 def page_text(page: Page) -> str:
@@ -96,16 +121,56 @@ PAGE_STATE_JS = f"""() => (window.__hlFrames = (window.__hlFrames || 0) + 1) > 2
   document.hasFocus() ? 'focused' : 'not focused']"""
 
 
+#: Read in a page by :func:`page_state`: how many messages viser's client holds in its queue, the
+#: first kinds, and its render request state (found through React's fiber tree: the value of the
+#: context provider that holds viser's mutable viewer state). The queue drains in a frame of the
+#: render loop, or at once for a batch that touches only the GUI when nothing waits before it.
+PAGE_QUEUE_JS = """() => {
+  const root = document.getElementById('root');
+  const key = root && Object.keys(root).find(k => k.startsWith('__reactContainer$'));
+  if (!key) return 'no React root';
+  const fibers = [root[key]];
+  for (let looked = 0; fibers.length && looked < 500000; looked++) {
+    const fiber = fibers.pop();
+    const value = fiber.memoizedProps && fiber.memoizedProps.value;
+    const viewer = value && value.mutable && value.mutable.current;
+    if (viewer && Array.isArray(viewer.messageQueue)) {
+      const queue = viewer.messageQueue;
+      return `${queue.length} messages queued` + (queue.length ? ` (the first: ${
+        queue.slice(0, 3).map(m => m.type).join(', ')})` : '') +
+        `, render request ${viewer.getRenderRequestState}`;
+    }
+    if (fiber.child) fibers.push(fiber.child);
+    if (fiber.sibling) fibers.push(fiber.sibling);
+  }
+  return "viser's viewer state not found";
+}"""
+#: How long :func:`page_state` watches viser's queue [ms]: longer than viser's 1 s render
+#: heartbeat, so a queue still waiting after it waits on a render loop that has stopped. (A look
+#: for a failure's message only, never a wait for a state.)
+QUEUE_WATCH_MS = 1_500
+
+
 def page_state(page: Page) -> str:
-    """Whether the page still runs animation frames, is connected and has the focus, for a
-    failure's message: viser applies every batch of messages that touches its scene (the live
-    view's), and the GUI messages queued behind it, in a frame, and keeps the last screen of a lost
-    connection; either way a page shows stale text."""
+    """Whether the page still runs animation frames, is connected and has the focus, and what it
+    reported (:data:`_NOTICES`), for a failure's message: viser applies every batch of messages that
+    touches its scene (the live view's), and the GUI messages queued behind it, in a frame of its
+    render loop, and keeps the last screen of a lost connection; either way a page shows stale
+    text."""
     try:  # the first look may come at once, the next two come with animation frames
         state = page.wait_for_function(PAGE_STATE_JS, polling="raf", timeout=2_000).json_value()
-        return ", ".join(["animation frames running", *state])
+        shown = ", ".join(["animation frames running", *state])
     except PlaywrightError as exc:
-        return f"no animation frames within 2 s: {str(exc).splitlines()[0]}"
+        shown = f"no animation frames within 2 s: {str(exc).splitlines()[0]}"
+    try:
+        first = page.evaluate(PAGE_QUEUE_JS)
+        page.wait_for_timeout(QUEUE_WATCH_MS)
+        shown += f"; viser's queue: {first}, {QUEUE_WATCH_MS} ms later {page.evaluate(PAGE_QUEUE_JS)}"
+    except PlaywrightError as exc:
+        shown += f"; viser's queue unreadable: {str(exc).splitlines()[0]}"
+    notices = _NOTICES.get(page, [])
+    return shown + (f"; {len(notices)} page notices, the latest: " + " | ".join(notices[-NOTICES_SHOWN:])
+                    if notices else "; no page notices")
 
 
 def server_tail(page: Page) -> str:
@@ -119,10 +184,30 @@ def server_tail(page: Page) -> str:
     return ""
 
 
+def sending(client: viser.ClientHandle) -> str:
+    """What viser's server holds for one client's page and has not handed to its websocket yet,
+    for a failure's message: the messages queued past the page's cursor, and whether an atomic
+    block holds them back (viser's message buffer, read from its private state: no public API
+    says this)."""
+    buffer = client._websock_connection.get_message_buffer()
+    cursor = buffer.generator_cursors.get(client.client_id)
+    waiting = "no sender" if cursor is None else f"{buffer.message_counter - 1 - cursor} messages"
+    return (f"server to client {client.client_id}: {waiting} not yet sent, atomic depth "
+            f"{buffer.atomic_counter}{', closed' if buffer.done else ''}")
+
+
+def watch_client(page: Page, client: viser.ClientHandle) -> None:
+    """Let a failure on ``page`` say what its in-process server still holds for it (:func:`sending`)."""
+    _CLIENTS[page] = client
+
+
 def what_it_showed(page: Page) -> str:
-    """The page's text and its server's log tail (when known), for a failure's message."""
+    """The page's text, what the page's client reported and holds, and, when known, its server's
+    log tail or what its in-process server still holds for it, for a failure's message."""
     log = server_tail(page)
+    client = _CLIENTS.get(page)
     return (f"the page showed: {page_text(page)} ({page_state(page)})"
+            + (f"; {sending(client)}" if client is not None else "")
             + (f"\nserver log tail:\n{log}" if log else ""))
 
 
@@ -395,6 +480,11 @@ def open_page(browser: Browser, url: str, touch: bool = False,
                                 "document.head.appendChild(s); });")
     page = context.new_page()
     page.set_default_timeout(TIMEOUT_MS)
+    notices = _NOTICES.setdefault(page, [])
+    page.on("pageerror", lambda exc: notices.append(f"uncaught {exc.name}: {exc.message} "
+                                                    f"(stack: {(exc.stack or '')[:600]})"))
+    page.on("console", lambda message: notable(message) and notices.append(
+        f"console {message.type}: {message.text[:600]}"))
     with awaiting(page, f"opening {url}"):
         page.goto(url)
     wait_ready(page)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
+import traceback
 from collections.abc import Callable
+from pathlib import Path
 
-from app.session.runner import RunnerView, SessionRunner
+from app.session.runner import PLAN_TIMEOUT_S, RunnerView, SessionRunner
 from support.waiting import CEILING_S, WaitTimeout
 
 
@@ -20,6 +23,31 @@ def describe(view: RunnerView) -> str:
             f"{view.waiting_for}, ready_wait {view.ready_wait!r}, arm fault {view.arm_fault!r}, "
             f"learner {view.learner} (fault {view.learner_fault!r}), failed {view.failed!r}, "
             f"trials {trials}, messages {view.messages}")
+
+
+#: The ceiling of a wait for the next θ ('ready'): above the product's own PLAN_TIMEOUT_S, after
+#: which a learner late with its reply (under load its first start took over a minute) is replaced
+#: by a flagged fallback θ — the wait must see that happen, not give up at the same moment.
+READY_CEILING_S = PLAN_TIMEOUT_S + CEILING_S
+#: The project's packages: a thread with one of their frames on its stack is doing the project's work.
+PACKAGES = tuple(str(Path(__file__).resolve().parents[2] / name) for name in
+                 ("app", "robot_io", "session_store"))
+
+
+def busy_threads(frames: int = 6) -> str:
+    """Where this process's threads that are in the project's code are now (their innermost
+    ``frames`` frames), for a wait that gave up on an action that never finished: a GUI callback
+    blocked on the engine thread, and the engine thread itself, show where they stand."""
+    lines = []
+    current = sys._current_frames()
+    for thread in threading.enumerate():
+        frame = current.get(thread.ident)
+        stack = traceback.extract_stack(frame) if frame is not None else []
+        if any(entry.filename.startswith(PACKAGES) for entry in stack):
+            where = " < ".join(f"{Path(entry.filename).name}:{entry.lineno} {entry.name}"
+                               for entry in reversed(stack[-frames:]))
+            lines.append(f"[{thread.name}] {where}")
+    return "\n".join(lines) or "no thread is in the project's code"
 
 
 class Probe:

@@ -18,10 +18,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support.browser import TOKEN, chromium, click, open_page, unlock_dashboard, wait_text
+from support.browser import (
+    TOKEN,
+    chromium,
+    click,
+    open_page,
+    unlock_dashboard,
+    wait_text,
+    watch_client,
+    what_it_showed,
+)
 from support.engine import SHORT_PROTOCOL
-from support.runner import Probe
-from support.waiting import wait_for
+from support.runner import READY_CEILING_S, Probe, busy_threads
+from support.waiting import CEILING_S, wait_for
 
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
@@ -79,10 +88,12 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
     try:
         runner.set_auto(True)  # the simulated participant places it (no tablet needed: simulated rig)
         runner.open("P01", Scenario.PERTURBED)
-        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ")
+        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ",
+                   timeout=READY_CEILING_S)
         runner.start_trial()
         view = probe.wait(lambda v: v.step is not None and v.step.value == "ready" and v.trials,
-                          timeout=120, what="the first trial placed and the next θ")
+                          timeout=CEILING_S + READY_CEILING_S,  # the trial, then its plan
+                          what="the first trial placed and the next θ")
         [trial] = view.trials
         assert trial.outcome.value == "completed"
         store = ParticipantStore.open(runner.study, "P01")
@@ -102,6 +113,7 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
                                   size=(1366, 768))
             unlock_dashboard(dashboard)
             [client] = servers.dashboard.clients.values()
+            watch_client(dashboard, client.client)
             dashboard.get_by_text("Replay a stored trial", exact=True).first.click()
             wait_for(lambda: client.replay_trial.value.startswith(f"trial {trial.trial_index} "),
                      f"trial {trial.trial_index} offered for replay",
@@ -113,7 +125,8 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
             live = client.live
             wait_for(lambda: client.replay is not None and client.replay.frames > 0,
                      "the replay's first frame drawn", poll=0.005,
-                     seen=lambda: client.replay_status.content)
+                     seen=lambda: f"status {client.replay_status.content!r}; {what_it_showed(dashboard)}; "
+                          f"threads in the project's code:\n{busy_threads()}")
             # Sampling what the server draws while the replay runs (each sample is checked): a poll
             # of the live view, not a wait; a busy machine samples fewer frames (≥ 10 needed of a
             # trial's seconds at 20 frames/s).
