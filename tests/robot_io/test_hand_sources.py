@@ -14,6 +14,7 @@ import numpy as np
 import pylsl
 import pytest
 from support.hand_replay import TRACKER, Replay, to_tracker
+from support.lsl_tracker import LSLTracker
 from support.priority import realtime_threads
 from support.waiting import wait_for
 
@@ -64,31 +65,33 @@ def test_lsl_outlet_at_100hz_feeds_the_controller_through_a_full_handover():
     config = ControllerConfig()
     name, stream_type = unique("handover-test"), unique("MocapTest")
     config = source_config(config, kind="lsl", lsl_stream_name=name, lsl_stream_type=stream_type)
-    outlet = lsl_outlet(name, stream_type)
-    simulated = SimulatedHand(Scenario.STRAIGHTFORWARD, config.scene, config.hand, 3)
-    # The replay, the receiver and the loop's own thread under SCHED_FIFO, as a rig runs them: on
-    # the normal policy a stale hand sample of 0.186 s ended the trial tracker_lost beside a full
-    # suite's load; with the main thread alone on it, building the loop while holding the GIL kept
-    # the receiver from storing samples (0.106 s stale at the first cycle, a loaded full run).
-    with realtime_threads():
-        hand = LSLHand(config.hand_source, _transform(config), config.hand.max_speed)
-        replay = Replay(simulated, lambda xyz: outlet.push_sample(xyz.tolist()), 100.0).start()
-        try:
-            record = trial_once_live(config, hand)
-            replay.stop()
-            # every sample sent arrives, once (the inlet was open before the first was pushed)
-            wait_for(lambda: hand.received >= len(replay.sent), "every sent sample at the inlet",
-                     seen=lambda: f"received {hand.received} of {len(replay.sent)} sent")
-        finally:
-            replay.stop()
-            hand.close()
+    # The tracker streams from a process of its own (support/lsl_tracker.py): in this process its
+    # thread shared the interpreter lock with the receiver and the loop, and beside two suites a
+    # 0.106 s gap ended the trial tracker_lost. The receiver and the loop's own thread run under
+    # SCHED_FIFO, as a rig runs them: on the normal policy a stale hand sample of 0.186 s ended the
+    # trial beside a full suite's load; with the main thread alone on it, building the loop while
+    # holding the GIL kept the receiver from storing samples (0.106 s stale at the first cycle).
+    tracker = LSLTracker(name, stream_type, unique("source"), Scenario.STRAIGHTFORWARD, config, 3)
+    try:
+        with realtime_threads():
+            hand = LSLHand(config.hand_source, _transform(config), config.hand.max_speed)
+            try:
+                tracker.start()
+                record = trial_once_live(config, hand)
+                sent = tracker.stop()
+                # every sample sent arrives, once (the inlet was open before the first was pushed)
+                wait_for(lambda: hand.received >= len(sent), "every sent sample at the inlet",
+                         seen=lambda: f"received {hand.received} of {len(sent)} sent")
+            finally:
+                hand.close()
+    finally:
+        tracker.close()
     summary = record.summary
     assert summary.outcome is Outcome.COMPLETED, summary.reason
-    assert hand.received == len(replay.sent)  # none lost, none twice
+    assert hand.received == len(sent)  # none lost, none twice
     # every hand position the controller used is one that was sent, back in the robot base frame
     hand_t, hand_xyz = record.samples["hand_t"], record.samples["hand"]
     valid = np.isfinite(hand_t)
-    sent = np.array(replay.sent)
     nearest = np.min(np.linalg.norm(hand_xyz[valid][:, None, :] - sent[None], axis=2), axis=1)
     assert np.max(nearest) < 1e-5  # float32 millimetres
     # stamps are fresh: at most a few tracker periods old when used. A bound on time, kept: the
