@@ -9,20 +9,44 @@ from __future__ import annotations
 
 import gc
 import logging
+import math
 import os
 import sys
 import time
-from datetime import UTC, datetime, timedelta
+from datetime import UTC, datetime
 from typing import NamedTuple, Protocol
 
 log = logging.getLogger(__name__)
 
 
+#: How many (monotonic, UTC, monotonic) readings :func:`utc_minus_monotonic` takes at most, and the
+#: bracket it accepts at once [s].
+OFFSET_READINGS, TIGHT_BRACKET_S = 8, 20e-6
+
+
+def utc_minus_monotonic() -> float:
+    """UTC (``time.time()``) − ``time.monotonic()`` now [s], from the tightest of up to
+    OFFSET_READINGS brackets monotonic → UTC → monotonic (the UTC reading against the brackets'
+    midpoint). Two clock readings in a row differ by however long the thread was preempted between
+    them, milliseconds on a loaded machine (an LSL marker then sat 8 ms off its stored time); the
+    tightest bracket is off by at most half its width, microseconds."""
+    width, offset = math.inf, 0.0
+    for _ in range(OFFSET_READINGS):
+        before = time.monotonic()
+        utc = time.time()
+        after = time.monotonic()
+        if after - before < width:
+            width, offset = after - before, utc - (before + after) / 2.0
+        if width <= TIGHT_BRACKET_S:
+            break
+    return offset
+
+
 def utc_of_monotonic(monotonic: float) -> datetime:
     """The UTC time (stored rows) of a ``time.monotonic()`` reading of this machine (the rig's stage
     times, the LSL clock: ``pylsl.local_clock()`` is CLOCK_MONOTONIC on Linux), through the offset
-    between the two clocks now."""
-    return datetime.now(UTC) - timedelta(seconds=time.monotonic() - monotonic)
+    between the two clocks now (:func:`utc_minus_monotonic`)."""
+    return datetime.fromtimestamp(monotonic + utc_minus_monotonic(), UTC)
 
 
 def monotonic_of_utc(at: str | datetime) -> float:
@@ -30,7 +54,7 @@ def monotonic_of_utc(at: str | datetime) -> float:
     :func:`utc_of_monotonic`: exact to the microseconds a stored time keeps, as long as nobody sets
     the wall clock in between."""
     when = datetime.fromisoformat(at) if isinstance(at, str) else at
-    return time.monotonic() - (datetime.now(UTC) - when).total_seconds()
+    return when.timestamp() - utc_minus_monotonic()
 
 
 class CycleStart(NamedTuple):

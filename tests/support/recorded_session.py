@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import uuid
 from dataclasses import dataclass
-from datetime import UTC, datetime
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +29,7 @@ from app.session.runner import SessionRunner
 from robot_io.simulated_hand import Scenario
 from session_store.models import Event
 from session_store.store import ParticipantStore
+from support.clocks import utc_minus
 from support.lab_recorder import LabRecorder
 from support.pupil import PupilTracker
 from support.runner import Probe
@@ -163,7 +164,7 @@ def agreement(session: RecordedSession) -> Agreement:
     finally:
         store.close()
     rows = stored_samples(session.study, session.code)
-    offset = datetime.now(UTC).timestamp() - pylsl.local_clock()
+    offset = utc_minus(pylsl.local_clock)  # one reading of each was 8 ms off beside a hog
     streams, _ = pyxdf.load_xdf(session.xdf, dejitter_timestamps=False)
     markers, robot = named(streams, session.markers), named(streams, session.robot)
     recorded = [decode(m[0]) for m in markers["time_series"]]
