@@ -110,6 +110,7 @@ class RigClient:
             self.devices = self._await_open()
         except BaseException:
             self.kill()
+            self._conn.close()  # no reader yet
             self.stream.close(unlink=True)
             raise
         self._reader = threading.Thread(target=self._read, name="rig-reader", daemon=True)
@@ -222,18 +223,40 @@ class RigClient:
         if not self._wait_reaped(CLOSE_S):
             log.error("the rig process did not exit within %g s: killing it", CLOSE_S)
             self.backstop("the rig did not shut down")
-        self._conn.close()
+        # the pipe is not closed here: the reader closes it once the rig's end is gone (_read)
         if self._stopper is not None:
             self._stopper.close()
         self.stream.close(unlink=True)
 
     # -- reports -----------------------------------------------------------------------------------
     def _read(self) -> None:
+        """Hand every report on until the rig's end of the pipe is gone, then close the pipe. Only
+        this thread closes it, and never while in ``recv``: a close() from another thread could land
+        between recv's check that the pipe is open and its read, which would then read a handle gone
+        None (the thread dies) or, had the number been reused, another file. Sends take the same
+        lock, so none is under way when it closes."""
+        try:
+            self._hand_on()
+        finally:
+            with self._send_lock:
+                self._conn.close()
+        self._wait_reaped()  # a killed rig is reported with its exit code
+        if not self._closing:
+            code = self.process.exitcode
+            how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
+            stage = self.stage
+            self._notify(RigDied(trial_index=self.running, reason=(
+                f"the rig process ended ({how})" + (f" during {stage.value}" if stage else "")
+                + "; the arm was stopped by its control worker or the controller's watchdog")))
+            self.running = None
+
+    def _hand_on(self) -> None:
+        """Every report to what waits for it and to the listener, until the pipe ends."""
         while True:
             try:
                 report = self._conn.recv()
             except (EOFError, OSError):
-                break
+                return
             if isinstance(report, StopReceived):
                 self._stop_ack.set()
             elif isinstance(report, Recovered):
@@ -244,15 +267,6 @@ class RigClient:
             elif isinstance(report, TrialDone):
                 self.running, self.stage = None, None
             self._notify(report)
-        self._wait_reaped()  # a killed rig is reported with its exit code
-        if not self._closing:
-            code = self.process.exitcode
-            how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
-            stage = self.stage
-            self._notify(RigDied(trial_index=self.running, reason=(
-                f"the rig process ended ({how})" + (f" during {stage.value}" if stage else "")
-                + "; the arm was stopped by its control worker or the controller's watchdog")))
-            self.running = None
 
     def _notify(self, report: Report | RigDied) -> None:
         try:
@@ -277,9 +291,9 @@ class RigClient:
         a heartbeat can never hold up a Stop."""
         if self.running is None:
             return
-        with contextlib.suppress(OSError, ValueError):
+        with self._send_lock, contextlib.suppress(OSError, ValueError):  # closed: no heartbeat
             if select.select([], [self._conn.fileno()], [], 0)[1]:
-                self._send(Heartbeat())
+                self._conn.send(Heartbeat())
 
     def _watch(self) -> None:
         """Every HEARTBEAT_S: a heartbeat to the rig, and the backstop when the rig writes no sample

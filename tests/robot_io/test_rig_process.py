@@ -12,10 +12,12 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from multiprocessing.connection import _ConnectionBase
 from pathlib import Path
 
 import numpy as np
 import pytest
+from support.between import Between
 from support.waiting import CEILING_S, tail, wait_for
 
 from robot_io.config import ControllerConfig
@@ -180,6 +182,33 @@ def test_a_rig_that_exits_while_other_threads_reap_it_closes_cleanly(caplog):
             thread.join(CEILING_S)
         assert client.process.exitcode == 0, f"close {attempt}: exit code {client.process.exitcode}"
         assert not caplog.records, f"close {attempt}: {[r.getMessage() for r in caplog.records]}"
+
+
+def test_close_never_closes_the_report_pipe_under_the_reader(monkeypatch):
+    """The report reader may be anywhere in ``recv`` when close() is called (a loaded machine
+    leaves it between two reports). Here it is held between recv's check that the pipe is open and
+    its read while close() shuts the rig down: if close() closed the pipe there, the read would take
+    a handle gone None (a TypeError that kills the thread, seen once beside a second suite) or, had
+    the number been reused, read another file. The pipe must end with the reader, and only then."""
+    died: list[threading.ExceptHookArgs] = []
+    monkeypatch.setattr(threading, "excepthook", died.append)
+    between = Between(_ConnectionBase.recv, "self._recv_bytes()")
+    reports = Reports()
+    with between.tracing():
+        client = rig(realtime=False, reports=reports)
+    try:
+        between.arm()  # the reader's next recv, after the report below
+        assert client.stop("a report for the reader to go round with")
+        wait_for(between.holding.is_set, "the reader held inside recv, past its check",
+                 seen=lambda: f"reports {reports.seen}, reader alive {client._reader.is_alive()}")
+        client.close()  # the rig exits; the reader is still held
+        assert client.process.exitcode == 0
+    finally:
+        between.release()
+    client._reader.join(CEILING_S)
+    assert not client._reader.is_alive(), "the reader did not end with the rig's pipe"
+    assert not died, f"the reader died: {died[0].exc_type.__name__}: {died[0].exc_value}"
+    assert client._conn.closed, "the reader left the pipe open"
 
 
 def hold_the_interpreter(seconds: float) -> None:
