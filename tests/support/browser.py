@@ -31,6 +31,7 @@ from typing import TypeVar
 import viser
 from playwright.sync_api import Browser, ConsoleMessage, Page, sync_playwright
 from playwright.sync_api import Error as PlaywrightError
+from viser import _messages
 
 from app.protocol.vocabulary import QUESTIONS
 from app.ui.deliberate import SETTLE_S
@@ -145,6 +146,29 @@ PAGE_QUEUE_JS = """() => {
   }
   return "viser's viewer state not found";
 }"""
+#: Installed in every page :func:`open_page` opens, before viser's own scripts: records the GUI input
+#: (clicks, values) the page hands to viser's websocket worker, as (ms since load, kind, element
+#: uuid, what), for a failure's message. viser's panel sends its input through a sender throttled
+#: at 50 ms that keeps only the last of a burst, so a click can leave a page without reaching its
+#: server only in theory; this shows whether it left.
+GUI_SENT_JS = """(() => {
+  const sent = window.__hlGuiSent = [];
+  const post = Worker.prototype.postMessage;
+  Worker.prototype.postMessage = function (data, ...rest) {
+    const m = data && data.type === 'send' && data.message;
+    if (m && m.type.startsWith('Gui')) {
+      sent.push([Math.round(performance.now()), m.type, m.uuid || '',
+                 JSON.stringify(m.updates ?? '').slice(0, 60)]);
+      if (sent.length > 100) sent.splice(0, 50);
+    }
+    return post.call(this, data, ...rest);
+  };
+})();"""
+#: How many of a page's sent and received GUI inputs a failure shows (the latest).
+INPUTS_SHOWN = 6
+#: The GUI input each watched page's server received (:func:`watch_client`), as (monotonic time,
+#: element uuid, what, the element's label or "gone" for one the server has removed).
+_RECEIVED: weakref.WeakKeyDictionary[Page, list[tuple]] = weakref.WeakKeyDictionary()
 #: How long :func:`page_state` watches viser's queue [ms]: longer than viser's 1 s render
 #: heartbeat, so a queue still waiting after it waits on a render loop that has stopped. (A look
 #: for a failure's message only, never a wait for a state.)
@@ -197,8 +221,33 @@ def sending(client: viser.ClientHandle) -> str:
 
 
 def watch_client(page: Page, client: viser.ClientHandle) -> None:
-    """Let a failure on ``page`` say what its in-process server still holds for it (:func:`sending`)."""
+    """Let a failure on ``page`` say what its in-process server still holds for it (:func:`sending`)
+    and what GUI input it received from it (its connection's own handler hook, beside viser's)."""
     _CLIENTS[page] = client
+    received = _RECEIVED.setdefault(page, [])
+
+    def record(client_id: int, message: _messages.GuiUpdateMessage) -> None:
+        handle = client.gui._gui_input_handle_from_uuid.get(message.uuid)
+        label = "gone" if handle is None or handle._impl.removed else repr(handle.label)
+        received.append((time.monotonic(), message.uuid, str(message.updates)[:60], label))
+        del received[:-INPUTS_SHOWN]
+
+    client._websock_connection.register_handler(_messages.GuiUpdateMessage, record)
+
+
+def gui_input(page: Page) -> str:
+    """The latest GUI input the page sent and, for a watched page, what its server received, for a
+    failure's message (a click that never left the page, or one the server dropped)."""
+    try:
+        sent = page.evaluate("() => window.__hlGuiSent || []")[-INPUTS_SHOWN:]
+    except PlaywrightError as exc:
+        sent = f"<unreadable: {str(exc).splitlines()[0]}>"
+    shown = f"the page sent (ms, kind, uuid, updates): {sent}"
+    if page in _RECEIVED:
+        now = time.monotonic()
+        shown += ("; its server received (s ago, uuid, updates, element): "
+                  f"{[(round(now - t, 2), *rest) for t, *rest in _RECEIVED[page]]}")
+    return shown
 
 
 def what_it_showed(page: Page) -> str:
@@ -206,7 +255,7 @@ def what_it_showed(page: Page) -> str:
     log tail or what its in-process server still holds for it, for a failure's message."""
     log = server_tail(page)
     client = _CLIENTS.get(page)
-    return (f"the page showed: {page_text(page)} ({page_state(page)})"
+    return (f"the page showed: {page_text(page)} ({page_state(page)}); {gui_input(page)}"
             + (f"; {sending(client)}" if client is not None else "")
             + (f"\nserver log tail:\n{log}" if log else ""))
 
@@ -478,6 +527,7 @@ def open_page(browser: Browser, url: str, touch: bool = False,
                                 "const s = document.createElement('style');"
                                 f"s.textContent = '{LAPTOP_CSS}';"
                                 "document.head.appendChild(s); });")
+    context.add_init_script(GUI_SENT_JS)
     page = context.new_page()
     page.set_default_timeout(TIMEOUT_MS)
     notices = _NOTICES.setdefault(page, [])
