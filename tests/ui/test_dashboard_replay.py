@@ -97,7 +97,7 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
                           timeout=CEILING_S + READY_CEILING_S,  # the trial, then its plan
                           what="the first trial placed and the next θ")
         [trial] = view.trials
-        assert trial.outcome.value == "completed"
+        assert trial.outcome.value == "completed", f"trial 1: {trial.outcome.value} ({trial.reason})"
         store = ParticipantStore.open(runner.study, "P01")
         try:
             stored = stored_rows(store.samples(trial.trial_index))
