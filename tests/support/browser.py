@@ -149,8 +149,8 @@ PAGE_QUEUE_JS = """() => {
 #: Installed in every page :func:`open_page` opens, before viser's own scripts: records the GUI input
 #: (clicks, values) the page hands to viser's websocket worker, as (ms since load, kind, element
 #: uuid, what), for a failure's message. viser's panel sends its input through a sender throttled
-#: at 50 ms that keeps only the last of a burst, so a click can leave a page without reaching its
-#: server only in theory; this shows whether it left.
+#: at 50 ms that keeps only the last of a burst and drops what it holds if its panel unmounts: this
+#: shows whether a click left the page at all.
 GUI_SENT_JS = """(() => {
   const sent = window.__hlGuiSent = [];
   const post = Worker.prototype.postMessage;
