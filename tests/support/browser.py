@@ -662,6 +662,27 @@ def tick(page: Page, label: str, confirmed: str) -> None:
                   arg=box.element_handle())
 
 
+#: Whether a folder of viser's panel (by its title) is open and done opening: its content has a
+#: height and no animation runs in it (Mantine's Collapse grows it over 200 ms, clipped, while the
+#: panel may scroll to keep what is below it in place).
+FOLDER_OPEN_JS = """(title) => {
+  const label = [...document.querySelectorAll('div')].find(e => e.firstChild
+    && e.firstChild.nodeType === Node.TEXT_NODE && e.firstChild.textContent === title);
+  const content = label && label.nextElementSibling;
+  return !!content && content.offsetHeight > 0
+    && label.parentElement.getAnimations({subtree: true}).length === 0;
+}"""
+
+
+def open_folder(page: Page, title: str) -> None:
+    """Open the panel's folder ``title`` and wait until it is done opening. A click while its
+    content still grows can press a button that moves before it is released: Playwright checks
+    only where the press lands, and the browser then sends no click to the button."""
+    with awaiting(page, f"opening the folder {title!r}"):
+        page.get_by_text(title, exact=True).first.click()
+    wait_function(page, FOLDER_OPEN_JS, f"the folder {title!r} open", arg=title)
+
+
 def unlock_dashboard(page: Page, token: str = TOKEN) -> None:
     """Type the token and press Unlock; wait for the unlocked dashboard (its STOP ARM)."""
     fill(page, "Token", token)

@@ -17,6 +17,7 @@ import pytest
 from support.browser import (
     chromium,
     click,
+    open_folder,
     open_participant,
     open_screens,
     publish,
@@ -81,7 +82,7 @@ def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
         reload(tablet)
         assert tablet_screen(tablet) == "wait"
         # 2 ≻ 1 gives the learner its first model: θ* and the posterior slices reach the dashboard
-        dashboard.get_by_text("Learner", exact=True).first.click()
+        open_folder(dashboard, "Learner")
         wait_text(dashboard, "θ* (best so far)")
         wait_text(dashboard, "u along k")
         shot(dashboard, screens, "dashboard-learner")

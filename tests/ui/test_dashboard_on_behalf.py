@@ -13,6 +13,7 @@ from support.browser import (
     chromium,
     click,
     confirm_placement,
+    open_folder,
     open_participant,
     open_screens,
     run_trial,
@@ -34,7 +35,7 @@ def test_the_experimenter_enters_placements_for_the_participant(tmp_path: Path) 
     with serve(tmp_path) as served, chromium() as browser:
         dashboard, tablet = open_screens(browser, served)
         open_participant(dashboard, "P01")
-        dashboard.get_by_text("Enter for the participant", exact=True).first.click()
+        open_folder(dashboard, "Enter for the participant")
         wait_text(dashboard, "Nothing to enter now.")
         assert button(dashboard, STORE).is_disabled()  # nothing waits for a placement yet
 

@@ -22,6 +22,7 @@ from support.browser import (
     TOKEN,
     chromium,
     click,
+    open_folder,
     open_page,
     unlock_dashboard,
     wait_text,
@@ -116,7 +117,7 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
             unlock_dashboard(dashboard)
             [client] = servers.dashboard.clients.values()
             watch_client(dashboard, client.client)
-            dashboard.get_by_text("Replay a stored trial", exact=True).first.click()
+            open_folder(dashboard, "Replay a stored trial")
             wait_for(lambda: client.replay_trial.value.startswith(f"trial {trial.trial_index} "),
                      f"trial {trial.trial_index} offered for replay",
                      seen=lambda: client.replay_trial.options)

@@ -31,6 +31,7 @@ from support.browser import (
     chromium,
     click,
     keep_starting,
+    open_folder,
     open_page,
     open_participant,
     pair_tablet,
@@ -96,7 +97,7 @@ def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
         shot(dashboard, screens, "dashboard-no-tablet")
 
         # The panel scrolled to its end: STOP ARM is still fully in view, on top of everything.
-        dashboard.get_by_text("Learner", exact=True).first.click()
+        open_folder(dashboard, "Learner")
         scroll_panel_to_end(dashboard)
         assert in_viewport(dashboard, "STOP ARM")
         shot(dashboard, screens, "dashboard-scrolled-to-end")

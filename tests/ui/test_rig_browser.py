@@ -13,6 +13,7 @@ from support.browser import (
     chromium,
     click,
     confirm_placement,
+    open_folder,
     open_participant,
     open_screens,
     publish,
@@ -73,7 +74,7 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
             confirm_placement(tablet)
             assert tablet_screen(tablet, not_="place") == "wait"
         wait_text(dashboard, "3 of 9 handovers completed")
-        dashboard.get_by_text("Rehearse a fault", exact=True).first.click()
+        open_folder(dashboard, "Rehearse a fault")
         tick(dashboard, "The participant does not take the object",
              "the simulated participant will not take the object")
         faults = shot(dashboard, screens, "dashboard-rehearse-a-fault")
