@@ -148,7 +148,8 @@ PAGE_QUEUE_JS = """() => {
 }"""
 #: Installed in every page :func:`open_page` opens, before viser's own scripts: records the GUI input
 #: (clicks, values) the page hands to viser's websocket worker, as (ms since load, kind, element
-#: uuid, what), for a failure's message. viser's panel sends its input through a sender throttled
+#: uuid, what), and where each press, release and click landed (the button or element, its text),
+#: for a failure's message. viser's panel sends its input through a sender throttled
 #: at 50 ms that keeps only the last of a burst and drops what it holds if its panel unmounts: this
 #: shows whether a click left the page at all.
 GUI_SENT_JS = """(() => {
@@ -163,6 +164,15 @@ GUI_SENT_JS = """(() => {
     }
     return post.call(this, data, ...rest);
   };
+  const pointer = window.__hlPointer = [];
+  for (const kind of ['pointerdown', 'pointerup', 'click']) {
+    window.addEventListener(kind, (event) => {
+      const on = event.target instanceof Element ? event.target.closest('button') || event.target : null;
+      pointer.push([Math.round(performance.now()), kind, on ? on.tagName.toLowerCase() + ' '
+                    + JSON.stringify((on.innerText || '').trim().slice(0, 30)) : String(event.target)]);
+      if (pointer.length > 100) pointer.splice(0, 50);
+    }, true);
+  }
 })();"""
 #: How many of a page's sent and received GUI inputs a failure shows (the latest).
 INPUTS_SHOWN = 6
@@ -239,10 +249,11 @@ def gui_input(page: Page) -> str:
     """The latest GUI input the page sent and, for a watched page, what its server received, for a
     failure's message (a click that never left the page, or one the server dropped)."""
     try:
-        sent = page.evaluate("() => window.__hlGuiSent || []")[-INPUTS_SHOWN:]
+        sent, pointer = page.evaluate("() => [window.__hlGuiSent || [], window.__hlPointer || []]")
+        sent, pointer = sent[-INPUTS_SHOWN:], pointer[-3 * INPUTS_SHOWN:]
     except PlaywrightError as exc:
-        sent = f"<unreadable: {str(exc).splitlines()[0]}>"
-    shown = f"the page sent (ms, kind, uuid, updates): {sent}"
+        sent = pointer = f"<unreadable: {str(exc).splitlines()[0]}>"
+    shown = f"the page's presses (ms, event, on): {pointer}; it sent (ms, kind, uuid, updates): {sent}"
     if page in _RECEIVED:
         now = time.monotonic()
         shown += ("; its server received (s ago, uuid, updates, element): "
