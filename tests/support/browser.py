@@ -146,13 +146,13 @@ PAGE_QUEUE_JS = """() => {
   }
   return "viser's viewer state not found";
 }"""
-#: Installed in every page :func:`open_page` opens, before viser's own scripts: records the GUI input
-#: (clicks, values) the page hands to viser's websocket worker, as (ms since load, kind, element
-#: uuid, what), and where each press, release and click landed (the button or element, its text),
-#: for a failure's message. viser's panel sends its input through a sender throttled
-#: at 50 ms that keeps only the last of a burst and drops what it holds if its panel unmounts: this
-#: shows whether a click left the page at all.
-GUI_SENT_JS = """(() => {
+#: Installed in every page :func:`open_page` opens, before viser's own scripts, and read by
+#: :func:`gui_input` for a failure's message: where each press, release and click landed (the
+#: button or element, its text), and the GUI input (clicks, values) the page handed to viser's
+#: websocket worker, as (ms since load, kind, element uuid, what). viser's panel sends its input
+#: through a sender throttled at 50 ms that keeps only the last of a burst and drops what it holds if
+#: its panel unmounts: this shows whether a click reached its button and left the page at all.
+GUI_INPUT_JS = """(() => {
   const sent = window.__hlGuiSent = [];
   const post = Worker.prototype.postMessage;
   Worker.prototype.postMessage = function (data, ...rest) {
@@ -538,7 +538,7 @@ def open_page(browser: Browser, url: str, touch: bool = False,
                                 "const s = document.createElement('style');"
                                 f"s.textContent = '{LAPTOP_CSS}';"
                                 "document.head.appendChild(s); });")
-    context.add_init_script(GUI_SENT_JS)
+    context.add_init_script(GUI_INPUT_JS)
     page = context.new_page()
     page.set_default_timeout(TIMEOUT_MS)
     notices = _NOTICES.setdefault(page, [])
