@@ -20,6 +20,7 @@ import logging
 import multiprocessing
 import signal
 import socket
+import threading
 import time
 import uuid
 from multiprocessing.connection import Connection
@@ -120,12 +121,51 @@ def _natnet_standin(spec: PublisherSpec, transform: FrameTransform,
 REHEARSAL_OBJECT = "handover-object"
 
 
+class HandReport:
+    """Tells a stand-in UR controller where the hand is (``set_hand``, for its simulated pull) from a
+    thread of its own, newest position first: the tracker's stream never waits on the controller's
+    answer, as a real tracker, with hardware of its own, does not. A stand-in slow to answer (its
+    threads share one interpreter lock with its 500 Hz cycle) had held every sample behind it.
+
+    :attr:`ended` is set when the stand-in has gone (e.g. Ctrl-C): so has the rehearsal."""
+
+    def __init__(self, standin) -> None:
+        self._standin = standin
+        self._newest: list[float] | None = None
+        self._changed = threading.Condition()
+        self.ended = threading.Event()
+        threading.Thread(target=self._send, name="hand-report", daemon=True).start()
+
+    def put(self, position: list[float]) -> None:
+        """Report ``position`` next, in place of any position not yet sent."""
+        with self._changed:
+            self._newest = position
+            self._changed.notify()
+
+    def _send(self) -> None:
+        while True:
+            with self._changed:
+                self._changed.wait_for(lambda: self._newest is not None)
+                position, self._newest = self._newest, None
+            try:
+                self._standin("set_hand", position=position)
+            except (OSError, ValueError):
+                self.ended.set()
+                return
+
+
+#: A sample that goes out this late [s] is logged (half the rig's default staleness limit), so a
+#: rehearsal ended tracker_lost says whether its tracker was late.
+LATE_WARNING_S = 0.05
+
+
 def _play(conn: Connection, spec: PublisherSpec, transform: FrameTransform, outlet,
           udp: socket.socket | None, standin, natnet_tracker: list[tuple[float, np.ndarray]]) -> None:
     """Play the hand until the pipe closes (or the stand-in controller ends)."""
     import pylsl
 
     config = spec.config
+    report = None if standin is None else HandReport(standin)
     rate = config.hand.tracker_rate_hz
     rest = config.scene.point("hand_start")
     hand: SimulatedHand | None = None
@@ -134,6 +174,9 @@ def _play(conn: Connection, spec: PublisherSpec, transform: FrameTransform, outl
     go, occluded_until = 0.0, 0.0
     next_at = time.monotonic()
     while True:
+        if (late := time.monotonic() - next_at) > LATE_WARNING_S:
+            log.warning("hand publisher: a sample %.0f ms late", 1e3 * late)
+            next_at += late  # as a tracker, it skips the frames it missed rather than burst them
         while conn.poll():
             try:
                 message = conn.recv()
@@ -165,11 +208,10 @@ def _play(conn: Connection, spec: PublisherSpec, transform: FrameTransform, outl
             datagram = {axis: (None if not np.isfinite(v) else float(v))
                         for axis, v in zip("xyz", tracker, strict=True)}
             udp.sendto(json.dumps(datagram | {"t": now}).encode(), spec.udp_target)
-        if standin is not None:
-            try:
-                standin("set_hand", position=exact.tolist())
-            except (OSError, ValueError):  # the stand-in has ended (e.g. Ctrl-C): so has the rehearsal
+        if report is not None:
+            if report.ended.is_set():
                 return
+            report.put(exact.tolist())
         next_at += 1.0 / rate
         time.sleep(max(0.0, next_at - time.monotonic()))
 

@@ -7,6 +7,10 @@ rehearsal under load then ended a reach tracker_lost, '10 samples refused, the l
 
 from __future__ import annotations
 
+import contextlib
+import random
+import socket
+import threading
 import time
 
 import numpy as np
@@ -18,6 +22,7 @@ from robot_io.devices import tracker_transform
 from robot_io.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.simulated_hand import Scenario
 from robot_io.udp_hand import UDPHand
+from robot_io.ur_standin.control import DEFAULT_PORT
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak]  # a process that publishes on the wall clock
 
@@ -27,10 +32,14 @@ HOST = "127.0.0.108"
 LATE_S = 1.0
 
 
-def test_a_late_go_and_the_end_of_a_trial_move_the_hand_as_a_hand_moves():
+def udp_config() -> ControllerConfig:
     config = ControllerConfig()
-    config = config.model_copy(update={"hand_source": config.hand_source.model_copy(
+    return config.model_copy(update={"hand_source": config.hand_source.model_copy(
         update={"kind": "udp", "udp_host": HOST, "udp_port": 0})})
+
+
+def test_a_late_go_and_the_end_of_a_trial_move_the_hand_as_a_hand_moves():
+    config = udp_config()
     start = config.scene.point("hand_start")
     source = UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     publisher = HandPublisher(PublisherSpec(config=config, udp_target=source.address))
@@ -52,3 +61,73 @@ def test_a_late_go_and_the_end_of_a_trial_move_the_hand_as_a_hand_moves():
         publisher.close()
         source.close()
     assert source.received > 0 and source.invalid == 0, source.refusal
+
+
+class SilentControlPort:
+    """A stand-in controller's control port (its fixed port, on a loopback address of its own) that
+    reads ``set_hand`` requests and answers none until :meth:`answer`; then it answers each."""
+
+    def __init__(self) -> None:
+        self.requests: list[bytes] = []
+        self._answering = threading.Event()
+        self._listener = socket.socket()
+        for _ in range(200):
+            self.host = f"127.0.{random.randint(1, 254)}.{random.randint(2, 254)}"
+            with contextlib.suppress(OSError):
+                self._listener.bind((self.host, DEFAULT_PORT))
+                break
+        else:
+            raise OSError("no free loopback address for a control port")
+        self._listener.listen()
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self) -> None:
+        connection, _ = self._listener.accept()
+        self.connection = connection
+        with connection, connection.makefile("rb") as lines:
+            for line in lines:
+                self.requests.append(line)
+                self._answering.wait()
+                connection.sendall(b'{"ok": true}\n')
+
+    def answer(self) -> None:
+        self._answering.set()
+
+    def close(self) -> None:
+        """End the controller (its connection and its port), as a Ctrl-C does."""
+        with contextlib.suppress(AttributeError, OSError):
+            self.connection.shutdown(socket.SHUT_RDWR)
+        self._listener.close()
+
+
+def test_the_stream_goes_on_while_the_standin_controller_is_slow_to_answer_and_ends_with_it():
+    """The publisher told the stand-in where the hand is and waited for its answer before the next
+    sample: a stand-in kept off the CPU (its control thread shares one interpreter lock with its 500 Hz
+    cycle) held the tracker stream, and a rehearsal ended tracker_lost, 'no valid hand sample for
+    0.104 s'. A real tracker does not wait on the robot."""
+    config = udp_config()
+    source = UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
+    port = SilentControlPort()
+    publisher = HandPublisher(PublisherSpec(config=config, udp_target=source.address,
+                                            standin_host=port.host))
+
+    def seen() -> str:
+        return (f"{source.received} samples; {len(port.requests)} set_hand requests, none answered; "
+                f"publisher alive: {publisher.process.is_alive()}")
+
+    try:
+        wait_for(lambda: port.requests, "the publisher's first set_hand", seen=seen)
+        asked = source.received
+        # 30 samples (0.3 s at 100 Hz) while the first request still waits for its answer
+        wait_for(lambda: source.received >= asked + 30, "30 more samples with set_hand unanswered",
+                 seen=seen)
+        assert len(port.requests) == 1, seen()  # one request at a time, as the port expects
+        port.answer()
+        wait_for(lambda: len(port.requests) >= 3, "set_hand again once answered", seen=seen)
+        port.close()
+        wait_for(lambda: not publisher.process.is_alive(), "the publisher ended with the stand-in",
+                 seen=seen)
+    finally:
+        port.close()
+        publisher.close()
+        source.close()
