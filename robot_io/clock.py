@@ -7,12 +7,14 @@ clock keeps a fixed grid (deadline n·period) and catches up after a late cycle 
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import logging
 import math
 import os
 import sys
 import time
+from collections.abc import Iterator
 from datetime import UTC, datetime
 from typing import NamedTuple, Protocol
 
@@ -107,6 +109,30 @@ def raise_priority(priority: int = CONTROL_PRIORITY) -> tuple[int, int] | None:
         log.info("control thread keeps the normal scheduling policy (%s)", exc)
         return None
     return before
+
+
+@contextlib.contextmanager
+def children_start_on_the_normal_policy() -> Iterator[int | None]:
+    """Processes the calling thread starts meanwhile begin on the normal policy; yields the SCHED_FIFO
+    priority the thread had (None: it had none), for the child to raise itself to once started.
+
+    A child inherits its parent thread's policy, and a Python interpreter starting (under spawn it
+    also runs the parent's main module again, then imports what it needs) is a fraction of a second
+    to seconds of CPU with nothing to block on: under SCHED_FIFO it held other FIFO threads on its
+    core that long, among them the rehearsal's tracker, whose samples then came 0.1 s late."""
+    try:
+        policy, param = os.sched_getscheduler(0), os.sched_getparam(0)
+    except (AttributeError, OSError):
+        yield None
+        return
+    if policy != os.SCHED_FIFO:
+        yield None
+        return
+    os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+    try:
+        yield param.sched_priority
+    finally:
+        os.sched_setscheduler(0, policy, param)
 
 
 class SimClock:

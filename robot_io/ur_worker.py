@@ -18,16 +18,21 @@ import multiprocessing
 import os
 from multiprocessing.connection import Connection
 
+from robot_io.clock import children_start_on_the_normal_policy, raise_priority
 from robot_io.errors import ArmFault
 
 #: Methods of RTDEControlInterface the arm backend may call through the worker.
 CALLS = frozenset({"moveL", "stopL", "servoStop", "stopScript", "setWatchdog", "reuploadScript"})
 
 
-def _serve(conn: Connection, host: str, flags: int) -> None:
-    """The worker process: construct the interface, then execute messages until the pipe closes."""
+def _serve(conn: Connection, host: str, flags: int, priority: int | None) -> None:
+    """The worker process: construct the interface, then execute messages until the pipe closes.
+    It starts on the normal policy and, with a ``priority``, runs under SCHED_FIFO at it once its
+    imports are done (ur_rtde's threads, started by the constructor, inherit it)."""
     import rtde_control
 
+    if priority is not None:
+        raise_priority(priority)
     try:
         control = rtde_control.RTDEControlInterface(host, -1.0, flags)
     except Exception as exc:  # the constructor throws RuntimeError, std::logic_error, ...
@@ -66,9 +71,10 @@ class ControlWorker:
             flags |= rtde_control.RTDEControlInterface.FLAG_UPPER_RANGE_REGISTERS
         context = multiprocessing.get_context("spawn")  # no fork: the parent runs ur_rtde threads
         self._conn, child = context.Pipe()
-        self.process = context.Process(target=_serve, args=(child, host, flags),
-                                       name=f"ur_rtde-control-{host}", daemon=True)
-        self.process.start()
+        with children_start_on_the_normal_policy() as priority:
+            self.process = context.Process(target=_serve, args=(child, host, flags, priority),
+                                           name=f"ur_rtde-control-{host}", daemon=True)
+            self.process.start()
         child.close()
         self._wait_reply(timeout, f"connecting the control interface to {host}")
 

@@ -9,7 +9,6 @@ import contextlib
 import json
 import socket
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -17,7 +16,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 from support.hand_replay import TRACKER, Replay
-from support.priority import realtime_threads
+from support.priority import REALTIME_CLI, realtime_threads
 from support.ur import (
     MOVEL,
     SERVO_STOP,
@@ -87,10 +86,10 @@ def hand(config: ControllerConfig, seed: int = 0) -> SimulatedHand:
 @pytest.mark.slow
 def test_full_handover_from_the_cli_targets_follow_the_dmp_within_1mm(tmp_path):
     samples = tmp_path / "samples.npz"
-    with standin() as ur, realtime_threads():  # the command inherits it, as connected_arm's arm
+    with standin() as ur:
         control = ur.control
         run = subprocess.run(
-            [sys.executable, "-m", "app.cli", "simulate-trial", "--arm", "ur", "--ur-host", ur.host,
+            [*REALTIME_CLI, "simulate-trial", "--arm", "ur", "--ur-host", ur.host,
              "--scenario", "perturbed", "--theta", "5,-0.2,15", "--seed", "2", "--json",
              "--samples", str(samples)],
             capture_output=True, text=True, timeout=300)  # a ceiling for a hung run, not a measure

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import sys
 from collections.abc import Iterator
 
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
@@ -22,3 +23,11 @@ def realtime_threads(priority: int = SUPPORT_PRIORITY) -> Iterator[None]:
         if before is not None:
             policy, level = before
             os.sched_setscheduler(0, policy, os.sched_param(level))
+
+
+#: ``python -m app.cli`` as a command that runs under SCHED_FIFO at SUPPORT_PRIORITY once its
+#: interpreter has started and imported the CLI (every thread it starts inherits it, as a rig's do).
+#: Started from a FIFO thread instead, the interpreter's start-up ran under FIFO too and held the
+#: other FIFO threads on its core (robot_io.clock.children_start_on_the_normal_policy).
+REALTIME_CLI = [sys.executable, "-c", "import sys, app.cli; from robot_io.clock import SUPPORT_PRIORITY, "
+                "raise_priority; raise_priority(SUPPORT_PRIORITY); sys.exit(app.cli.main())"]
