@@ -125,7 +125,7 @@ class HandReport:
     """Tells a stand-in UR controller where the hand is (``set_hand``, for its simulated pull) from a
     thread of its own, newest position first: the tracker's stream never waits on the controller's
     answer, as a real tracker, with hardware of its own, does not. A stand-in slow to answer (its
-    threads share one interpreter lock with its 500 Hz cycle) had held every sample behind it.
+    threads share one interpreter lock with its controller cycle) had held every sample behind it.
 
     :attr:`ended` is set when the stand-in has gone (e.g. Ctrl-C): so has the rehearsal."""
 
