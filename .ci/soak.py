@@ -13,6 +13,7 @@ saying that the suite is steady.
 from __future__ import annotations
 
 import argparse
+import signal
 import subprocess
 import sys
 import tempfile
@@ -51,6 +52,9 @@ def main() -> int:
     parser.add_argument("pytest_args", nargs="*", help="passed on to pytest (e.g. -k rehearsal)")
     args = parser.parse_args()
     passed, ran, seconds = Counter(), Counter(), []
+    # a soak stopped with SIGTERM (kill, pkill) ends its hogs too: on Python's default action they
+    # outlived it and doubled the next soak's load
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
     hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(args.hogs)]
     try:
         with tempfile.TemporaryDirectory(prefix="soak-") as folder:
