@@ -102,9 +102,8 @@ class SilentControlPort:
 
 def test_the_stream_goes_on_while_the_standin_controller_is_slow_to_answer_and_ends_with_it():
     """The publisher told the stand-in where the hand is and waited for its answer before the next
-    sample: a stand-in kept off the CPU (its control thread shares one interpreter lock with its 500 Hz
-    cycle) held the tracker stream, and a rehearsal ended tracker_lost, 'no valid hand sample for
-    0.104 s'. A real tracker does not wait on the robot."""
+    sample, so a stand-in slow to answer (its control thread shares one interpreter lock with its
+    controller cycle) held the tracker stream. A real tracker does not wait on the robot."""
     config = udp_config()
     source = UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     port = SilentControlPort()
