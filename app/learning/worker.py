@@ -32,6 +32,7 @@ import functools
 import logging
 import multiprocessing as mp
 import queue
+import threading
 import time
 from typing import Any
 
@@ -127,6 +128,30 @@ def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, A
         except LearningError as exc:
             reply = WorkerReply(request_id=request.request_id, error=str(exc))
         replies.put(reply.model_dump(mode="json"))
+
+
+def _ready() -> None:  # pragma: no cover - child process
+    """The child of :func:`warm_up`: proof that the forkserver serves."""
+
+
+def warm_up(start_method: str = START_METHOD) -> threading.Thread:
+    """Have this process's learner forkserver import :data:`PRELOAD` now, in the background, so
+    that the session's first learner forks at once instead of waiting for the imports (several
+    CPU-seconds). The thread forks one empty child and lives until the forkserver serves: the
+    forkserver's import dies with the *thread* that started it (``forkserver_preload``), so a
+    thread that only started it and ended would kill it mid-import."""
+    context = mp.get_context(start_method)
+    if start_method == "forkserver":
+        context.set_forkserver_preload(PRELOAD)
+
+    def fork_one() -> None:
+        child = context.Process(target=_ready, name="handover-learner-warm-up", daemon=True)
+        child.start()
+        child.join()
+
+    thread = threading.Thread(target=fork_one, name="learner-warm-up", daemon=True)
+    thread.start()
+    return thread
 
 
 class LearnerClient:

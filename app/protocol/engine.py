@@ -316,13 +316,13 @@ class SessionEngine:
                                       equal_to=equal_to,
                                       comparisons=[(c.winner, c.loser) for c in comparisons]),
                      write)
-        if slot.learner_index is not None:
-            if self._learner is None:
-                self._ensure_learner()  # restored from the store, which now holds this placement
-            else:
-                theta = self.state.planned[slot.interaction].theta
-                self._learner.submit([Interaction(interaction_id=str(slot.interaction),
-                                                  theta=theta.model_dump())], learned)
+        # A session resumed in a fresh process has no learner yet: the next plan_next starts it,
+        # restored from the store (which now holds this placement). Starting it here held the
+        # participant's Confirm for as long as a first learner process takes to import (13–18 s).
+        if slot.learner_index is not None and self._learner is not None:
+            theta = self.state.planned[slot.interaction].theta
+            self._learner.submit([Interaction(interaction_id=str(slot.interaction),
+                                              theta=theta.model_dump())], learned)
         return comparisons
 
     def rate_validation(self, rating: str, by: Rater = Rater.PARTICIPANT) -> ValidationRating:

@@ -32,6 +32,7 @@ from pydantic import BaseModel, ConfigDict
 
 from app.learning.errors import LearningError
 from app.learning.models import PosteriorSlice
+from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
 from app.protocol.engine import RIG_TABLES, SessionEngine, TrialPlan, rig_of
 from app.protocol.errors import RefusedAction
@@ -521,6 +522,8 @@ class SessionRunner:
         self._engine = engine
         self._open_outlets(engine)
         self._participant = SimulatedParticipant(engine.config.seed)
+        if engine.state.step is not Step.DONE:
+            warm_up()  # the learner's imports run while the experimenter pairs the tablet
         self._theta_star_key = -1
         self._overview = None
         log.info("session %s open at step %s", code, engine.state.step)
