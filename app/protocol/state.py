@@ -39,6 +39,10 @@ class Step(StrEnum):
     DONE = "done"
 
 
+#: The steps that wait for the participant's answer (on the tablet, or the simulated participant's).
+PARTICIPANT_STEPS = frozenset({Step.PLACE, Step.RATE, Step.ANSWER})
+
+
 class PlannedTheta(BaseModel):
     theta: Theta
     origin: ThetaOrigin

@@ -38,7 +38,7 @@ from app.protocol.engine import RIG_TABLES, SessionEngine, TrialPlan, rig_of
 from app.protocol.errors import RefusedAction
 from app.protocol.seeds import choose_seed
 from app.protocol.simulated_participant import SimulatedParticipant
-from app.protocol.state import SessionState, Step
+from app.protocol.state import PARTICIPANT_STEPS, SessionState, Step
 from app.protocol.stored import stored_session
 from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Actor, Rater
@@ -821,7 +821,7 @@ class SessionRunner:
         if step is Step.PLAN:
             self._plan_next()
             return False
-        if self._auto and step in (Step.PLACE, Step.RATE, Step.ANSWER):
+        if self._auto and step in PARTICIPANT_STEPS:
             if self.realtime:
                 time.sleep(AUTO_DELAY_S)
             try:

@@ -6,6 +6,8 @@ validation rating (better / the same / worse than the one before), the questionn
 per screen, "Thank you". The tablet never shows θ, phase names or anything else that tells
 conditions apart, and its only actions are placing, rating and answering. Each action names the
 interaction its screen showed, so a stale screen (a reload, a double tap) cannot rate twice.
+While the simulated participant rates (a demo, a dry run), the tablet says "Please wait" where the
+person would answer: it never offers a question that is not theirs to answer.
 
 Answers are deliberate: input counts only once a screen has been seen for
 :data:`~app.ui.deliberate.SETTLE_S`; Confirm is disabled until the handle has moved, and the handle
@@ -36,7 +38,7 @@ from pydantic import BaseModel, ConfigDict
 
 from app.protocol.errors import RefusedAction
 from app.protocol.plan import Rating
-from app.protocol.state import Marker, Step
+from app.protocol.state import PARTICIPANT_STEPS, Marker, Step
 from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.deliberate import SETTLE_S, Settle
@@ -107,6 +109,9 @@ def screen_for(view: RunnerView) -> Screen:
         return Screen(kind="go", interaction=slot.interaction)
     if step is Step.RUNNING and state.stage in BACK_STAGES:
         return Screen(kind="back", interaction=slot.interaction)
+    if view.auto and step in PARTICIPANT_STEPS:
+        # the simulated participant answers: the person holding the tablet is asked nothing
+        return Screen(kind="wait")
     if step is Step.PLACE:
         return Screen(kind="place", interaction=slot.interaction, label=slot.position,
                       markers=tuple(state.markers))
