@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import re
+import stat
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any
@@ -40,6 +41,8 @@ PROTOCOL_FIELDS = ("initial_trials", "batch_size", "learning_batches", "best_tri
 LEARNER_FIELDS = ("acquisition", "theta_bounds", "recommendation", "population_prior",
                   "prior_weight", "batch_position_noise")
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
+#: The largest configuration file read [bytes]: a lab.toml is a few kB.
+MAX_CONFIG_BYTES = 1_000_000
 
 
 def _whole_number_in(low: int, high: int) -> BeforeValidator:
@@ -154,7 +157,20 @@ def load_lab_config(path: Path | None) -> LabConfig:
     if path is None:
         return LabConfig()
     try:
-        data = tomllib.loads(Path(path).read_text())
-    except (OSError, tomllib.TOMLDecodeError) as exc:
+        data = tomllib.loads(read_config_text(Path(path)))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise ConfigError(f"config file {path}: {exc}") from exc
     return LabConfig.model_validate(data)
+
+
+def read_config_text(path: Path) -> str:
+    """The text of a configuration file: a regular file of at most :data:`MAX_CONFIG_BYTES`
+    (``--config /dev/zero`` or a FIFO would be read without end)."""
+    if not stat.S_ISREG(path.stat().st_mode):
+        raise ConfigError(f"config file {path}: not a regular file (a lab.toml is a text file)")
+    with path.open("rb") as file:
+        data = file.read(MAX_CONFIG_BYTES + 1)
+    if len(data) > MAX_CONFIG_BYTES:
+        raise ConfigError(f"config file {path}: larger than {MAX_CONFIG_BYTES // 1000:,} kB, the "
+                          "most a lab configuration may have (a lab.toml is a few kB)")
+    return data.decode("utf-8")

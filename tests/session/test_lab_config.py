@@ -181,3 +181,13 @@ def test_the_sessions_default_recommendation_is_the_learners():
     assert study.recommendation == DEFAULT_RECOMMENDATION.value
     choices = StudyConfig.model_fields["recommendation"].annotation.__args__
     assert set(choices) == {r.value for r in RecommendationName}
+
+
+def test_a_config_that_is_not_a_small_regular_file_is_refused_naming_the_limit(tmp_path, capsys):
+    """``--config /dev/zero`` grew a command to 3.5 GB in 6 s: what is read is bounded."""
+    huge = write(tmp_path, "# " + "x" * 1_100_000 + "\n")  # valid TOML, but no lab.toml is this large
+    assert main(["check-devices", "--config", str(huge)]) == 2
+    assert "larger than 1,000 kB, the most a lab configuration may have" in capsys.readouterr().err
+    for device in ("/dev/zero", str(tmp_path)):
+        assert main(["check-devices", "--config", device]) == 2
+        assert f"config file {device}: not a regular file" in capsys.readouterr().err
