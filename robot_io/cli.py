@@ -111,12 +111,18 @@ def run_calibrate_tracker(args: argparse.Namespace) -> int:
     return 0
 
 
-def _with_host(config, host: str | None):
-    """``--ur-host`` names a UR controller: it sets [ur] host and [arm] kind = "ur"."""
-    if host is None:
+def _with_host(config, host: str | None, arm: str | None = None):
+    """``--ur-host`` names a UR controller: it sets [ur] host and [arm] kind = "ur"; ``--arm``
+    sets [arm] kind. Validated again as the file is: ``--arm ur`` without a host is refused,
+    naming the key, before anything connects."""
+    if host is None and arm is None:
         return config
-    return config.model_copy(update={"ur": config.ur.model_copy(update={"host": host}),
-                                     "arm": config.arm.model_copy(update={"kind": "ur"})})
+    tables = config.model_dump()
+    if host is not None:
+        tables["ur"]["host"], tables["arm"]["kind"] = host, "ur"
+    if arm is not None:
+        tables["arm"]["kind"] = arm
+    return type(config).model_validate(tables)
 
 
 def run_check_devices(args: argparse.Namespace) -> int:
@@ -147,11 +153,11 @@ def run(args: argparse.Namespace) -> int:
     from robot_io.plot import plot_trial
     from robot_io.trial import simulate_trial
 
-    config = _with_host(load_config(args.config), args.ur_host)
+    config = _with_host(load_config(args.config), args.ur_host, args.arm)
     if args.rate is not None:
         config = config.model_copy(
             update={"loop": config.loop.model_copy(update={"rate_hz": args.rate})})
-    if (args.arm or config.arm.kind) == "ur":
+    if config.arm.kind == "ur":
         record = _run_on_ur(config, args)
     else:
         record = simulate_trial(config, args.theta, args.scenario, args.seed, realtime=args.realtime)

@@ -64,6 +64,13 @@ def test_bad_config_file_is_reported_not_raised(tmp_path, capsys):
     assert code == 2 and "max_speed" in capsys.readouterr().err
 
 
+def test_a_ur_without_a_host_on_the_command_line_is_refused_naming_the_key(capsys):
+    """``--arm ur`` with no config once reached ur_rtde with host None (a TypeError traceback)."""
+    code = main(["simulate-trial", "--scenario", "perturbed", "--theta", "5,0,1", "--arm", "ur"])
+    assert code == 2
+    assert "[ur] host is not set" in capsys.readouterr().err
+
+
 def test_console_script_is_installed():
     """The ``handover`` entry point of pyproject runs (the README's demo command uses it)."""
     out = subprocess.run([sys.executable, "-m", "app.cli", "simulate-trial", "--help"],
