@@ -9,7 +9,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from session_store.errors import UnsafeParticipantCode
+from session_store.errors import StoreError, UnsafeParticipantCode
 
 SUFFIX = ".sqlite"
 #: The file formats of an export (session_store.export), one file per table.
@@ -30,6 +30,17 @@ def check_participant_code(code: str) -> str:
 
 def participant_path(study_dir: Path, code: str) -> Path:
     return Path(study_dir) / f"{check_participant_code(code)}{SUFFIX}"
+
+
+def refuse_case_twin(study_dir: Path, code: str) -> None:
+    """Refuse a new participant ``code`` that differs only in case from one of the study's: on a
+    case-insensitive disk (macOS, Windows, most USB sticks) the two would be one file."""
+    twin = next((other for other in participant_codes(study_dir)
+                 if other != code and other.casefold() == code.casefold()), None)
+    if twin is not None:
+        raise StoreError(f"participant code {code!r} differs only in case from {twin!r} of this "
+                         "study: on a case-insensitive disk (macOS, Windows, a USB stick) they would "
+                         f"be one file. Resume {twin!r}, or choose another code")
 
 
 def participant_codes(study_dir: Path) -> list[str]:

@@ -40,7 +40,7 @@ from session_store.models import (
     Trial,
     ValidationRating,
 )
-from session_store.paths import SUFFIX, participant_codes, participant_path
+from session_store.paths import SUFFIX, participant_codes, participant_path, refuse_case_twin
 from session_store.schema import MIGRATIONS, SCHEMA_VERSION, TABLES, sample_column_names
 
 __all__ = ["SUFFIX", "ParticipantStore", "participant_codes", "participant_path", "sample_matrix"]
@@ -92,6 +92,7 @@ class ParticipantStore:
         is written."""
         path = participant_path(study_dir, code)
         participant = Participant(code=code, config=config.model_dump(mode="json"))
+        refuse_case_twin(study_dir, code)
         if cls.exists(study_dir, code):
             raise StoreError(f"participant {participant.code!r} already has a database at {path}; "
                              "resume it instead")

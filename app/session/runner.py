@@ -72,6 +72,7 @@ from robot_io.stages import Stage
 from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError
 from session_store.models import Trial
+from session_store.paths import refuse_case_twin
 from session_store.reading import reading
 from session_store.store import ParticipantStore, participant_codes, participant_path
 
@@ -483,6 +484,8 @@ class SessionRunner:
             raise RefusedAction(f"participant {self._engine.participant.code!r} is open: end "
                                 "that session first (End session)")
         exists = ParticipantStore.exists(self.study, code)
+        if not exists:
+            refuse_case_twin(self.study, code)
         if not exists and scenario is None:
             raise RefusedAction(f"participant {code!r} has no session yet: choose a scenario "
                                 "to create one")

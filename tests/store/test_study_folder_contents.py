@@ -211,3 +211,13 @@ def test_doctor_reads_a_read_only_folder_as_export_does(study, capsys):
         assert main(["doctor", str(view)]) == 0
     out = capsys.readouterr().out
     assert "P01.sqlite: OK" in out and "P02.sqlite: OK" in out and "0 bad" in out
+
+
+def test_a_code_that_differs_only_in_case_is_refused_before_anything_is_written(study, capsys):
+    """``s01`` beside ``P01``'s ``p01``: on a case-insensitive disk the two are one file."""
+    before = sorted(p.name for p in study.iterdir())
+    code = main(["run-session", "--study", str(study), "--participant", "p01", "--scenario",
+                 "perturbed", "--auto"])
+    assert code == 2
+    assert "participant code 'p01' differs only in case from 'P01'" in capsys.readouterr().err
+    assert sorted(p.name for p in study.iterdir()) == before
