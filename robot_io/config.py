@@ -19,6 +19,7 @@ import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
 
 from robot_io.errors import ConfigError
+from robot_io.vector import written
 
 Vec3 = tuple[float, float, float]
 Positive = Annotated[float, Field(gt=0)]
@@ -447,6 +448,6 @@ class ControllerConfig(_Frozen):
             point = self.scene.point(name)
             if not self.safety.contains(point):
                 raise ConfigError(
-                    f"scene.{name} = {tuple(point)} is outside the workspace box "
-                    f"[{self.safety.workspace_min}, {self.safety.workspace_max}]")
+                    f"scene.{name} = {written(point)} is outside the workspace box "
+                    f"[{written(self.safety.workspace_min)}, {written(self.safety.workspace_max)}]")
         return self

@@ -17,3 +17,9 @@ def norm(vector: np.ndarray) -> float:
 def all_finite(vector: np.ndarray) -> bool:
     """No NaN and no ±inf in ``vector``: ``np.all(np.isfinite(vector))``."""
     return bool(np.isfinite(vector).all())
+
+
+def written(vector: np.ndarray | tuple[float, ...]) -> str:
+    """A vector as a person writes it in a message, ``(0.35, -0.35, 0.35)``, never
+    ``(np.float64(0.35), …)``."""
+    return "(" + ", ".join(f"{float(v):g}" for v in vector) + ")"

@@ -126,7 +126,10 @@ def test_limiter_passes_a_trajectory_within_the_caps_unchanged(start, goal):
 
 
 def test_scene_points_outside_the_workspace_are_refused():
-    with pytest.raises(ValueError, match=r"scene.handover_point = .* outside the workspace box"):
+    # the numbers as a person writes them, never np.float64(1.5)
+    with pytest.raises(ValueError, match=re.escape(
+            "scene.handover_point = (1.5, 0, 0.3) is outside the workspace box [(0.1, -0.6, 0.05), "
+            "(0.9, 0.6, 0.8)]")):
         ControllerConfig.model_validate({"scene": {"handover_point": (1.5, 0.0, 0.3)}})
     with pytest.raises(ValueError, match=r"workspace_min\[2\] = 0.9 must be below"):
         SafetyLimits(workspace_min=(0.1, -0.6, 0.9))
