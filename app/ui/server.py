@@ -18,6 +18,7 @@ from app.session.runner import SessionRunner
 from app.ui.dashboard import Dashboard
 from app.ui.guard import TokenGate, open_server
 from app.ui.tablet import Tablet
+from app.ui.unreadable import quiet_unreadable_messages
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +39,7 @@ class HandoverServers:
     """Both screens over one :class:`SessionRunner`. :meth:`close` stops the arm first."""
 
     def __init__(self, runner: SessionRunner, options: ServeOptions) -> None:
+        quiet_unreadable_messages()
         self.runner, self.options = runner, options
         self.token = dashboard_token(runner.study, options.token)
         self.tablet_server, self.tablet_guard = open_server(options.host, options.tablet_port,

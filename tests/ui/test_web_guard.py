@@ -91,3 +91,21 @@ def test_a_busy_tablet_port_is_an_error_naming_it(tmp_path):
     assert run.returncode != 0 and "dashboard token" not in run.stdout
     assert f"tablet port {port} on 127.0.0.1 is in use" in run.stderr
     assert "Traceback" not in run.stderr
+
+
+@pytest.mark.parametrize("message", [msgspec.msgpack.encode({"type": "NoSuchMessage"}),
+                                     b"\xc1 not msgpack", "text, not bytes"])
+def test_a_message_viser_cannot_read_is_one_line_in_the_log_and_other_pages_go_on(tmp_path, message):
+    """An unknown message type once printed a KeyError traceback in the experimenter's terminal."""
+    with serve(tmp_path) as served:
+        with _ws(served.tablet_url, origin=served.tablet_url) as ws:
+            ws.recv(timeout=WS_S)
+            ws.send(message)
+            with pytest.raises(ConnectionClosed):
+                while True:
+                    ws.recv(timeout=WS_S)
+        _wait_for(served, "a page sent a message this server cannot read")
+        with _ws(served.tablet_url, origin=served.tablet_url) as ws:  # the server goes on
+            assert ws.recv(timeout=WS_S)
+        output = served.shutdown()
+    assert "Traceback" not in output and output.count("cannot read") == 1, tail(output)
