@@ -38,3 +38,13 @@ class ParticipantLocked(StoreError):
 
 class LockRefused(StoreError):
     """A participant's lock file is not one (a symbolic link): refused before anything is written."""
+
+
+class LockUnreadable(LockRefused):
+    """A participant's lock file cannot be read by this user: whether a writer holds it is unknown
+    (readers go on without it)."""
+
+
+class StudyNotWritable(StoreError):
+    """The study folder cannot be written by this process (read-only, another user's): a writer is
+    refused before anything is written."""

@@ -19,6 +19,7 @@ from session_store.errors import (
     CorruptStoreError,
     EmptyStoreError,
     LockRefused,
+    LockUnreadable,
     MisnamedStoreError,
     SchemaVersionError,
     StoreWriteError,
@@ -57,6 +58,8 @@ def _closed_in_wal_mode(path: Path) -> bool:
         return False
     try:
         return holder_of(path) is None
+    except LockUnreadable:  # another user's: with no transaction in a -wal, the file holds them all
+        return True
     except LockRefused:  # a lock file that is not one (a symlink): whoever writes, read as before
         return False
 

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict, ValidationError
 
-from session_store.errors import LockRefused, ParticipantLocked
+from session_store.errors import LockRefused, LockUnreadable, ParticipantLocked, StudyNotWritable
 
 #: A writer retries this long before it reports the lock as held: a reader's probe (doctor) holds a
 #: shared lock for microseconds and must never refuse a writer.
@@ -62,6 +62,20 @@ def _open_lock(path: Path, flags: int) -> int:
             raise LockRefused(f"{path} is a symbolic link, not a lock file; refused before writing "
                               "anything (remove the link)") from None
         raise
+
+
+def _open_for_writing(path: Path) -> int:
+    """Open (or create) a lock file that a writer holds; a folder this process cannot write (a
+    read-only mount, another user's study) is refused in plain words, naming the folder."""
+    try:
+        return _open_lock(path, os.O_RDWR | os.O_CREAT)
+    except OSError as exc:
+        if exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+            raise
+        raise StudyNotWritable(
+            f"cannot write to the study folder {path.parent} ({exc.strerror}): a writer keeps its "
+            f"lock file {path.name} there. Run as the folder's owner, or copy the study to a "
+            "folder you can write; reading it (export, report, doctor) needs no lock") from None
 
 
 def lock_path(database: Path) -> Path:
@@ -127,7 +141,7 @@ class WriterLock:
         this process as its holder."""
         path = lock_path(database)
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd = _open_lock(path, os.O_RDWR | os.O_CREAT)
+        fd = _open_for_writing(path)
         os.fchmod(fd, LOCK_MODE)  # a lock file of an earlier version may be 644
         deadline = time.monotonic() + RETRY_S
         while True:
@@ -207,7 +221,7 @@ def creating_participant(study_dir: Path) -> Iterator[None]:
     process that dies."""
     study_dir = Path(study_dir)
     study_dir.mkdir(parents=True, exist_ok=True)
-    fd = _open_lock(study_dir / CREATION_LOCK, os.O_RDWR | os.O_CREAT)
+    fd = _open_for_writing(study_dir / CREATION_LOCK)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)
         yield
@@ -226,6 +240,9 @@ def holder_of(database: Path) -> Holder | None:
         fd = _open_lock(path, os.O_RDONLY)
     except FileNotFoundError:
         return None
+    except PermissionError:
+        raise LockUnreadable(f"{path.name} is not readable by this user (another user's study?): "
+                             "whether a writer has the participant open cannot be told") from None
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)

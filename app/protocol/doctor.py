@@ -20,6 +20,7 @@ from app.protocol.errors import EventLogError
 from app.protocol.plan import protocol_slots
 from app.protocol.state import Step, replay
 from app.protocol.study import StudyConfig
+from session_store.errors import LockRefused
 from session_store.inspect import inspect_database
 from session_store.lock import holder_of
 from session_store.paths import SUFFIX
@@ -52,7 +53,11 @@ def examine(path: Path) -> Verdict:
     """The verdict on one participant database."""
     found = inspect_database(path)
     verdict = Verdict(path=path, problems=list(found.problems))
-    holder = holder_of(path)
+    try:
+        holder = holder_of(path)
+    except LockRefused as exc:  # not a lock file, or not this user's to read: say so, read on
+        verdict.notes.append(str(exc))
+        holder = None
     if holder is not None:
         verdict.notes.append(f"open for writing now: {holder.describe()}")
     if found.participant is None:

@@ -5,8 +5,12 @@ reading never writes to the study folder."""
 from __future__ import annotations
 
 import contextlib
+import os
 import shutil
 import sqlite3
+import subprocess
+import sys
+import tempfile
 from pathlib import Path
 
 import pandas as pd
@@ -221,3 +225,53 @@ def test_a_code_that_differs_only_in_case_is_refused_before_anything_is_written(
     assert code == 2
     assert "participant code 'p01' differs only in case from 'P01'" in capsys.readouterr().err
     assert sorted(p.name for p in study.iterdir()) == before
+
+
+@pytest.mark.parametrize("command", [
+    ["run-session", "--participant", "P02", "--auto", "--no-progress"],
+    ["serve", "--participant", "P02", "--tablet-port", "0", "--dashboard-port", "0"],
+])
+def test_a_writer_in_a_folder_it_cannot_write_says_so_before_anything(study, capsys, command):
+    """A read-only mount (or another user's study) was an OSError traceback from the lock file."""
+    with read_only(study) as view:
+        before = fingerprint(view / "P02.sqlite")
+        assert main([command[0], "--study", str(view), *command[1:]]) == 2
+        err = capsys.readouterr().err
+        assert f"cannot write to the study folder {view} (Read-only file system)" in err, err
+        assert "Traceback" not in err and fingerprint(view / "P02.sqlite") == before
+
+
+#: Run as another user (nobody) the readers that need no lock: what they print, or their refusal.
+AS_ANOTHER_USER = """
+import os, sys
+from app.cli import main
+import app.protocol.cli, app.analysis.cli, session_store.export  # imported while root may
+os.setgid(65534); os.setuid(65534)
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_another_users_study_is_read_without_its_lock_files(study, tmp_path):
+    """As another user, doctor, export and report failed for the whole folder on the 0600 lock
+    file of one participant; reading needs no lock. (report reads the folder as export does, with
+    the same inspection; it imports more after the user is changed than this child may read.)"""
+    shared = Path(tempfile.mkdtemp(prefix="shared-study-"))  # nobody may enter it (tmp_path: no)
+    try:
+        shared.chmod(0o755)
+        folder = Path(shutil.copytree(study, shared / "study"))
+        folder.chmod(0o755)
+        for path in folder.iterdir():
+            path.chmod(0o600 if path.name.endswith(".lock") else 0o644)
+        (folder / "P01.sqlite.lock").write_text("")  # as a writer leaves it
+        out = shared / "out"
+        out.mkdir(mode=0o777)
+        out.chmod(0o777)
+        for command in (["doctor", str(folder)], ["export", str(folder), "--out", str(out / "x")]):
+            result = subprocess.run([sys.executable, "-c", AS_ANOTHER_USER, *command],
+                                    capture_output=True, text=True, env={**os.environ,
+                                                                          "HOME": str(out)})
+            assert result.returncode == 0 and "Permission denied" not in result.stderr, \
+                (command, result.stdout, result.stderr)
+        assert (out / "x" / "trials.csv").exists()
+    finally:
+        shutil.rmtree(shared)
