@@ -49,6 +49,8 @@ def run(args: argparse.Namespace) -> int:
     print(report.ratings_counted)
     for path, reason in report.unreadable.items():
         print(f"warning: {unreadable_text(path, reason)}", file=sys.stderr)
+    for why in report.recording_cut_short:
+        print(f"warning: {args.xdf}: {why}", file=sys.stderr)
     if report.incomplete:
         print(f"warning: incomplete sessions, left out of the tests: {', '.join(report.incomplete)}",
               file=sys.stderr)

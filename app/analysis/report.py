@@ -77,6 +77,7 @@ class Report(BaseModel):
     incomplete: list[str]
     unreadable: dict[str, str]
     ratings_counted: str
+    recording_cut_short: list[str] = []  # the XDF recording's streams that end early, in words
 
 
 def tests_frame(tests: list[StatTest]) -> pd.DataFrame:
@@ -175,5 +176,6 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
     if incomplete:
         log.info("incomplete sessions (reported, left out of the tests): %s", incomplete)
     return Report(html=html, tables=tables, figures=figures, tests=analysis.tests,
-                  incomplete=incomplete, unreadable=unreadable, ratings_counted=counted.text())
+                  incomplete=incomplete, unreadable=unreadable, ratings_counted=counted.text(),
+                  recording_cut_short=[] if recording is None else recording.cut_short)
 

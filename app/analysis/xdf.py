@@ -10,6 +10,7 @@ per trial (:data:`WINDOW_S`) and joined with the trial's row of the participant'
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +47,7 @@ class Recording:
     participant: str
     markers: list[tuple[float, dict]]  # (time stamp, marker), in the recorder's clock
     streams: dict[str, Channels]
+    cut_short: list[str]  # the streams that end early, in words (a file cut short)
 
     def times_of(self, event: str) -> dict[int, float]:
         """Trial index → the time of its ``event`` marker (``go``, ``release``, …)."""
@@ -81,11 +83,35 @@ def _name(stream: dict) -> str:
 
 
 def _readable(path: Path, read: Callable[[], T]) -> T:
-    """``read()``, or an :class:`XDFError` saying that ``path`` is not a readable XDF file."""
+    """``read()``, or an :class:`XDFError` saying that ``path`` is not a readable XDF file (a file
+    cut short ends in a chunk's XML or binary header: ParseError, struct.error, KeyError)."""
     try:
         return read()
-    except (OSError, ValueError, EOFError, RuntimeError) as exc:
-        raise XDFError(f"{path}: not a readable XDF file ({exc})") from exc
+    except (OSError, ValueError, EOFError, RuntimeError, SyntaxError, struct.error, KeyError,
+            IndexError) as exc:
+        raise XDFError(f"{path}: not a readable XDF file ({type(exc).__name__}: {exc}); a file "
+                       "cut short (a copy that stopped, a recorder that crashed) loses its end") \
+            from exc
+
+
+def _samples(stream: dict) -> np.ndarray:
+    """A numeric stream's samples as (samples × channels), also when it has none."""
+    channels = int(stream["info"]["channel_count"][0])
+    return np.asarray(stream["time_series"], dtype=float).reshape(len(stream["time_stamps"]), channels)
+
+
+def _cut_short(stream: dict) -> str | None:
+    """Why ``stream`` ends early, if it does: LabRecorder closes each stream with a footer that
+    counts its samples; a file cut short has none, and a chunk cut in the middle leaves fewer."""
+    footer = (stream.get("footer") or {}).get("info") or {}
+    if not footer:
+        return (f"stream {_name(stream)!r} ends early: the file has no end of it (cut short, or the "
+                "recorder did not stop cleanly); trials after its last sample have no data")
+    counted = int(footer.get("sample_count", ["0"])[0])
+    if len(stream["time_stamps"]) < counted:
+        return (f"stream {_name(stream)!r} ends early: {len(stream['time_stamps'])} of its {counted} "
+                "samples could be read (a chunk was cut)")
+    return None
 
 
 def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
@@ -120,12 +146,12 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
             continue
         if not _numeric(stream):
             raise XDFError(f"{path}: stream {name!r} holds strings; only numeric streams are drawn")
-        values = np.asarray(stream["time_series"], dtype=float).reshape(len(stream["time_stamps"]), -1)
+        values = _samples(stream)
         lab[name] = Channels(np.asarray(stream["time_stamps"]), values, _labels(stream, values.shape[1]))
     return Recording(path=Path(path), participant=_desc(markers, "participant"),
                      markers=[(float(stamp), decode(text[0])) for stamp, text
                               in zip(markers["time_stamps"], markers["time_series"], strict=True)],
-                     streams=lab)
+                     streams=lab, cut_short=[why for s in streams if (why := _cut_short(s))])
 
 
 def around_go(recording: Recording, trials: pd.DataFrame,

@@ -65,3 +65,24 @@ def test_report_xdf_refuses_a_file_without_the_study_markers(recorded_session, t
     assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
                  str(other)]) == 2
     assert "not a readable XDF file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("keep", [100, 1000, 5000, 0.5])
+def test_report_xdf_on_a_recording_cut_short_says_so_in_a_sentence(recorded_session, tmp_path,
+                                                                     capsys, keep):
+    """A copy that stopped early: 100–1000 bytes were an XML ParseError traceback, 5000 bytes
+    "cannot reshape array of size 0", half a file a report with no warning."""
+    session, cut = recorded_session, tmp_path / "cut.xdf"
+    data = session.xdf.read_bytes()
+    cut.write_bytes(data[:keep if isinstance(keep, int) else int(keep * len(data))])
+    code = main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf", str(cut)])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "reshape" not in err, err
+    refused = code == 2 and err.startswith(f"handover report: error: {cut}:")
+    reported_cut = code == 0 and f"warning: {cut}: stream" in err and "ends early" in err
+    if keep == 0.5:  # the first half of every stream is there: reported, and said to end early
+        assert reported_cut, err
+    elif keep == 5000:  # the streams' headers and maybe their first samples: either, in words
+        assert refused or reported_cut, err
+    else:
+        assert refused, err
