@@ -13,6 +13,7 @@ from pydantic import ValidationError
 
 from app.protocol.errors import ProtocolError
 from robot_io.errors import RobotIOError, explain
+from robot_io.lsl_log import quiet_liblsl
 from session_store import lock as writer_lock
 from session_store.errors import StoreError
 from session_store.paths import participant_path
@@ -129,6 +130,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
+    if not args.verbose:
+        quiet_liblsl()
     func: Callable[[argparse.Namespace], int] = args.func
     try:
         return func(args)
