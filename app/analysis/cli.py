@@ -52,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
     if report.incomplete:
         print(f"warning: incomplete sessions, left out of the tests: {', '.join(report.incomplete)}",
               file=sys.stderr)
+    for code, shown in report.not_blind.items():
+        print(f"warning: {code}: validation {shown}", file=sys.stderr)
     for test in report.tests:
         print(f"{test.name}: {test.summary()}")
     print(f"report: {report.html} ({len(report.tables)} tables, {len(report.figures)} figures)")
