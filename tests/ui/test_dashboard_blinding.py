@@ -62,12 +62,12 @@ def test_serve_hides_validation_theta_and_origin_unless_unblind_and_records_both
     with serve(tmp_path, "--participant", "B01", log_name="blind.log") as served:
         blind, blind_text = learner_panel(served, tmp_path / "shots", "learner-blind")
         served.shutdown()
+    assert all(row[3:7] == ["hidden"] * 4 for row in blind), blind
+    assert "Double-blind: θ and origin of validation trials are hidden." in blind_text
+
     with serve(tmp_path, "--participant", "B01", "--unblind", log_name="unblind.log") as served:
         shown, shown_text = learner_panel(served, tmp_path / "shots", "learner-unblind")
         served.shutdown()
-
-    assert all(row[3:7] == ["hidden"] * 4 for row in blind), blind
-    assert "Double-blind: θ and origin of validation trials are hidden." in blind_text
     assert sorted(row[6] for row in shown) == ["best", "sobol"], shown
     assert all(value != "hidden" for row in shown for value in row[3:7]), shown
     assert "Not blind (serve --unblind)" in shown_text
