@@ -61,7 +61,7 @@ class StudyAnalysis:
     def of(cls, tables: dict[str, pd.DataFrame]) -> StudyAnalysis:
         status = session_status(tables["participants"], tables["events"])
         blinding = validation_blinding(tables["trials"], tables["events"])
-        status["validation_blinding"] = status["participant"].map(blinding)
+        status["validation_blinding"] = status["participant"].map(blinding).fillna("not recorded")
         pairs = validation_pairs(tables["trials"], tables["validation_ratings"])
         scores = validation_scores(pairs, theta_star(tables["learner_snapshots"]), status)
         survey = survey_table(tables["answers"], status)
