@@ -67,7 +67,9 @@ def test_serve_hides_validation_theta_and_origin_unless_unblind_and_records_both
 
     with serve(tmp_path, "--participant", "B01", "--unblind", log_name="unblind.log") as served:
         shown, shown_text = learner_panel(served, tmp_path / "shots", "learner-unblind")
-        served.shutdown()
+        printed = served.shutdown()
+    assert ("validation:               NOT blind (--unblind): the dashboard shows which trial is "
+            "θ*") in printed
     assert sorted(row[6] for row in shown) == ["best", "sobol"], shown
     assert all(value != "hidden" for row in shown for value in row[3:7]), shown
     assert "Not blind (serve --unblind)" in shown_text
