@@ -39,6 +39,7 @@ $(VENV)/.installed: pyproject.toml
 	$(UV_INSTALL) -e '.[dev]'
 	touch $@
 
+# The validation is blind (the dashboard hides which trial of a pair is θ*); pilots add --unblind.
 demo: install
 	$(BIN)/handover serve --study ./study
 

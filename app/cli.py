@@ -1,4 +1,5 @@
-"""The ``handover`` console command. Each package registers its own subcommands here."""
+"""The ``handover`` console command: its description and options; each package registers its own
+subcommands here (:data:`_COMMAND_MODULES`)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pydantic import ValidationError
 
 from app.protocol.errors import ProtocolError
 from robot_io.errors import RobotIOError, explain
+from robot_io.lsl_log import quiet_liblsl
 from session_store import lock as writer_lock
 from session_store.errors import StoreError
 from session_store.paths import participant_path
@@ -64,10 +66,42 @@ def reserve_participant(argv: Sequence[str]) -> writer_lock.WriterLock | None:
     return writer_lock.reserve(database, argv=["handover", *argv])
 
 
+#: What ``handover --help`` opens with, and the commands a lab starts with (plain text, printed as
+#: it is written).
+DESCRIPTION = """\
+handover-lab: adaptive robot-to-human handovers for human-robot interaction
+studies. A robot arm hands an object to a participant; the participant rates
+each handover on a tablet, and preference learning picks the next one. Each
+participant's session is stored in a study folder."""
+EPILOG = """\
+to start:
+  handover serve --study ./study
+      the tablet and the dashboard: open the two addresses it prints
+  handover check-devices --config lab.toml
+      connect to the lab's arm, tracker and gripper; move nothing
+  handover report ./study --out ./report
+      the paper's tables, tests and figures of a study
+
+'handover COMMAND --help' describes each command."""
+
+
+def version() -> str:
+    """The installed package's version."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as installed
+
+    try:
+        return installed("handover-lab")
+    except PackageNotFoundError:  # run from a source tree that was never installed
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     import importlib
 
-    parser = argparse.ArgumentParser(prog="handover", description=__doc__)
+    parser = argparse.ArgumentParser(prog="handover", description=DESCRIPTION, epilog=EPILOG,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version()}")
     parser.add_argument("-v", "--verbose", action="store_true", help="log at INFO level")
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in _COMMAND_MODULES:
@@ -96,6 +130,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
+    if not args.verbose:
+        quiet_liblsl()
     func: Callable[[argparse.Namespace], int] = args.func
     try:
         return func(args)

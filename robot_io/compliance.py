@@ -1,5 +1,5 @@
 """The external-force term of Table I: while the participant holds the object, the measured pull
-times k_ext enters the DMP acceleration (DESIGN.md §2), so the arm yields like a virtual spring
+times k_ext enters the DMP acceleration (docs/controller.md), so the arm yields like a virtual spring
 instead of resisting the pull.
 
     τ²ẍ = … + k_ext (F − F₀)        F₀: the baseline force at grasp

@@ -367,7 +367,7 @@ class GripperConfig(_Frozen):
 
 
 class ReleaseConfig(_Frozen):
-    """Force-threshold release (DESIGN.md §2): baseline at grasp, filtered norm, threshold."""
+    """Force-threshold release (docs/controller.md): baseline at grasp, filtered norm, threshold."""
 
     threshold_n: in_range(0, 50, "N") = Field(
         10.0, description="pull above the baseline that releases [N]")
@@ -389,7 +389,7 @@ class ArmConfig(_Frozen):
 
 
 class CycleConfig(_Frozen):
-    """The whole handover cycle around the coupled reach (DESIGN.md §2): prepare → ready → go →
+    """The whole handover cycle around the coupled reach (docs/controller.md): prepare → ready → go →
     reach → hold → release (or not taken) → retract."""
 
     start_zone_m: float = Field(

@@ -1,4 +1,4 @@
-"""Coupling of the DMP to the tracked hand, eqs. (6)–(10), after Sect. III-B and DESIGN.md §2.
+"""Coupling of the DMP to the tracked hand, eqs. (6)–(10), after Sect. III-B (docs/controller.md).
 
     d  = ‖g − x_hand‖                                  (6)
     d̃̈ = α_d(α_d/4 (d − d̃) − d̃̇)                       (7)   d̃(0) = d(0), d̃̇(0) = 0

@@ -1,4 +1,4 @@
-"""The whole handover cycle of one trial (DESIGN.md §2), on whatever arm, hand source and gripper the
+"""The whole handover cycle of one trial (docs/controller.md), on whatever arm, hand source and gripper the
 rig has opened:
 
     prepare (bounded move to R; the object is put into the open gripper, which closes once the

@@ -5,7 +5,7 @@
     τ   = τ0(1 + C_t)                               (5)
 
 with C_s = −α_x τ ẋ γ (eq. 9, γ = k_s σ_d σ_j given by the coupling) and k_ext F the external-force
-term of Table I (DESIGN.md §2; zero unless a compliance coupling supplies it). All DOFs share the
+term of Table I (docs/controller.md; zero unless a compliance coupling supplies it). All DOFs share the
 phase s.
 The phase is integrated online: τ changes every step, so s is never computed in closed form from t.
 """

@@ -1,4 +1,4 @@
-"""The control loop of one handover (DESIGN.md §1): per cycle, read the latest hand sample → distance
+"""The control loop of one handover (docs/controller.md): per cycle, read the latest hand sample → distance
 filter (6, 7) → coupling (8–10) → DMP step (1–5) → safety limiter → arm; one recorded row per cycle.
 
 The loop runs on a real or a simulated clock through the same code. It ends when the robot is at the

@@ -1,4 +1,4 @@
-"""Force-threshold release (DESIGN.md §2): the gripper opens when the participant pulls.
+"""Force-threshold release (docs/controller.md): the gripper opens when the participant pulls.
 
 At grasp the baseline F₀ is the mean force over ``baseline_s`` (a CB-series UR5 has no wrist sensor:
 its TCP force is estimated from joint currents, biased and ±10 N noisy, so only a change counts).

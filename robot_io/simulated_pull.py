@@ -1,4 +1,4 @@
-"""The simulated participant's pull on the object at the handover point (DESIGN.md §2).
+"""The simulated participant's pull on the object at the handover point (docs/controller.md).
 
 Once the hand has reached the object held out by the robot (within ``reach_m`` of the TCP, the TCP
 still) and the gripper still holds it, the participant grasps for ``grasp_delay_s`` and then pulls

@@ -1,4 +1,4 @@
-"""The stages of one handover cycle (DESIGN.md §2), in order; each is reported and recorded when it
+"""The stages of one handover cycle (docs/controller.md), in order; each is reported and recorded when it
 begins. ``release`` and ``not_taken`` are the two ways a hold ends."""
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", type=Path, default=Path("out/report"),
                         help="output folder (default out/report)")
     parser.add_argument("--benchmark", type=Path, default=None,
-                        help="a `handover benchmark-pl` output folder: adds Fig. 3")
+                        help="a handover benchmark-pl output folder: adds Fig. 3")
     parser.add_argument("--xdf", type=Path, default=None, metavar="FILE",
                         help="an XDF recording of the study's LSL markers and the lab's own streams "
                              "(LabRecorder): each stream around each trial's Go (needs the 'xdf' extra)")
@@ -29,7 +29,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="count the simulated participant's validation ratings and answers "
                              "too (by default only the participants' own count)")
     parser.add_argument("--force", action="store_true",
-                        help="report participants that `handover doctor` finds BAD too (they are "
+                        help="report participants that handover doctor finds BAD too (they are "
                              "left out by default), with a warning for each")
     parser.set_defaults(func=run)
 
@@ -54,6 +54,8 @@ def run(args: argparse.Namespace) -> int:
     if report.incomplete:
         print(f"warning: incomplete sessions, left out of the tests: {', '.join(report.incomplete)}",
               file=sys.stderr)
+    for code, shown in report.not_blind.items():
+        print(f"warning: {code}: validation {shown}", file=sys.stderr)
     for test in report.tests:
         print(f"{test.name}: {test.summary()}")
     print(f"report: {report.html} ({len(report.tables)} tables, {len(report.figures)} figures)")

@@ -21,7 +21,7 @@ import pandas as pd
 from pydantic import BaseModel
 
 from app.analysis import figures as fig
-from app.analysis.provenance import counted_ratings
+from app.analysis.provenance import counted_ratings, not_blind, validation_blinding
 from app.analysis.report_page import render_page
 from app.analysis.stats import StatTest, paper_tests
 from app.analysis.tables import (
@@ -60,6 +60,8 @@ class StudyAnalysis:
     @classmethod
     def of(cls, tables: dict[str, pd.DataFrame]) -> StudyAnalysis:
         status = session_status(tables["participants"], tables["events"])
+        blinding = validation_blinding(tables["trials"], tables["events"])
+        status["validation_blinding"] = status["participant"].map(blinding).fillna("not recorded")
         pairs = validation_pairs(tables["trials"], tables["validation_ratings"])
         scores = validation_scores(pairs, theta_star(tables["learner_snapshots"]), status)
         survey = survey_table(tables["answers"], status)
@@ -77,6 +79,7 @@ class Report(BaseModel):
     incomplete: list[str]
     unreadable: dict[str, str]
     ratings_counted: str
+    not_blind: dict[str, str]  # participant → how their validation was shown, where not "blind"
     recording_cut_short: list[str] = []  # the XDF recording's streams that end early, in words
 
 
@@ -100,7 +103,9 @@ def write_tables(analysis: StudyAnalysis, directory: Path) -> dict[str, Path]:
 
 
 def draw_participant_figures(analysis: StudyAnalysis, directory: Path) -> dict[str, fig.FigureFiles]:
-    """Fig. 4 and the learning curve of every participant that has the data for them."""
+    """Fig. 4 and the learning curve of every participant that has the data for them: a completed
+    validation trial, a completed handover before the validation and a learner update. The others
+    are left out of the figures (the page names them)."""
     configs = study_configs(analysis.tables["participants"])
     trials = analysis.tables["trials"]
     learning = trials[(trials["outcome"] == "completed") & trials["phase"].isin(LEARNING_PHASES)]
@@ -115,8 +120,9 @@ def draw_participant_figures(analysis: StudyAnalysis, directory: Path) -> dict[s
             theta = fig.theta_text(star["theta_a"], star["theta_delta"], star["theta_k"])
             drawn[f"fig4-{code}"] = fig.save(fig.draw_fig4(mine, f"Fig. 4, {title}", theta),
                                              directory, f"fig4-{code}")
-        if (snapshots["participant"] == code).any():
-            curve = fig.draw_learning_curve(learning[learning["participant"] == code],
+        shown = learning[learning["participant"] == code]
+        if not shown.empty and (snapshots["participant"] == code).any():
+            curve = fig.draw_learning_curve(shown,
                                             snapshots[snapshots["participant"] == code], config,
                                             f"Learning curve, {title}")
             drawn[f"learning-{code}"] = fig.save(curve, directory, f"learning-{code}")
@@ -177,5 +183,6 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
         log.info("incomplete sessions (reported, left out of the tests): %s", incomplete)
     return Report(html=html, tables=tables, figures=figures, tests=analysis.tests,
                   incomplete=incomplete, unreadable=unreadable, ratings_counted=counted.text(),
+                  not_blind=not_blind(analysis.status),
                   recording_cut_short=[] if recording is None else recording.cut_short)
 

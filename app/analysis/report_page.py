@@ -12,6 +12,7 @@ import pandas as pd
 
 from app.analysis import html
 from app.analysis.figures import FigureFiles
+from app.analysis.provenance import not_blind
 from app.analysis.stats import MWU_METHOD, SIGN_TIE_RULE, StatTest
 from app.analysis.tables import INDISTINCT_ARRIVAL_S, SCENARIOS
 
@@ -20,7 +21,7 @@ if TYPE_CHECKING:
 
 TABLE_NUMBER = {"straightforward": "Table II", "perturbed": "Table III"}
 SCORE_RULE = (
-    "Validation (%) = pairs in which the learned θ* was preferred / rated pairs. A pair rated "
+    "Validation = pairs in which the learned θ* was preferred / rated pairs. A pair rated "
     "'equal' counts as not preferred (it stays in the denominator), as in the paper, where every "
     "score is a multiple of 25 % of 4 pairs. * : a missed pair compared two θ with which the robot "
     f"arrived within {INDISTINCT_ARRIVAL_S * 1000:.0f} ms of each other (practically identical "
@@ -38,10 +39,12 @@ def _status_text(row: pd.Series) -> str:
 
 
 def _score_text(row: pd.Series) -> str:
+    """The validation score with its n, e.g. "75 % of 4 rated pairs"."""
     if pd.isna(row["score_pct"]):
         return "no rated pair"
     mark = "*" if row["indistinct_missed"] else ""
-    return f"{mark}{row['score_pct']:.0f}"
+    pairs = row["pairs"]
+    return f"{mark}{row['score_pct']:.0f} % of {pairs} rated pair{'' if pairs == 1 else 's'}"
 
 
 def _participant_text(row: pd.Series) -> str:
@@ -57,6 +60,8 @@ def problems(analysis: StudyAnalysis, unreadable: Mapping[str, str]) -> str:
     lines = [unreadable_text(path, reason) for path, reason in unreadable.items()]
     lines += [f"{row['participant']}: {_status_text(row)}; shown below, left out of the tests"
               for _, row in analysis.status.iterrows() if not row["complete"]]
+    lines += [f"{code}: validation {text}: the dashboard showed the experimenter which trial of a "
+              "pair was θ*" for code, text in not_blind(analysis.status).items()]
     if not lines:
         return html.paragraph("No problems: every database was read and every session is complete.")
     return html.section("Data problems", html.items(lines, "problem"))
@@ -68,7 +73,8 @@ def sessions(analysis: StudyAnalysis) -> str:
                                    state=analysis.status.apply(_status_text, axis=1))
     return html.section("Sessions", html.table(
         frame, {"participant": "Participant", "scenario": "Scenario",
-                "progress": "Interactions", "state": "Status"}))
+                "progress": "Interactions", "state": "Status",
+                "validation_blinding": "Validation shown to the experimenter"}))
 
 
 def validation_tables(analysis: StudyAnalysis) -> str:
@@ -82,7 +88,7 @@ def validation_tables(analysis: StudyAnalysis) -> str:
         parts.append(html.section(
             f"{TABLE_NUMBER[scenario]}: validation results, {scenario} handover",
             html.table(rows, {"who": "Participant", "theta_a": "a_d", "theta_delta": "δ_d",
-                              "theta_k": "k", "shown": "Validation (%)", "pairs": "pairs",
+                              "theta_k": "k", "shown": "Validation", "pairs": "pairs",
                               "learned_preferred": "θ* preferred", "sobol_preferred":
                               "Sobol preferred", "equal": "equal"}), level=3))
     return html.section("Validation (Sect. VI-A)", *parts, html.paragraph(SCORE_RULE, "note"))
@@ -131,6 +137,13 @@ def figure_list(figures: Mapping[str, FigureFiles], prefix: str, caption: str) -
             for name, files in figures.items() if name.startswith(prefix)]
 
 
+def left_out(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], prefix: str,
+             why: str) -> list[str]:
+    """A note naming the participants without a figure ``prefix``-CODE, and why ([] if none)."""
+    missing = [code for code in analysis.status["participant"] if f"{prefix}{code}" not in figures]
+    return [html.paragraph(f"Not drawn for {', '.join(missing)}: {why}.", "note")] if missing else []
+
+
 def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, study_dir: Path,
                 unreadable: Mapping[str, str], generated: str, ratings_counted: str) -> str:
     """The whole report as one HTML string (figures embedded); ``ratings_counted`` says whose
@@ -145,9 +158,12 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
     parts = [intro, html.paragraph(ratings_counted), problems(analysis, unreadable),
              sessions(analysis), validation_tables(analysis),
              statistics(analysis.tests), survey(analysis),
-             html.section("Fig. 4: trajectories of the validation trials (Sect. VI-C)",
-                          *(fig4 or [html.paragraph("No completed validation trial.")])),
-             html.section("Learning curves", *(curves or [html.paragraph("No learner update.")]))]
+             html.section("Fig. 4: trajectories of the validation trials (Sect. VI-C)", *fig4,
+                          *left_out(analysis, figures, "fig4-", "no completed validation trial")),
+             html.section("Learning curves", *curves,
+                          *left_out(analysis, figures, "learning-",
+                                    "no completed handover before the validation, or no learner "
+                                    "update"))]
     recorded = figure_list(figures, "xdf-", "A stream of the lab's XDF recording around each trial's "
                            "Go, by θ origin; black: the mean of the completed trials:")
     if recorded:

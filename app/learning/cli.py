@@ -92,7 +92,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     """Add ``benchmark-pl`` to the ``handover`` command."""
     parser = subparsers.add_parser(
         "benchmark-pl", help="simulated preference-learning study (paper Sect. IV, Fig. 3)",
-        description=__doc__)
+        description="The simulated preference-learning study of the paper's Sect. IV (Fig. 3): "
+                    "each condition's learner against a simulated participant, trial after trial; "
+                    "the results folder is resumed from when run again.")
     parser.add_argument("--q", type=_bounded(int, 2, 25), default=5,
                         help="interactions per batch, θ* included (default 5; EUBO: 2 is pairwise)")
     parser.add_argument("--trials", type=_bounded(int, 1, 100_000), default=500,

@@ -1,4 +1,4 @@
-"""The learner in its own process, with a request/response interface (DESIGN.md §1).
+"""The learner in its own process, with a request/response interface (docs/learning.md).
 
 A GP fit holds the GIL for tens to hundreds of milliseconds, which would starve a 500 Hz control
 loop in the same process, so the learner runs in a worker process (torch lives only there,

@@ -68,7 +68,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     export.add_argument("--format", choices=EXPORT_FORMATS, default="csv")
     export.add_argument("--out", type=Path, required=True, help="output folder")
     export.add_argument("--force", action="store_true",
-                        help="export participants that `handover doctor` finds BAD too (they are "
+                        help="export participants that handover doctor finds BAD too (they are "
                              "left out by default), with a warning for each")
     export.set_defaults(func=export_command)
 

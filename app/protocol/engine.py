@@ -277,6 +277,13 @@ class SessionEngine:
         if self.state.simulated_participant != on:
             self._commit(ev.SimulatedParticipantSwitched(actor=Actor.EXPERIMENTER, on=on))
 
+    def set_blinding(self, blind: bool) -> None:
+        """The dashboard serving this session hides the θ and origin of validation trials (``blind``)
+        or shows them; recorded when it differs from the last record (at the first open, and when a
+        restart changes it), so the report can say how the validation was run."""
+        if self.state.blind != blind:
+            self._commit(ev.ValidationBlindingSet(actor=Actor.EXPERIMENTER, blind=blind))
+
     def place(self, position: float | None = None, equal_to: int | None = None,
               by: Rater = Rater.PARTICIPANT) -> list[Comparison]:
         """The participant's placement of the last interaction on the relative scale: a position

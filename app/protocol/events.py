@@ -139,10 +139,17 @@ class SimulatedParticipantSwitched(_Event):
                                  "participant does (False)")
 
 
+class ValidationBlindingSet(_Event):
+    kind: Literal["validation_blinding_set"] = "validation_blinding_set"
+    blind: bool = Field(description="the dashboard hides the θ and origin of validation trials "
+                                    "(True, the default: the paper's blind validation, Sect. V-C) "
+                                    "or shows them (False: serve --unblind, pilots and debugging)")
+
+
 ProtocolEvent = Annotated[
     SessionCreated | SessionResumed | ThetaPlanned | TrialStarted | TrialStage | TrialEnded
     | PlacementMade | ValidationRated | AnswerGiven | Paused | Resumed | DevicesRecorded
-    | RigChangeConfirmed | SimulatedParticipantSwitched,
+    | RigChangeConfirmed | SimulatedParticipantSwitched | ValidationBlindingSet,
     Field(discriminator="kind")]
 _ADAPTER: TypeAdapter[ProtocolEvent] = TypeAdapter(ProtocolEvent)
 #: Every kind of event, in the order of the union (docs/data.md lists them).

@@ -73,6 +73,7 @@ class SessionState(BaseModel):
     stage: Stage | None = None  # the running trial's stage of the handover cycle
     go_at: str | None = None  # UTC time of the running trial's Go
     simulated_participant: bool = False  # the simulated participant rates (switched by events)
+    blind: bool | None = None  # the dashboard hides validation θ/origin; None: never recorded
     created: bool = False
     last_event: int = 0
 
@@ -259,6 +260,10 @@ def _switched(state: SessionState, event: ev.SimulatedParticipantSwitched) -> No
     state.simulated_participant = event.on
 
 
+def _blinding_set(state: SessionState, event: ev.ValidationBlindingSet) -> None:
+    state.blind = event.blind
+
+
 def _recorded(state: SessionState, event: ev.ProtocolEvent) -> None:
     """Events that record what happened around the protocol without moving it."""
 
@@ -270,7 +275,7 @@ HANDLERS: dict[type, Callable[[SessionState, Any], None]] = {
     ev.PlacementMade: _placement_made, ev.ValidationRated: _validation_rated,
     ev.AnswerGiven: _answer_given, ev.Paused: _paused, ev.Resumed: _resumed,
     ev.DevicesRecorded: _recorded, ev.RigChangeConfirmed: _recorded,
-    ev.SimulatedParticipantSwitched: _switched,
+    ev.SimulatedParticipantSwitched: _switched, ev.ValidationBlindingSet: _blinding_set,
 }
 
 

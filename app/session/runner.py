@@ -1,4 +1,4 @@
-"""The running session behind both screens and the headless command (DESIGN.md §1).
+"""The running session behind both screens and the headless command (docs/controller.md, the rig process).
 
 One :class:`SessionRunner` owns the participant's :class:`SessionEngine` and the rig process that
 runs each trial's handover cycle on the configured devices (:class:`~robot_io.rig.client.RigClient`);
@@ -181,6 +181,7 @@ class SessionRunner:
         self._lock: writer_lock.WriterLock | None = None
         self._ready_wait: str | None = None
         self._auto = False
+        self._blind: bool | None = None  # the dashboard's validation blinding; None: no dashboard
         self._refusing_object = False
         self._preparing = False
         self._failed_in_a_row = 0
@@ -380,8 +381,17 @@ class SessionRunner:
         written in order on the engine thread, without waiting for it (a screen's refresh may call
         this)."""
         self._auto = on
-        self._executor.submit(self._record_switch, on)
+        self._executor.submit(self._record, "the simulated participant's switch",
+                              lambda engine: engine.switch_simulated_participant(on))
         self._changed_now(f"simulated participant {'on' if on else 'off'}")
+
+    def set_blinding(self, blind: bool) -> None:
+        """The dashboard hides the θ and origin of validation trials (``blind``, the paper's blind
+        validation) or shows them (pilots, debugging); recorded in the open session and in every
+        one opened later, so each session says how its validation was run."""
+        self._blind = blind
+        self._executor.submit(self._record, "the validation's blinding",
+                              lambda engine: engine.set_blinding(blind))
 
     def stage_fault(self, fault: StagedFault) -> None:
         """A rehearsal stages ``fault`` now (see :mod:`app.session.faults`); refused on the rig."""
@@ -454,12 +464,13 @@ class SessionRunner:
             self._changed(self._store_fault)
         return RefusedAction(self._store_fault)
 
-    def _record_switch(self, on: bool) -> None:
+    def _record(self, what: str, record: Callable[[SessionEngine], None]) -> None:
+        """``record`` in the open session, if one is open (on the engine thread)."""
         if self._engine is not None:
             try:
-                self._engine.switch_simulated_participant(on)
+                record(self._engine)
             except (RefusedAction, StoreError) as exc:
-                log.error("the simulated participant's switch was not recorded: %s", exc)
+                log.error("%s was not recorded: %s", what, exc)
 
     def _end_session(self) -> str:
         engine = self._require_engine()
@@ -522,6 +533,8 @@ class SessionRunner:
         engine.record_devices(used, self._devices.model_dump(mode="json"), self._rig_identity(),
                               changed_from=changed)
         engine.switch_simulated_participant(self._auto)
+        if self._blind is not None:
+            engine.set_blinding(self._blind)
         self._engine = engine
         self._open_outlets(engine)
         self._participant = SimulatedParticipant(engine.config.seed)

@@ -9,6 +9,7 @@ import signal
 import socket
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from app.cli import DEFAULT_STUDY
 from app.protocol.seeds import parse_seed
@@ -16,6 +17,9 @@ from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
 from robot_io.cli import argument_type
 from robot_io.simulated_hand import Scenario
+
+if TYPE_CHECKING:
+    from app.session.runner import RunnerView
 
 log = logging.getLogger(__name__)
 
@@ -44,9 +48,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                             "printed)")
     serve.add_argument("--token", help="dashboard access token (default: the study's own, created "
                                        "on first use and kept in <study>/.dashboard-token)")
-    serve.add_argument("--blind", action="store_true",
-                       help="double-blind validation: the dashboard hides the θ and origin of "
-                            "validation trials, so the experimenter cannot tell which is θ*")
+    blinding = serve.add_mutually_exclusive_group()
+    blinding.add_argument("--unblind", action="store_true",
+                          help="show the θ and origin of validation trials on the dashboard (pilots "
+                               "and debugging; recorded in the session)")
+    blinding.add_argument("--blind", action="store_true",
+                          help="the default: the dashboard hides the θ and origin of validation "
+                               "trials, so the experimenter cannot tell which is θ* (recorded in "
+                               "the session)")
     add_rig_arguments(serve)
     serve.add_argument("--auto-participant", action="store_true",
                        help="the simulated participant rates and answers (demos, dry runs)")
@@ -96,12 +105,24 @@ def port_number(text: str) -> int:
     return port
 
 
+def participant_line(view: RunnerView) -> str:
+    """The participant open at start, where their session stands, or how to open one."""
+    if view.code is None:
+        return "none open: create or open one on the dashboard"
+    return (f"{view.code} ({view.scenario.value}), {view.state.completed} of {view.interactions} "
+            "handovers done")
+
+
 def serve_command(args: argparse.Namespace) -> int:
     # here, not at the top: every handover command imports this module for its subcommand, and
     # viser costs each of them ~0.5 s of CPU
+    import rich
+
     from app.ui.server import HandoverServers, ServeOptions
 
     lab = load_lab_config(args.config)
+    if not args.verbose:
+        rich.get_console().quiet = True  # viser's two boxed banners: the addresses are printed below
     with open_runner(args, lab, realtime=True) as runner:
         if args.auto_participant:
             runner.set_auto(True)
@@ -110,10 +131,14 @@ def serve_command(args: argparse.Namespace) -> int:
                         confirm_seed_reuse=args.reuse_seed)
         servers = HandoverServers(runner, ServeOptions(host=args.host, tablet_port=args.tablet_port,
                                                        dashboard_port=args.dashboard_port,
-                                                       token=args.token, blind=args.blind))
+                                                       token=args.token, blind=not args.unblind))
         tablet, dashboard = servers.urls()
         print(f"tablet (participant):     {tablet}", flush=True)
         print(f"dashboard (experimenter): {dashboard}", flush=True)
+        print(f"participant:              {participant_line(runner.view)}", flush=True)
+        if args.unblind:
+            print("validation:               NOT blind (--unblind): the dashboard shows which trial "
+                  "is θ*", flush=True)
         print(f"dashboard token:          {servers.token}", flush=True)
         if runner.rehearsal is not None:
             print(f"rehearsal:                stand-in UR controller at {runner.rehearsal.host}",

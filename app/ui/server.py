@@ -32,7 +32,7 @@ class ServeOptions:
     tablet_port: int = 8080
     dashboard_port: int = 8081
     token: str | None = None  # None: the study's stored token (created on first use)
-    blind: bool = False  # double-blind validation: no θ or origin of validation trials shown
+    blind: bool = True  # blind validation: no θ or origin of validation trials shown (False: --unblind)
 
 
 class HandoverServers:
@@ -53,6 +53,7 @@ class HandoverServers:
         self.tablet = Tablet(self.tablet_server, runner, self.tablet_guard.source_of)
         self.gate = TokenGate(self.token, self.dashboard_guard.source_of)
         self.dashboard = Dashboard(self.dashboard_server, runner, self.gate, blind=options.blind)
+        runner.set_blinding(options.blind)  # recorded in each session this dashboard serves
         self._closed = threading.Event()
         self._ticker = threading.Thread(target=self._tick, name="live-view", daemon=True)
         self._ticker.start()

@@ -202,5 +202,7 @@ def learner_markdown(view: RunnerView, blind: bool, rows: int = 10) -> str:
                      f"| {'hidden' if hidden else t.origin.value} | "
                      f"{t.outcome.value if t.outcome else 'running'} |")
     history = ", ".join(f"({s.a:.1f}, {s.delta:.2f}, {s.k:.1f})" for s in view.theta_star[-6:])
-    blinded = ["", "_Double-blind: θ and origin of validation trials are hidden._"] if blind else []
-    return "\n".join([head, "", f"θ* history (latest 6): {history or '—'}", "", *table, *blinded])
+    blinding = ("_Double-blind: θ and origin of validation trials are hidden._" if blind else
+                "_Not blind (serve --unblind): θ and origin of validation trials are shown._")
+    return "\n".join([head, "", f"θ* history (latest 6): {history or '—'}", "", *table, "",
+                      blinding])

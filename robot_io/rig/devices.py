@@ -1,5 +1,5 @@
 """The rig's devices, opened once per rig process from the configuration, and the per-trial set the
-cycle runs on (DESIGN.md §1).
+cycle runs on (docs/controller.md, the rig process).
 
 ``[arm] kind``: ``mock`` (kinematic :class:`~robot_io.mock_arm.MockArm`, made anew each trial on
 the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.ur_arm.URArm`

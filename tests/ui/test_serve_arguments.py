@@ -42,3 +42,20 @@ def test_port_0_binds_a_free_port_each_and_prints_the_urls(tmp_path):
         assert 0 not in ports and len(set(ports)) == 4, urls
         first.shutdown()
         second.shutdown()
+
+
+def test_blind_is_the_default_and_unblind_is_asked_for(capsys):
+    """``--blind`` stays accepted (it is the default); ``--unblind`` with it is refused."""
+    from app.cli import build_parser
+
+    parser = build_parser()
+    assert not parser.parse_args(["serve"]).unblind
+    assert not parser.parse_args(["serve", "--blind"]).unblind
+    assert parser.parse_args(["serve", "--unblind"]).unblind
+    with pytest.raises(SystemExit) as exited:
+        parser.parse_args(["serve", "--blind", "--unblind"])
+    assert exited.value.code == 2
+    assert "argument --unblind: not allowed with argument --blind" in capsys.readouterr().err
+    serve = parser._subparsers._group_actions[0].choices["serve"]
+    [blind] = [action for action in serve._actions if "--blind" in action.option_strings]
+    assert blind.help.startswith("the default:")

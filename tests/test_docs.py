@@ -1,0 +1,38 @@
+"""The user docs hold for a newcomer: they refer to nothing outside the project (a clone has no
+``../shared`` folder and no DESIGN.md), and the options table of ``handover serve`` in
+docs/running-a-study.md names exactly the options serve accepts."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+from app.cli import build_parser
+
+ROOT = Path(__file__).resolve().parents[1]
+#: What a clone of the project does not have.
+OUTSIDE = re.compile(r"\.\./shared|shared/reference|DESIGN\.md")
+
+
+def test_nothing_refers_outside_the_project():
+    files = [ROOT / "README.md", *(ROOT / "docs").glob("*.md"),
+             *(path for package in ("app", "robot_io", "session_store")
+               for path in (ROOT / package).rglob("*.py"))]
+    found = [f"{path.relative_to(ROOT)}:{number}: {line.strip()}" for path in files
+             for number, line in enumerate(path.read_text().splitlines(), 1)
+             if OUTSIDE.search(line)]
+    assert len(files) > 50 and not found, "\n".join(found)
+
+
+def test_the_serve_options_table_names_every_option_serve_has():
+    subparsers = next(action for action in build_parser()._actions
+                      if isinstance(action, argparse._SubParsersAction))
+    accepted = {option for action in subparsers.choices["serve"]._actions
+                for option in action.option_strings if option.startswith("--")} - {"--help"}
+    text = (ROOT / "docs" / "running-a-study.md").read_text()
+    table = text[text.index("| option | meaning |"):]
+    table = table[:table.index("\n\n")]
+    documented = set(re.findall(r"--[a-z][a-z-]*", table))
+    assert documented == accepted, (f"documented, not accepted: {sorted(documented - accepted)}; "
+                                    f"accepted, not documented: {sorted(accepted - documented)}")
