@@ -129,10 +129,22 @@ TABLET_CSS = f"""
 """
 
 #: The dashboard: viser's default look; STOP ARM (the only red button) large, in the pinned
-#: safety panel.
+#: safety panel, which no control of the page can collapse, move, shrink or cover. viser 1.1.1 has
+#: no switch for its panel chrome (upstream issue #392), so, by its client's ``data-dock-*``
+#: attributes: the » / + collapse arrows, the grab handles and resizers are removed; the panel
+#: headers, the Safety tab and the dividers take no pointer (a drag on them would undock a panel,
+#: which then floats, or resize a column); the settings gear (its editable server URL would
+#: disconnect the page) and the command palette (its overlay covers the page; STOP ARM is its only
+#: command, and Esc and the button do the same) are hidden.
 DASHBOARD_CSS = f"""
 .mantine-Button-root[style*="mantine-color-red"] {{ height: 84px !important;
   font-size: 26px !important; font-weight: 800 !important; background: {RED} !important; }}
+[data-dock-column-collapse], [data-dock-region-collapse], [data-dock-column-handle],
+[data-dock-griphandle], [data-dock-region-handle], [data-dock-region-resize],
+[data-dock-header] .mantine-ActionIcon-root,
+.mantine-Spotlight-root {{ display: none !important; }}
+[data-dock-header], [data-dock-strip], [data-dock-tab], [data-dock-divider] {{
+  pointer-events: none !important; }}
 """
 
 #: The dashboard's cover when the server is unreachable: this page cannot stop the arm then. viser
