@@ -318,10 +318,13 @@ class SessionRunner:
 
     def recover_arm(self, inspected: bool = True) -> None:
         """Clear the arm's fault once its cause is inspected (moves nothing); a UR's protective stop
-        is unlocked no sooner than 5 s after it happened."""
+        is unlocked no sooner than 5 s after it happened. When the rig process has ended (its
+        fault), a fresh one is opened: it connects to the devices and moves nothing."""
         rig = self._rig
         if rig is None or not rig.alive:
-            raise RefusedAction("no rig process is running: the next Start trial opens a fresh one")
+            self._call(lambda: self._open_rig(self._require_engine().config))
+            self._changed(f"a fresh rig process is open on {self._devices.arm_detail}")
+            return
         if rig.running is not None:
             raise RefusedAction("recover refused while a trial runs: Stop it first")
         try:
