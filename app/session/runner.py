@@ -83,8 +83,10 @@ AUTO_DELAY_S = 0.6
 #: The reasons recorded with a trial the experimenter aborted or stopped.
 ABORT_REASON = "aborted by the experimenter"
 STOP_REASON = "stopped by the experimenter (Stop)"
-#: The reason recorded with the pause of a session the experimenter ended before it was complete.
+#: The reason recorded with the pause of a session the experimenter ended before it was complete,
+#: and with its resume when the experimenter opens the participant again.
 END_REASON = "ended by the experimenter"
+REOPEN_REASON = "opened again by the experimenter"
 #: How many recent events the dashboard lists.
 MESSAGES = 5
 #: The simulated experimenter gives up after this many trials in a row that did not complete.
@@ -521,6 +523,8 @@ class SessionRunner:
         engine.record_devices(used, self._devices.model_dump(mode="json"), self._rig_identity(),
                               changed_from=changed)
         engine.switch_simulated_participant(self._auto)
+        if engine.pause_reason() == END_REASON:  # opening it again is the experimenter's resume
+            engine.resume_session(REOPEN_REASON)
         self._engine = engine
         self._open_outlets(engine)
         self._participant = SimulatedParticipant(engine.config.seed)

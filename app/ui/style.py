@@ -135,7 +135,8 @@ TABLET_CSS = f"""
 #: headers, the Safety tab and the dividers take no pointer (a drag on them would undock a panel,
 #: which then floats, or resize a column); the settings gear (its editable server URL would
 #: disconnect the page) and the command palette (its overlay covers the page; STOP ARM is its only
-#: command, and Esc and the button do the same) are hidden.
+#: command, and Esc and the button do the same) are hidden. Tables (the study overview, the
+#: learner's trials) keep each cell on one line, apart from the next, and scroll sideways if wide.
 DASHBOARD_CSS = f"""
 .mantine-Button-root[style*="mantine-color-red"] {{ height: 84px !important;
   font-size: 26px !important; font-weight: 800 !important; background: {RED} !important; }}
@@ -145,6 +146,9 @@ DASHBOARD_CSS = f"""
 .mantine-Spotlight-root {{ display: none !important; }}
 [data-dock-header], [data-dock-strip], [data-dock-tab], [data-dock-divider] {{
   pointer-events: none !important; }}
+[data-dock-leaf] table {{ display: block; overflow-x: auto; border-collapse: collapse; }}
+[data-dock-leaf] th, [data-dock-leaf] td {{ white-space: nowrap; padding: 2px 14px 2px 0;
+  text-align: left; }}
 """
 
 #: The dashboard's cover when the server is unreachable: this page cannot stop the arm then. viser
