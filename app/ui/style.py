@@ -65,7 +65,9 @@ OFFLINE_CSS = offline_cover("Please tell the experimenter.\n\nThe tablet has los
 
 #: The tablet's own look: big type, big buttons, the slider as a big orange drag handle, the scale
 #: at a fixed height (stacked "equal" markers close up rather than push Confirm down), sizes for a
-#: tablet in either orientation and smaller ones for a phone.
+#: tablet in either orientation and smaller ones for a phone. The slider's track spans exactly the
+#: arrow's length (viser's and Mantine's side paddings removed), so the handle stands under the
+#: newest marker from end to end; the lane ends clear of the arrowhead.
 TABLET_CSS = f"""
 :root {{ --hl-title: 52px; --hl-text: 26px; --hl-marker: 64px; --hl-stack: 70px;
   --hl-lane: clamp(150px, 36vh, 380px); --hl-thumb: 80px; --hl-button: 76px;
@@ -93,7 +95,7 @@ TABLET_CSS = f"""
   bottom: calc(var(--hl-level) * min(var(--hl-stack),
     (var(--hl-lane) - var(--hl-marker)) / var(--hl-gaps))); }}
 .hl-marker.hl-new {{ background: {ORANGE}; box-shadow: 0 0 0 4px white, 0 0 0 7px {ORANGE}; }}
-.hl-arrow {{ position: relative; height: 14px; background: {GREY}; margin-top: 10px;
+.hl-arrow {{ position: relative; height: 14px; background: {GREY}; margin-top: 24px;
   border-radius: 7px 0 0 7px; }}
 .hl-arrow::after {{ content: ""; position: absolute; right: -26px; top: -15px;
   border-left: 30px solid {GREY}; border-top: 22px solid transparent;
@@ -105,7 +107,9 @@ TABLET_CSS = f"""
 .mantine-Flex-root:has(> div > .mantine-Flex-root > .mantine-Slider-root) > :first-child {{
   display: none; }}
 .mantine-Slider-root {{ margin: calc(var(--hl-thumb) / 3) calc(var(--hl-marker) / 2 + 8px) 0;
-  height: calc(var(--hl-thumb) + 8px); }}
+  height: calc(var(--hl-thumb) + 8px); padding-inline: 0 !important; }}
+[style*="padding-inline"]:has(> .mantine-Flex-root > div > .mantine-Flex-root > .mantine-Slider-root) {{
+  padding-inline: 0 !important; }}
 .mantine-Slider-track::before {{ background: #dee2e6 !important; }}
 .mantine-Slider-bar {{ background: transparent !important; }}
 .mantine-Slider-thumb {{ width: var(--hl-thumb) !important; height: var(--hl-thumb) !important;
