@@ -4,8 +4,10 @@ Two unlocked dashboard windows could each press Start, and neither said the othe
 every unlocked window is known with its remote address, each window is told how many are open and
 from where, and one window controls the session: the first unlocked while none controls. The
 others are view-only until the experimenter takes control on one of them (which makes the
-controlling one view-only). When the controlling window closes (or reloads), none controls until a
-window takes control or is unlocked. **STOP ARM is no control**: it works from every window,
+controlling one view-only). When the controlling window closes (or reloads), the one window left
+controls; with more left, none controls until one takes control or a window is unlocked. (A window
+that reloads may be unlocked again before the server has seen its old page close: it controls as
+soon as the old page is gone.) **STOP ARM is no control**: it works from every window,
 always (the dashboard never asks this module about it).
 """
 
@@ -68,7 +70,8 @@ class DashboardWindows:
         with self._lock:
             self._addresses.pop(window, None)
             if self._controller == window:
-                self._controller = None
+                self._controller = next(iter(self._addresses)) if len(self._addresses) == 1 \
+                    else None
 
     def take(self, window: int) -> None:
         """The experimenter takes control on ``window`` (an unlocked one)."""
