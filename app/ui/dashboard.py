@@ -207,7 +207,8 @@ class DashboardClient:
             self.window_line.content = window.words()
             self.take_control.visible = not window.controlling
             self.safety.show(view, window.controlling)
-            self.status.content = status_line(view)
+            self.status.content = status_line(view) if window.controlling else \
+                f"**View-only window** · {status_line(view)}"
             self.tablet.content = tablet_markdown(view)
             self.overview.content = overview_markdown(view.overview)
             self.devices.content = devices_markdown(view)

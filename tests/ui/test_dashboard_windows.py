@@ -47,6 +47,7 @@ def test_a_second_window_is_told_of_the_first_and_takes_control_only_when_asked(
             wait_text(page, "2 dashboard windows are open (127.0.0.1, 127.0.0.1)")
         wait_text(first, CONTROLS)
         wait_text(second, VIEW_ONLY)
+        wait_text(second, "View-only window · Ready — press Start trial")  # the status line
         wait_text(second, "Start is locked: this window is view-only")
         assert button(second, "Start trial").is_disabled()
         assert button(first, "Start trial").is_enabled()
