@@ -365,10 +365,18 @@ class SessionEngine:
             raise RefusedAction("pause refused: the session is complete")
         self._commit(ev.Paused(actor=Actor.EXPERIMENTER, reason=reason))
 
-    def resume_session(self) -> None:
+    def resume_session(self, reason: str = "") -> None:
+        """The experimenter resumes the paused session (``reason``: how, when not by Resume)."""
         if not self.state.paused:
             raise RefusedAction("resume refused: the session is not paused")
-        self._commit(ev.Resumed(actor=Actor.EXPERIMENTER))
+        self._commit(ev.Resumed(actor=Actor.EXPERIMENTER, reason=reason))
+
+    def pause_reason(self) -> str | None:
+        """Why the session is paused, as recorded (None: it is not paused)."""
+        if not self.state.paused:
+            return None
+        return next(e.payload.get("reason", "") for e in reversed(self.store.events())
+                    if e.kind == "paused")
 
     # -- internals ---------------------------------------------------------------------------------
     def _require(self, *steps: Step) -> Slot | None:

@@ -116,6 +116,7 @@ class Paused(_Event):
 
 class Resumed(_Event):
     kind: Literal["resumed"] = "resumed"
+    reason: str = ""
 
 
 class DevicesRecorded(_Event):

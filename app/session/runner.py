@@ -85,8 +85,10 @@ AUTO_DELAY_S = 0.6
 #: The reasons recorded with a trial the experimenter aborted or stopped.
 ABORT_REASON = "aborted by the experimenter"
 STOP_REASON = "stopped by the experimenter (Stop)"
-#: The reason recorded with the pause of a session the experimenter ended before it was complete.
+#: The reason recorded with the pause of a session the experimenter ended before it was complete,
+#: and with its resume when the experimenter opens the participant again.
 END_REASON = "ended by the experimenter"
+REOPEN_REASON = "opened again by the experimenter"
 #: How many recent events the dashboard lists.
 MESSAGES = 5
 #: The simulated experimenter gives up after this many trials in a row that did not complete.
@@ -321,10 +323,13 @@ class SessionRunner:
 
     def recover_arm(self, inspected: bool = True) -> None:
         """Clear the arm's fault once its cause is inspected (moves nothing); a UR's protective stop
-        is unlocked no sooner than 5 s after it happened."""
+        is unlocked no sooner than 5 s after it happened. When the rig process has ended (its
+        fault), a fresh one is opened: it connects to the devices and moves nothing."""
         rig = self._rig
         if rig is None or not rig.alive:
-            raise RefusedAction("no rig process is running: the next Start trial opens a fresh one")
+            self._call(lambda: self._open_rig(self._require_engine().config))
+            self._changed(f"a fresh rig process is open on {self._devices.arm_detail}")
+            return
         if rig.running is not None:
             raise RefusedAction("recover refused while a trial runs: Stop it first")
         try:
@@ -535,6 +540,8 @@ class SessionRunner:
         engine.switch_simulated_participant(self._auto)
         if self._blind is not None:
             engine.set_blinding(self._blind)
+        if engine.pause_reason() == END_REASON:  # opening it again is the experimenter's resume
+            engine.resume_session(REOPEN_REASON)
         self._engine = engine
         self._open_outlets(engine)
         self._participant = SimulatedParticipant(engine.config.seed)

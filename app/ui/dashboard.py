@@ -13,6 +13,9 @@ from the session state). Safety first:
 * The physical e-stop is named beside it, and a lost connection covers the page with a banner
   saying so (:data:`~app.ui.style.DASHBOARD_OFFLINE_CSS`): this page cannot stop the arm then.
 * Start is disabled, with the reason beside it, unless exactly one paired tablet is open.
+* Every window is told how many dashboard windows are unlocked and from where; one of them controls
+  the session, the others are view-only until the experimenter presses **Take control** on one
+  (:mod:`app.session.windows`). STOP ARM works from every window.
 
 Refusals are shown next to the controls (or the form field) they concern and cleared as soon as the
 session moves on. With ``blind`` (double-blind validation) the θ and origin of validation trials are
@@ -35,6 +38,7 @@ from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
 from app.session.faults import StagedFault
 from app.session.runner import RunnerView, SessionRunner
+from app.session.windows import DashboardWindows
 from app.ui.guard import TokenGate
 from app.ui.live_view import STRIDE, LiveView
 from app.ui.on_behalf import OnBehalf
@@ -63,6 +67,8 @@ STOP_KEY = "escape"
 SAFETY_WIDTH = 230
 ESTOP_REMINDER = ("The **physical e-stop** (the red button on the teach pendant) stops the arm "
                   "whatever this page shows. Use it if this page does not answer.")
+#: Why a view-only window's Start is locked.
+VIEW_ONLY = "this window is view-only: press Take control to control the session from here"
 #: The page marker the offline banner looks for.
 LIVE_MARKER = '<span class="hl-live"></span>'
 
@@ -109,10 +115,11 @@ class Controls:
     #: The session's "simulated participant" setting the box was last set to (None: not yet).
     shown_auto: bool | None = None
 
-    def enable_for(self, view: RunnerView) -> None:
+    def enable_for(self, view: RunnerView, controlling: bool) -> None:
+        """Enable what the session allows now; nothing in a view-only window."""
         step, state = view.step, view.state
         paused = state is not None and state.paused
-        blocker = start_blocker(view)
+        blocker = start_blocker(view) if controlling else VIEW_ONLY
         self.start.disabled = step is not Step.READY or blocker is not None
         self.start_why.content = f"Start is locked: {blocker}." if blocker and state else ""
         self.loaded.disabled = view.waiting_for != "loaded"
@@ -122,6 +129,11 @@ class Controls:
         self.pause.disabled = state is None or paused or step in (Step.RUNNING, Step.DONE)
         self.resume.disabled = not paused
         self.end.disabled = state is None or step is Step.RUNNING
+        if not controlling:
+            for control in (self.loaded, self.go, self.abort, self.recover, self.pause,
+                            self.resume, self.end):
+                control.disabled = True
+        self.auto.disabled = not controlling
         self._show_auto(view.auto)
 
     def _show_auto(self, auto: bool) -> None:
@@ -141,8 +153,8 @@ class Safety:
     rearm: viser.GuiButtonHandle
     state: viser.GuiMarkdownHandle
 
-    def show(self, view: RunnerView) -> None:
-        self.rearm.disabled = view.stop != "stopped"
+    def show(self, view: RunnerView, controlling: bool) -> None:
+        self.rearm.disabled = view.stop != "stopped" or not controlling
         self.state.content = safety_markdown(view)
 
 
@@ -150,8 +162,10 @@ class DashboardClient:
     """One experimenter's browser."""
 
     def __init__(self, client: viser.ClientHandle, runner: SessionRunner, gate: TokenGate,
+                 windows: DashboardWindows, address: str, on_windows: Callable[[], None],
                  blind: bool = False) -> None:
         self.client, self.runner, self.gate, self.blind = client, runner, gate, blind
+        self.windows, self.address, self._on_windows = windows, address, on_windows
         self.live: LiveView | None = None
         self.replay: Replay | None = None
         self._code: str | None = "-"
@@ -179,26 +193,37 @@ class DashboardClient:
 
     # -- panels -----------------------------------------------------------------------------------
     def refresh(self, view: RunnerView, rebuild: bool = False) -> None:
+        """Show ``view``; ``rebuild``: build the panels anew (the first build is the unlock: the
+        window is then one of the dashboard windows, and every window is told)."""
         with self._lock:
             if self.live is None and not rebuild:
                 return  # still locked
+            unlocking = self.live is None
+            if unlocking:
+                self.windows.opened(self.client.client_id, self.address)
             if rebuild or view.code != self._code:
                 self._build(view)
-            self.safety.show(view)
-            self.status.content = status_line(view)
+            window = self.windows.status(self.client.client_id)
+            self.window_line.content = window.words()
+            self.take_control.visible = not window.controlling
+            self.safety.show(view, window.controlling)
+            self.status.content = status_line(view) if window.controlling else \
+                f"**View-only window** · {status_line(view)}"
             self.tablet.content = tablet_markdown(view)
             self.overview.content = overview_markdown(view.overview)
             self.devices.content = devices_markdown(view)
             if view.state is not None:
                 self.progress.content = progress_markdown(view)
                 self.learner.content = learner_markdown(view, self.blind)
-                self.controls.enable_for(view)
+                self.controls.enable_for(view, window.controlling)
                 self.on_behalf.show(view)
                 self._trials_for_replay(view)
                 if view.posterior:
                     self.posterior.data = posterior_data(view.posterior)
             if self._error_key is not None and error_key(view) != self._error_key:
                 self._show_error(None)  # the refusal is no longer true
+        if unlocking:
+            self._on_windows()
 
     def tick(self) -> None:
         if self.live is not None and (self.replay is None or not self.replay.running):
@@ -214,6 +239,9 @@ class DashboardClient:
             gui.add_html(style_block(DASHBOARD_CSS + DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
             self.safety = self._safety(gui)
             self.status = gui.add_markdown("")
+            self.window_line = gui.add_markdown("")
+            self.take_control = gui.add_button("Take control", color="violet", visible=False)
+            self.take_control.on_click(lambda _: self._act(self._take_control, control=False))
             self.error = gui.add_markdown("")
             with gui.add_folder("Study"):
                 self.overview = gui.add_markdown("")
@@ -252,11 +280,11 @@ class DashboardClient:
             gui.add_markdown(f"**Esc** also stops the arm.\n\n{ESTOP_REMINDER}")
         panel.dock_right()
         panel.set_width(SAFETY_WIDTH)
-        safety.stop.on_click(lambda _: self._act(self.runner.stop))
+        safety.stop.on_click(lambda _: self._act(self.runner.stop, control=False))
         safety.rearm.on_click(lambda _: self._act(self.runner.rearm))
         command = gui.add_command("STOP ARM", description="Stop the arm now", hotkey="escape",
                                   icon=viser.Icon.HAND_STOP)
-        command.on_trigger(lambda _: self._act(self.runner.stop))
+        command.on_trigger(lambda _: self._act(self.runner.stop, control=False))
         return safety
 
     def _participant(self, gui: viser.GuiApi, view: RunnerView) -> None:
@@ -340,7 +368,7 @@ class DashboardClient:
         play = gui.add_button("Replay", icon=viser.Icon.PLAYER_PLAY)
         stop = gui.add_button("Stop replay")
         self.replay_status = gui.add_markdown("")
-        play.on_click(lambda _: self._act(self._start_replay))
+        play.on_click(lambda _: self._act(self._start_replay, control=False))  # this window's view
         stop.on_click(lambda _: self.cancel_replay())
 
     def _trials_for_replay(self, view: RunnerView) -> None:
@@ -371,9 +399,16 @@ class DashboardClient:
             self.replay.cancel()
 
     # -- actions ----------------------------------------------------------------------------------
-    def _act(self, action: Callable[[], None]) -> None:
-        """Run an experimenter's action; show why it was refused, next to the controls."""
+    def _take_control(self) -> None:
+        self.windows.take(self.client.client_id)
+        self._on_windows()
+
+    def _act(self, action: Callable[[], None], control: bool = True) -> None:
+        """Run an experimenter's action (``control``: one that controls the session, refused in a
+        view-only window; STOP ARM is none); show why it was refused, next to the controls."""
         try:
+            if control:
+                self.windows.require_control(self.client.client_id)
             action()
             self._show_error(None)
         except (StoreError, RobotIOError, ValueError) as exc:
@@ -390,9 +425,11 @@ class Dashboard:
     live view. ``blind``: double-blind validation (see the module's docstring)."""
 
     def __init__(self, server: viser.ViserServer, runner: SessionRunner, gate: TokenGate,
-                 blind: bool = False) -> None:
+                 source_of: Callable[[int], str], blind: bool = False) -> None:
         self.server, self.runner, self.gate, self.blind = server, runner, gate, blind
+        self.source_of = source_of
         self.clients: dict[int, DashboardClient] = {}
+        self.windows = DashboardWindows()
         server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
         server.gui.main_panel.dock_right()
         server.gui.main_panel.set_width(520)
@@ -402,12 +439,20 @@ class Dashboard:
 
     def _connect(self, client: viser.ClientHandle) -> None:
         client.scene.configure_environment_map(hdri=None)
-        self.clients[client.client_id] = DashboardClient(client, self.runner, self.gate, self.blind)
+        self.clients[client.client_id] = DashboardClient(
+            client, self.runner, self.gate, self.windows, self.source_of(client.client_id),
+            self._windows_changed, self.blind)
 
     def _disconnect(self, client: viser.ClientHandle) -> None:
         page = self.clients.pop(client.client_id, None)
+        self.windows.closed(client.client_id)
         if page is not None:
             page.cancel_replay()
+            self._windows_changed()
+
+    def _windows_changed(self) -> None:
+        """Every window shows the windows open and which one controls."""
+        self.refresh(self.runner.view)
 
     def refresh(self, view: RunnerView) -> None:
         for client in list(self.clients.values()):

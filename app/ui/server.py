@@ -52,7 +52,8 @@ class HandoverServers:
             raise
         self.tablet = Tablet(self.tablet_server, runner, self.tablet_guard.source_of)
         self.gate = TokenGate(self.token, self.dashboard_guard.source_of)
-        self.dashboard = Dashboard(self.dashboard_server, runner, self.gate, blind=options.blind)
+        self.dashboard = Dashboard(self.dashboard_server, runner, self.gate,
+                                   self.dashboard_guard.source_of, blind=options.blind)
         runner.set_blinding(options.blind)  # recorded in each session this dashboard serves
         self._closed = threading.Event()
         self._ticker = threading.Thread(target=self._tick, name="live-view", daemon=True)

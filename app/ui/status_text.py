@@ -11,8 +11,8 @@ from datetime import datetime
 
 from app.protocol.state import Step
 from app.protocol.vocabulary import Phase
-from app.session.overview import ParticipantSummary
-from app.session.runner import RunnerView
+from app.session.overview import ParticipantSummary, SessionStatus
+from app.session.runner import END_REASON, RunnerView
 from robot_io.stages import Stage
 
 #: The handover cycle as the dashboard draws it.
@@ -175,15 +175,27 @@ def _local_time(at: str | None) -> str:
     return datetime.fromisoformat(at).astimezone().strftime("%Y-%m-%d %H:%M")
 
 
+def overview_status(row: ParticipantSummary) -> str:
+    """A participant's status in a word or two (the table's column stays narrow): a session the
+    experimenter ended before it was complete is "ended early", one paused otherwise "paused"."""
+    if row.status is SessionStatus.PAUSED:
+        return "ended early" if row.detail == END_REASON else "paused"
+    if row.status is SessionStatus.OPEN and row.detail:
+        return "open, paused"
+    return row.status.value
+
+
 def overview_markdown(rows: list[ParticipantSummary]) -> str:
-    """Every participant: scenario, progress, status, last activity."""
+    """Every participant: scenario, progress, status, last activity; why a participant's database
+    could not be read is said under the table."""
     if not rows:
         return "No participants yet."
     table = ["| code | scenario | handovers | status | last activity |", "|---|---|---|---|---|"]
     table += [f"| {r.code} | {r.scenario.value if r.scenario else '—'} | {r.completed} of "
-              f"{r.interactions} | {r.status.value}{f' ({r.detail})' if r.detail else ''} | "
-              f"{_local_time(r.last_activity)} |" for r in rows]
-    return "\n".join(table)
+              f"{r.interactions} | {overview_status(r)} | {_local_time(r.last_activity)} |"
+              for r in rows]
+    unreadable = [f"- {r.code}: {r.detail}" for r in rows if r.status is SessionStatus.UNREADABLE]
+    return "\n".join(table + (["", "Unreadable:", *unreadable] if unreadable else []))
 
 
 def learner_markdown(view: RunnerView, blind: bool, rows: int = 10) -> str:

@@ -65,7 +65,9 @@ OFFLINE_CSS = offline_cover("Please tell the experimenter.\n\nThe tablet has los
 
 #: The tablet's own look: big type, big buttons, the slider as a big orange drag handle, the scale
 #: at a fixed height (stacked "equal" markers close up rather than push Confirm down), sizes for a
-#: tablet in either orientation and smaller ones for a phone.
+#: tablet in either orientation and smaller ones for a phone. The slider's track spans exactly the
+#: arrow's length (viser's and Mantine's side paddings removed), so the handle stands under the
+#: newest marker from end to end; the lane ends clear of the arrowhead.
 TABLET_CSS = f"""
 :root {{ --hl-title: 52px; --hl-text: 26px; --hl-marker: 64px; --hl-stack: 70px;
   --hl-lane: clamp(150px, 36vh, 380px); --hl-thumb: 80px; --hl-button: 76px;
@@ -93,7 +95,7 @@ TABLET_CSS = f"""
   bottom: calc(var(--hl-level) * min(var(--hl-stack),
     (var(--hl-lane) - var(--hl-marker)) / var(--hl-gaps))); }}
 .hl-marker.hl-new {{ background: {ORANGE}; box-shadow: 0 0 0 4px white, 0 0 0 7px {ORANGE}; }}
-.hl-arrow {{ position: relative; height: 14px; background: {GREY}; margin-top: 10px;
+.hl-arrow {{ position: relative; height: 14px; background: {GREY}; margin-top: 24px;
   border-radius: 7px 0 0 7px; }}
 .hl-arrow::after {{ content: ""; position: absolute; right: -26px; top: -15px;
   border-left: 30px solid {GREY}; border-top: 22px solid transparent;
@@ -105,7 +107,9 @@ TABLET_CSS = f"""
 .mantine-Flex-root:has(> div > .mantine-Flex-root > .mantine-Slider-root) > :first-child {{
   display: none; }}
 .mantine-Slider-root {{ margin: calc(var(--hl-thumb) / 3) calc(var(--hl-marker) / 2 + 8px) 0;
-  height: calc(var(--hl-thumb) + 8px); }}
+  height: calc(var(--hl-thumb) + 8px); padding-inline: 0 !important; }}
+[style*="padding-inline"]:has(> .mantine-Flex-root > div > .mantine-Flex-root > .mantine-Slider-root) {{
+  padding-inline: 0 !important; }}
 .mantine-Slider-track::before {{ background: #dee2e6 !important; }}
 .mantine-Slider-bar {{ background: transparent !important; }}
 .mantine-Slider-thumb {{ width: var(--hl-thumb) !important; height: var(--hl-thumb) !important;
@@ -129,10 +133,26 @@ TABLET_CSS = f"""
 """
 
 #: The dashboard: viser's default look; STOP ARM (the only red button) large, in the pinned
-#: safety panel.
+#: safety panel, which no control of the page can collapse, move, shrink or cover. viser 1.1.1 has
+#: no switch for its panel chrome (upstream issue #392), so, by its client's ``data-dock-*``
+#: attributes: the » / + collapse arrows, the grab handles and resizers are removed; the panel
+#: headers, the Safety tab and the dividers take no pointer (a drag on them would undock a panel,
+#: which then floats, or resize a column); the settings gear (its editable server URL would
+#: disconnect the page) and the command palette (its overlay covers the page; STOP ARM is its only
+#: command, and Esc and the button do the same) are hidden. Tables (the study overview, the
+#: learner's trials) keep each cell on one line, apart from the next, and scroll sideways if wide.
 DASHBOARD_CSS = f"""
 .mantine-Button-root[style*="mantine-color-red"] {{ height: 84px !important;
   font-size: 26px !important; font-weight: 800 !important; background: {RED} !important; }}
+[data-dock-column-collapse], [data-dock-region-collapse], [data-dock-column-handle],
+[data-dock-griphandle], [data-dock-region-handle], [data-dock-region-resize],
+[data-dock-header] .mantine-ActionIcon-root,
+.mantine-Spotlight-root {{ display: none !important; }}
+[data-dock-header], [data-dock-strip], [data-dock-tab], [data-dock-divider] {{
+  pointer-events: none !important; }}
+[data-dock-leaf] table {{ display: block; overflow-x: auto; border-collapse: collapse; }}
+[data-dock-leaf] th, [data-dock-leaf] td {{ white-space: nowrap; padding: 2px 14px 2px 0;
+  text-align: left; }}
 """
 
 #: The dashboard's cover when the server is unreachable: this page cannot stop the arm then. viser

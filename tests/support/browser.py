@@ -740,6 +740,28 @@ def touch_drag_to(page: Page, fraction: float, steps: int = 12, settled: bool = 
         f"the server to redraw the newest marker at the dropped handle ({fraction:g})")
 
 
+def in_viewport(page: Page, name: str) -> bool:
+    """Whether button ``name`` lies wholly inside the window and is the element at its centre
+    (nothing covers it)."""
+    return page.evaluate(
+        """name => { const b = [...document.querySelectorAll('button')].find(
+               e => e.innerText.trim() === name);
+           if (!b) return false;
+           const r = b.getBoundingClientRect();
+           const inside = r.top >= 0 && r.left >= 0 && r.bottom <= innerHeight &&
+                          r.right <= innerWidth && r.height > 0;
+           const hit = document.elementFromPoint(r.left + r.width / 2, r.top + r.height / 2);
+           return inside && b.contains(hit); }""", name)
+
+
+def wait_still(page: Page) -> None:
+    """Wait until no animation or transition runs on the page (a panel done collapsing, a folder
+    done opening), two frames in a row."""
+    wait_function(page, """() => { const still = document.getAnimations().every(
+        a => a.playState !== 'running'); const was = window.__hlStill; window.__hlStill = still;
+        return still && was; }""", "the page to stop animating", polling="raf")
+
+
 def scale_value(page: Page) -> float:
     """The handle's position 0…1 as the slider reports it (aria-valuenow)."""
     return float(page.locator(".mantine-Slider-thumb").first.get_attribute("aria-valuenow"))

@@ -49,14 +49,22 @@ def view(auto: bool, version: int) -> RunnerView:
 
 def test_a_refresh_keeps_a_tick_on_its_way_and_shows_each_change_of_the_session(
         controls: Controls) -> None:
-    controls.enable_for(view(auto=False, version=1))
+    controls.enable_for(view(auto=False, version=1), controlling=True)
     assert controls.auto.value is False
     controls.auto.value = True  # the experimenter's tick, as viser holds it before the callback runs
-    controls.enable_for(view(auto=False, version=2))  # a refresh for something else meanwhile
+    controls.enable_for(view(auto=False, version=2), True)  # a refresh for another change meanwhile
     assert controls.auto.value is True, "the refresh overwrote the tick on its way"
-    controls.enable_for(view(auto=True, version=3))  # the session took it
+    controls.enable_for(view(auto=True, version=3), controlling=True)  # the session took it
     assert controls.auto.value is True
-    controls.enable_for(view(auto=False, version=4))  # switched off (another page, a session end)
+    controls.enable_for(view(auto=False, version=4), True)  # switched off (another page, an end)
     assert controls.auto.value is False
-    controls.enable_for(view(auto=False, version=5))
+    controls.enable_for(view(auto=False, version=5), controlling=True)
     assert controls.auto.value is False
+
+
+def test_a_view_only_window_enables_no_control_and_says_why(controls: Controls) -> None:
+    controls.enable_for(view(auto=False, version=1), controlling=False)
+    assert all(button.disabled for button in (
+        controls.start, controls.loaded, controls.go, controls.abort, controls.recover,
+        controls.pause, controls.resume, controls.end, controls.auto))
+    assert "view-only" in controls.start_why.content

@@ -30,6 +30,7 @@ from support.browser import (
     button,
     chromium,
     click,
+    in_viewport,
     keep_starting,
     open_folder,
     open_page,
@@ -53,20 +54,6 @@ from session_store.store import ParticipantStore
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 LAPTOP = (1366, 768)
-
-
-def in_viewport(page: Page, name: str) -> bool:
-    """Whether button ``name`` lies wholly inside the window and is the element at its centre
-    (nothing covers it)."""
-    return page.evaluate(
-        """name => { const b = [...document.querySelectorAll('button')].find(
-               e => e.innerText.trim() === name);
-           if (!b) return false;
-           const r = b.getBoundingClientRect();
-           const inside = r.top >= 0 && r.left >= 0 && r.bottom <= innerHeight &&
-                          r.right <= innerWidth && r.height > 0;
-           const hit = document.elementFromPoint(r.left + r.width / 2, r.top + r.height / 2);
-           return inside && b.contains(hit); }""", name)
 
 
 def scroll_panel_to_end(page: Page) -> None:

@@ -6,8 +6,15 @@ from app.protocol.plan import protocol_slots
 from app.protocol.state import SessionState
 from app.protocol.vocabulary import Phase, ThetaOrigin
 from app.session.config import LabConfig
-from app.session.runner import RunnerView
-from app.ui.status_text import learner_markdown, progress_markdown, start_blocker, status_line
+from app.session.overview import ParticipantSummary, SessionStatus
+from app.session.runner import END_REASON, RunnerView
+from app.ui.status_text import (
+    learner_markdown,
+    overview_markdown,
+    progress_markdown,
+    start_blocker,
+    status_line,
+)
 from robot_io.simulated_hand import Scenario
 from session_store.models import Trial
 
@@ -52,3 +59,17 @@ def test_blinding_hides_theta_and_origin_of_validation_trials_only():
     assert "3.21" not in validation_row and "best" not in validation_row
     assert "3.21" in next(line for line in blind.splitlines() if line.startswith("| 26 |"))
     assert "| 29 | 29 | validation | 3.21 |" in open_ and "| best |" in open_
+
+
+def test_the_overview_says_each_status_in_a_word_or_two():
+    def row(status: SessionStatus, detail: str = "") -> ParticipantSummary:
+        return ParticipantSummary(code="P01", scenario=Scenario.PERTURBED, completed=3,
+                                  interactions=34, status=status, detail=detail)
+    cells = [overview_markdown([row(*case)]).splitlines()[2].split(" | ")[3] for case in (
+        (SessionStatus.PAUSED, END_REASON), (SessionStatus.PAUSED, "a break"),
+        (SessionStatus.OPEN, ""), (SessionStatus.OPEN, "a break"), (SessionStatus.COMPLETE,),
+        (SessionStatus.INTERRUPTED,))]
+    assert cells == ["ended early", "paused", "open now", "open, paused", "complete", "interrupted"]
+    unreadable = overview_markdown([row(SessionStatus.UNREADABLE, "database disk image is malformed")])
+    assert "| unreadable |" in unreadable and unreadable.endswith(
+        "Unreadable:\n- P01: database disk image is malformed")

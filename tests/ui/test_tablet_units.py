@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import re
+from itertools import combinations
+
 import pytest
 from pydantic import ValidationError
 
 from app.protocol.state import Marker
 from app.ui.deliberate import Settle
 from app.ui.questionnaire import Draft
-from app.ui.scale_view import CLEARANCE, SNAP, snap, start_position
+from app.ui.scale_view import APART, CLEARANCE, SNAP, render_scale, snap, start_position
 
 
 def markers(*positions: float) -> list[Marker]:
@@ -64,3 +67,25 @@ def test_a_partly_stored_questionnaire_continues_with_the_rest() -> None:
     assert (draft.number, draft.first, draft.last) == (3, True, True)
     with pytest.raises(ValidationError, match="Q9"):
         Draft(questions=("Q9",))
+
+
+def drawn(html: str) -> dict[str, tuple[float, int]]:
+    """Each marker's label: its position (left, %) and its level, from the scale's HTML."""
+    return {label: (float(left), int(level)) for left, level, label in re.findall(
+        r'left:([\d.]+)%;--hl-level:(\d+)">(\d+)<', html)}
+
+
+@pytest.mark.parametrize(("positions", "newest"), [
+    ((0.30, 0.34, 1.0), 0.97), ((0.30, 0.34), 0.32), ((0.5, 0.5, 0.55), 0.45),
+    ((0.1, 0.15, 0.2, 0.25), 0.6), ((0.30, 0.34), 0.30)])
+def test_markers_closer_than_apart_stand_at_different_levels(positions, newest) -> None:
+    shown = drawn(render_scale(markers(*positions), len(positions) + 1, newest))
+    assert len(shown) == len(positions) + 1
+    for (a, (left_a, level_a)), (b, (left_b, level_b)) in combinations(shown.items(), 2):
+        if abs(left_a - left_b) < 100 * APART:
+            assert level_a != level_b, f"{a} and {b} overlap: {shown}"
+
+
+def test_equal_markers_stack_and_far_ones_stay_on_the_arrow() -> None:
+    shown = drawn(render_scale(markers(0.2, 0.2, 0.8), 4, 0.8))  # the newest snaps to 3
+    assert shown == {"1": (20.0, 0), "2": (20.0, 1), "3": (80.0, 0), "4": (80.0, 1)}
