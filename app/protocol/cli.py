@@ -13,7 +13,7 @@ from tqdm import tqdm
 
 from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
-from app.session.cli import add_rig_arguments, open_runner
+from app.session.cli import Interrupted, add_rig_arguments, interruptible, open_runner
 from app.session.config import load_lab_config
 from app.session.runner import RunnerView, SessionRunner, recorded_session
 from robot_io.cli import argument_type
@@ -110,13 +110,23 @@ def run_session(args: argparse.Namespace) -> int:
     lab = load_lab_config(args.config)
     simulated = lab.arm.kind == "mock" and lab.hand_source.kind == "simulated"
     began = time.monotonic()
-    with open_runner(args, lab, realtime=args.realtime or args.rehearse or not simulated,
-                     auto_experimenter=True) as runner:
-        runner.set_auto(True)
-        runner.open(args.participant, args.scenario, args.seed,
-                    confirm_rig_change=args.accept_rig_change, confirm_seed_reuse=args.reuse_seed)
-        view = wait_until_done(runner, progress=not args.no_progress)
-        observed = None if runner.rehearsal is None else runner.rehearsal.observed()
+    try:
+        with interruptible(), open_runner(
+                args, lab, realtime=args.realtime or args.rehearse or not simulated,
+                auto_experimenter=True) as runner:
+            try:
+                runner.set_auto(True)
+                runner.open(args.participant, args.scenario, args.seed,
+                            confirm_rig_change=args.accept_rig_change,
+                            confirm_seed_reuse=args.reuse_seed)
+                view = wait_until_done(runner, progress=not args.no_progress)
+            except Interrupted as exc:
+                runner.close(f"session closed by {exc.name}")
+                raise
+            observed = None if runner.rehearsal is None else runner.rehearsal.observed()
+    except Interrupted as exc:
+        print(f"{exc}; run-session --resume continues it", file=sys.stderr)
+        return 128 + exc.signum
     if view.failed is not None:
         raise StoreError(f"the session stopped: {view.failed}")
     with reading(args.study, args.participant) as store:  # read, never written: a plain file stays

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import signal
 from collections.abc import Iterator
 from typing import get_args
 
@@ -12,6 +13,9 @@ from app.session.config import LabConfig
 from app.session.rehearsal import HandKind, Rehearsal
 from app.session.runner import SessionRunner
 from robot_io.errors import ConfigError
+
+#: The signals that end a session's command as Ctrl-C does.
+SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
 def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
@@ -44,6 +48,33 @@ def rehearsed_hand(args: argparse.Namespace, lab: LabConfig) -> HandKind:
                           "for it, e.g. --rehearse-hand lsl (the rest of the session runs as on the "
                           "rig; the Vicon link is checked by `handover check-devices` on the rig)")
     return kind if kind in get_args(HandKind) else "lsl"
+
+
+class Interrupted(Exception):
+    """A signal that ends a command as Ctrl-C does: the arm stopped, the session closed."""
+
+    def __init__(self, signum: int) -> None:
+        self.signum, self.name = signum, signal.Signals(signum).name
+        super().__init__(f"{self.name}: the arm is stopped and the session is closed")
+
+
+@contextlib.contextmanager
+def interruptible() -> Iterator[None]:
+    """Inside, SIGINT (Ctrl-C) and SIGTERM (a process manager, ``kill``) raise :class:`Interrupted`
+    in the main thread, once: a second signal while the session closes is ignored, so the close
+    that records the running trial and stops the arm is not itself cut short (the rig's backstop
+    stops the arm if this process dies)."""
+    def interrupt(signum: int, _frame: object) -> None:
+        for ignored in SIGNALS:
+            signal.signal(ignored, signal.SIG_IGN)
+        raise Interrupted(signum)
+
+    before = {signum: signal.signal(signum, interrupt) for signum in SIGNALS}
+    try:
+        yield
+    finally:
+        for signum, handler in before.items():
+            signal.signal(signum, handler)
 
 
 @contextlib.contextmanager

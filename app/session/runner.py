@@ -85,6 +85,8 @@ AUTO_DELAY_S = 0.6
 #: The reasons recorded with a trial the experimenter aborted or stopped.
 ABORT_REASON = "aborted by the experimenter"
 STOP_REASON = "stopped by the experimenter (Stop)"
+#: The reason recorded with a trial still running when the session closes (serve's Ctrl-C).
+CLOSE_REASON = "session closed"
 #: The reason recorded with the pause of a session the experimenter ended before it was complete,
 #: and with its resume when the experimenter opens the participant again.
 END_REASON = "ended by the experimenter"
@@ -426,18 +428,21 @@ class SessionRunner:
         self._changed(None)
 
     # -- shutdown ---------------------------------------------------------------------------------
-    def close(self) -> None:
-        """Stop the arm first, then close the rig, the engine and its store, and the rehearsal.
-        Closing twice does nothing more."""
+    def close(self, reason: str = CLOSE_REASON) -> None:
+        """Stop the arm first, then close the rig, the engine and its store, and the rehearsal; a
+        running trial is recorded aborted with ``reason``. Closing twice does nothing more."""
         if self._closing:
             return
         self._closing = True
         rig = self._rig
         if rig is not None:
             if rig.running is not None:
-                self._abort_reason = self._abort_reason or "session closed"
-                rig.stop("session closed")
+                self._abort_reason = self._abort_reason or reason
+                rig.stop(reason)
             rig.close()
+            if not rig.reports_handed_on():  # the stopped trial's end is recorded before the engine closes
+                log.error("the rig's last reports were not all handed on: a trial left running is "
+                          "recorded aborted when the session resumes")
         self._wake.set()
         self._call(self._close_engine)
         self._executor.shutdown()

@@ -228,6 +228,13 @@ class RigClient:
             self._stopper.close()
         self.stream.close(unlink=True)
 
+    def reports_handed_on(self, timeout: float = CLOSE_S) -> bool:
+        """After :meth:`close`: wait until every report the rig sent (a stopped trial's end among
+        them) has been handed on; False if that took longer than ``timeout``. Not from a thread the
+        report listener itself waits for."""
+        self._reader.join(timeout)
+        return not self._reader.is_alive()
+
     # -- reports -----------------------------------------------------------------------------------
     def _read(self) -> None:
         """Hand every report on until the rig's end of the pipe is gone, then close the pipe. Only

@@ -1,0 +1,61 @@
+"""``run-session`` ended by a signal mid-trial, as a lab's process manager (SIGTERM) or the
+experimenter's Ctrl-C (SIGINT) ends it: the arm is stopped, the running trial is recorded aborted with
+the reason, the session resumes, and neither the command nor its rig prints a traceback."""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import sqlite3
+import subprocess
+import sys
+
+import pytest
+from support.browser import NEVER_TAKES
+from support.engine import SESSION_LOOP_TOML, SHORT_PROTOCOL, protocol_toml
+from support.waiting import CEILING_S, tail, wait_for
+
+pytestmark = [pytest.mark.slow, pytest.mark.soak]
+
+
+def read_only(path) -> contextlib.closing[sqlite3.Connection]:
+    return contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True))
+
+
+def stages_of_trial_1(path) -> list[str]:
+    try:
+        with read_only(path) as conn:
+            return [row[0] for row in conn.execute(
+                "SELECT json_extract(payload, '$.stage') FROM events WHERE kind = 'trial_stage'")]
+    except sqlite3.Error:
+        return []
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_mid_trial_closes_the_session_like_ctrl_c(tmp_path, signum):
+    study, log, lab = tmp_path / "study", tmp_path / "run.log", tmp_path / "lab.toml"
+    # the simulated participant never takes the object: trial 1 holds it out until it is ended
+    lab.write_text(f"{SESSION_LOOP_TOML}\n[protocol]\n{protocol_toml(SHORT_PROTOCOL)}\n{NEVER_TAKES}")
+    with log.open("w") as out:
+        run = subprocess.Popen([sys.executable, "-m", "app.cli", "run-session", "--study", str(study),
+                                "--participant", "T01", "--scenario", "perturbed", "--auto",
+                                "--realtime", "--no-progress", "--config", str(lab)],
+                               stdout=out, stderr=subprocess.STDOUT)
+    try:
+        wait_for(lambda: "hold" in stages_of_trial_1(study / "T01.sqlite"),
+                 "trial 1 to hold the object out", timeout=3 * CEILING_S,
+                 seen=lambda: f"stages {stages_of_trial_1(study / 'T01.sqlite')}; "
+                              f"log {tail(log.read_text())}")
+        run.send_signal(signum)  # the writing process itself, by its own PID
+        code = run.wait(CEILING_S)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.wait()
+    output = log.read_text()
+    with read_only(study / "T01.sqlite") as conn:
+        [(outcome, reason)] = conn.execute(
+            "SELECT outcome, reason FROM trials WHERE trial_index = 1").fetchall()
+    assert outcome == "aborted" and signal.Signals(signum).name in reason, (outcome, reason, output)
+    assert "Traceback" not in output, tail(output)
+    assert code == 128 + signum and "--resume continues it" in output, (code, tail(output))
