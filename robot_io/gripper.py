@@ -11,7 +11,7 @@ import logging
 from typing import Protocol
 
 from robot_io.config import GripperConfig
-from robot_io.errors import RobotIOError
+from robot_io.errors import GripperFault, RobotIOError
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +60,7 @@ class ToolOutputGripper:
     def __init__(self, host: str, config: GripperConfig) -> None:
         import rtde_io
 
-        self.config = config
+        self.config, self.host = config, host
         self.holding = False
         try:
             self._io = rtde_io.RTDEIOInterface(host)
@@ -68,10 +68,28 @@ class ToolOutputGripper:
             raise RobotIOError(f"gripper: cannot connect the RTDE IO interface to {host}: {exc}") from exc
 
     def _set(self, level: bool, what: str) -> None:
-        if not self._io.setToolDigitalOut(self.config.tool_output, level):
+        """Switch the output; a link that is down is a :class:`GripperFault` (the trial ends and the
+        arm stops), never an error that ends the rig (ur_rtde raises RuntimeError: Broken pipe)."""
+        try:
+            switched = self._io.setToolDigitalOut(self.config.tool_output, level)
+        except RuntimeError as exc:
+            raise GripperFault(f"gripper: the RTDE link of tool digital output "
+                               f"{self.config.tool_output} is down ({exc}); Recover arm connects "
+                               "it again") from exc
+        if not switched:
             raise RobotIOError(f"gripper: setting tool digital output {self.config.tool_output} "
                                f"to {level} ({what}) failed")
         log.info("gripper %s (tool digital output %d = %s)", what, self.config.tool_output, level)
+
+    def reconnect(self) -> None:
+        """Connect the RTDE IO link again: it goes through the UR's RTDE server, so whatever drops
+        the arm's link (a cable, a switch, a controller reboot) drops this one too, and only a write
+        would notice it (a write into a half-closed socket may even seem to work)."""
+        try:  # reconnect() alone: ur_rtde 1.6's disconnect() of a dropped link raises (EOF)
+            self._io.reconnect()
+        except RuntimeError as exc:
+            raise GripperFault(f"gripper: cannot connect the RTDE IO interface to {self.host} "
+                               f"again: {exc}") from exc
 
     def open(self) -> None:
         self._set(self.config.open_level, "open")

@@ -21,7 +21,7 @@ from robot_io.arm import ArmState
 from robot_io.cycle import CycleDevices
 from robot_io.devices import open_gripper, open_hand
 from robot_io.errors import ArmFault, ConfigError, GripperFault
-from robot_io.gripper import Gripper, NoGripper
+from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
 from robot_io.hand import HandSource
 from robot_io.mock_arm import MockArm
 from robot_io.rig.messages import DeviceReport, RigSpec
@@ -136,6 +136,9 @@ class RigDevices:
         if not faulted:
             return gripper or "the arm has no fault"
         arm.recover()
+        if isinstance(self.gripper, ToolOutputGripper):  # its link is the UR's: it dropped with it
+            self.gripper.reconnect()
+            gripper = gripper or "the gripper's RTDE IO link connected again"
         return f"recovered from: {fault}" + (f"; {gripper}" if gripper else "")
 
     def _recover_gripper(self) -> str | None:
