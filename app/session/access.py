@@ -71,9 +71,8 @@ class AttemptLimit:
         self._failures: dict[str, deque[float]] = {}
         self._lock = threading.Lock()
         self.refused_unchecked = 0
-        #: every wrong attempt so far, and the addresses they came from
+        #: every wrong attempt so far
         self.wrong = 0
-        self.wrong_sources: set[str] = set()
 
     def check(self, source: str, given: str, secret: str) -> str | None:
         """None if ``given`` is ``secret``; otherwise why not, for the screen."""
@@ -96,7 +95,6 @@ class AttemptLimit:
                 return None
             failures.append(now)
             self.wrong += 1
-            self.wrong_sources.add(source)
             log.warning("%s: wrong %s from %s (%d of %d allowed in %g s)", self.role, self.what,
                         source, len(failures), self.max_failures, self.window_s)
             return f"Wrong {self.what}."

@@ -10,6 +10,10 @@ rate-limited per address (:class:`~app.session.access.AttemptLimit`), and after
 :data:`CODE_GUESSES` wrong codes from all addresses together the code is replaced by a new one (the
 dashboard shows it and says why): however many addresses guess, one code is guessed at most that
 many times, one chance in a thousand for four digits.
+
+The dashboard's alert about wrong codes names the recent ones: those of the last
+:data:`WRONG_CODE_ALERT_S`, and not those of an address that has paired since (a participant's typo
+on the tablet that then paired is no alarm). The code's replacement still counts every wrong code.
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ from __future__ import annotations
 import logging
 import secrets
 import threading
+import time
 from collections.abc import Callable
 from typing import Literal
 
@@ -30,6 +35,8 @@ log = logging.getLogger(__name__)
 CODE_DIGITS = 4
 #: Wrong codes, from all addresses together, after which the code is replaced.
 CODE_GUESSES = 10
+#: How long a wrong code stays in the dashboard's alert [s] (unless its address pairs first).
+WRONG_CODE_ALERT_S = 600.0
 
 
 def new_code() -> str:
@@ -46,7 +53,7 @@ class TabletStatus(BaseModel):
     paired: bool = False  # one of them is the paired tablet
     address: str | None = None  # the paired device's address
     taken_over_from: str | None = None  # the address a later pairing moved the session from
-    wrong_codes: int = 0  # wrong codes typed on the tablet port so far
+    wrong_codes: int = 0  # recent wrong codes of addresses not paired since (WRONG_CODE_ALERT_S)
     guessers: int = 0  # the addresses they came from
     code_changes: int = 0  # codes replaced after CODE_GUESSES wrong ones
 
@@ -92,8 +99,10 @@ class TabletPairing:
         self._taken_over_from: str | None = None
         self._guessed = 0  # wrong codes since the code was made
         self._code_changes = 0
+        self._wrong: list[tuple[float, str]] = []  # (when, address) of each wrong code, for the alert
         self._lock = threading.Lock()
-        self._limit = AttemptLimit(**({} if clock is None else {"clock": clock}))
+        self._clock = clock or time.monotonic
+        self._limit = AttemptLimit(clock=self._clock)
 
     def connected(self, page: int, address: str) -> None:
         with self._lock:
@@ -111,7 +120,9 @@ class TabletPairing:
                 return "This page is no longer connected."
             wrong_before = self._limit.wrong
             refusal = self._limit.check(address, code.strip(), self.code)
-            self._guessed += self._limit.wrong - wrong_before
+            if self._limit.wrong > wrong_before:
+                self._guessed += 1
+                self._wrong.append((self._clock(), address))
             if self._guessed >= CODE_GUESSES:
                 self.code, self._guessed = new_code(), 0
                 self._code_changes += 1
@@ -122,6 +133,7 @@ class TabletPairing:
                     self._taken_over_from = self._address
                     log.warning("tablet taken over: from %s to %s", self._address, address)
                 self._address = address
+                self._wrong = [(when, a) for when, a in self._wrong if a != address]
                 # the page it was typed on is the tablet, ahead of older pages of that address
                 self._pages = {page: address} | {p: a for p, a in self._pages.items() if p != page}
                 log.info("tablet paired: page %d at %s", page, address)
@@ -139,8 +151,10 @@ class TabletPairing:
     def status(self) -> TabletStatus:
         with self._lock:
             paired = any(a == self._address for a in self._pages.values())
+            now = self._clock()
+            self._wrong = [(when, a) for when, a in self._wrong if now - when < WRONG_CODE_ALERT_S]
             return TabletStatus(code=self.code, pages=len(self._pages), paired=paired,
                                 address=self._address, taken_over_from=self._taken_over_from,
-                                wrong_codes=self._limit.wrong,
-                                guessers=len(self._limit.wrong_sources),
+                                wrong_codes=len(self._wrong),
+                                guessers=len({a for _, a in self._wrong}),
                                 code_changes=self._code_changes)

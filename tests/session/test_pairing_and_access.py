@@ -15,7 +15,7 @@ from support.runner import READY_CEILING_S, Probe
 from app.protocol.errors import RefusedAction
 from app.session.access import TOKEN_FILE, UnsafeTokenFile, dashboard_token
 from app.session.config import LabConfig
-from app.session.pairing import CODE_GUESSES, TabletPairing
+from app.session.pairing import CODE_GUESSES, WRONG_CODE_ALERT_S, TabletPairing
 from app.session.runner import SessionRunner
 from app.ui.status_text import status_line
 from robot_io.simulated_hand import Scenario
@@ -68,8 +68,37 @@ def test_guesses_from_many_addresses_replace_the_code_and_the_dashboard_says_so(
     pairing.connected(99, "10.0.0.5")
     assert pairing.pair(99, "4711") == "Wrong code."  # the code an attacker might have learned
     assert pairing.pair(99, status.code) is None  # the one the dashboard shows
-    assert pairing.status().alert() == ("106 wrong pairing codes from 22 addresses; the code was "
+    # 10.0.0.5's own wrong code is no alarm once it has paired; the 21 guessers' still are
+    assert pairing.status().alert() == ("105 wrong pairing codes from 21 addresses; the code was "
                                         "replaced 10×")
+
+
+def test_a_typo_on_the_tablet_leaves_the_alert_once_that_tablet_pairs():
+    """One mistyped code left "⚠ 1 wrong pairing code from 1 address" on the dashboard until a
+    restart (issue 37, item 7)."""
+    pairing = TabletPairing(code="4711")
+    pairing.connected(1, "10.0.0.5")
+    pairing.connected(2, "10.0.0.66")
+    assert pairing.pair(2, "0000") == "Wrong code."  # someone else's guess
+    assert pairing.pair(1, "4771") == "Wrong code."  # the participant's typo
+    assert pairing.status().alert() == "2 wrong pairing codes from 2 addresses"
+    assert pairing.pair(1, "4711") is None
+    assert pairing.status().alert() == "1 wrong pairing code from 1 address"  # the other one stays
+
+
+def test_wrong_codes_age_out_of_the_alert():
+    now = [0.0]
+    pairing = TabletPairing(code="4711", clock=lambda: now[0])
+    pairing.connected(1, "10.0.0.66")
+    assert pairing.pair(1, "0000") == "Wrong code."
+    now[0] = 300.0
+    assert pairing.pair(1, "0001") == "Wrong code."
+    assert pairing.status().alert() == "2 wrong pairing codes from 1 address"
+    now[0] = WRONG_CODE_ALERT_S  # the first has aged out
+    assert pairing.status().alert() == "1 wrong pairing code from 1 address"
+    now[0] = 300.0 + WRONG_CODE_ALERT_S
+    status = pairing.status()
+    assert status.alert() is None and (status.wrong_codes, status.guessers) == (0, 0)
 
 
 def test_a_take_over_of_the_tablet_leads_the_dashboards_status_line(tmp_path: Path):
