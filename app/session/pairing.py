@@ -11,6 +11,11 @@ rate-limited per address (:class:`~app.session.access.AttemptLimit`), and after
 dashboard shows it and says why): however many addresses guess, one code is guessed at most that
 many times, one chance in a thousand for four digits.
 
+A browser that paired is remembered in the study folder (:class:`~app.session.access.KnownBrowsers`,
+by the id its page keeps): when it connects again, after a restart of ``handover serve`` or from a
+new address, it is the tablet again without the code. Only the browser that paired last is
+remembered: a tablet taken over is forgotten.
+
 The dashboard's alert about wrong codes names the recent ones: those of the last
 :data:`WRONG_CODE_ALERT_S`, and not those of an address that has paired since (a participant's typo
 on the tablet that then paired is no alarm). The code's replacement still counts every wrong code.
@@ -27,7 +32,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict
 
-from app.session.access import AttemptLimit
+from app.session.access import AttemptLimit, KnownBrowsers
 
 log = logging.getLogger(__name__)
 
@@ -90,11 +95,15 @@ class TabletStatus(BaseModel):
 
 
 class TabletPairing:
-    """The pages open on the tablet port and the paired address (thread-safe)."""
+    """The pages open on the tablet port and the paired address (thread-safe); ``known``: the
+    browser that paired, remembered across restarts (None: none is)."""
 
-    def __init__(self, code: str | None = None, clock: Callable[[], float] | None = None) -> None:
+    def __init__(self, code: str | None = None, clock: Callable[[], float] | None = None,
+                 known: KnownBrowsers | None = None) -> None:
         self.code = code or new_code()
         self._pages: dict[int, str] = {}  # page → address, in the order they connected
+        self._browsers: dict[int, str | None] = {}  # page → its browser's id
+        self._known = known
         self._address: str | None = None
         self._taken_over_from: str | None = None
         self._guessed = 0  # wrong codes since the code was made
@@ -104,13 +113,23 @@ class TabletPairing:
         self._clock = clock or time.monotonic
         self._limit = AttemptLimit(clock=self._clock)
 
-    def connected(self, page: int, address: str) -> None:
+    def connected(self, page: int, address: str, browser: str | None = None) -> bool:
+        """A page opened; True if that paired it again: the browser that paired before, after a
+        restart or from a new address (the same browser: not a take-over)."""
         with self._lock:
-            self._pages[page] = address
+            self._pages[page], self._browsers[page] = address, browser
+            if (self._known is None or address == self._address
+                    or not self._known.known(browser)):
+                return False
+            self._address = address
+            log.info("tablet paired again: page %d at %s is the browser paired before", page,
+                     address)
+            return True
 
     def closed(self, page: int) -> None:
         with self._lock:
             self._pages.pop(page, None)
+            self._browsers.pop(page, None)
 
     def pair(self, page: int, code: str) -> str | None:
         """Pair ``page``'s device if ``code`` is right; None on success, otherwise why not."""
@@ -134,6 +153,8 @@ class TabletPairing:
                     log.warning("tablet taken over: from %s to %s", self._address, address)
                 self._address = address
                 self._wrong = [(when, a) for when, a in self._wrong if a != address]
+                if self._known is not None:
+                    self._known.remember(self._browsers.get(page))
                 # the page it was typed on is the tablet, ahead of older pages of that address
                 self._pages = {page: address} | {p: a for p, a in self._pages.items() if p != page}
                 log.info("tablet paired: page %d at %s", page, address)

@@ -2,7 +2,8 @@
 the participant (:mod:`app.ui.on_behalf`), devices, live view and replay, a rehearsal's staged
 faults, learner.
 
-A client sees only a token field until it enters the dashboard token (kept with the study). After
+A client sees only a token field until it enters the dashboard token (kept with the study); a
+browser in which it was entered before is let in without it (:class:`~app.ui.guard.TokenGate`). After
 that its panels are rendered from the runner's published :class:`RunnerView` (a reload rebuilds them
 from the session state). Safety first:
 
@@ -157,7 +158,10 @@ class DashboardClient:
         self._code: str | None = "-"
         self._error_key: tuple | None = None
         self._lock = threading.Lock()
-        self._locked_screen()
+        if gate.recognised(client.client_id):  # unlocked in this browser before
+            self.refresh(runner.view, rebuild=True)
+        else:
+            self._locked_screen()
 
     # -- access -----------------------------------------------------------------------------------
     def _locked_screen(self) -> None:
