@@ -13,7 +13,14 @@ from support.engine import SHORT_PROTOCOL
 from support.runner import READY_CEILING_S, Probe
 
 from app.protocol.errors import RefusedAction
-from app.session.access import TOKEN_FILE, UnsafeTokenFile, dashboard_token
+from app.session.access import (
+    DASHBOARD_BROWSERS_FILE,
+    TABLET_BROWSER_FILE,
+    TOKEN_FILE,
+    KnownBrowsers,
+    UnsafeTokenFile,
+    dashboard_token,
+)
 from app.session.config import LabConfig
 from app.session.pairing import CODE_GUESSES, WRONG_CODE_ALERT_S, TabletPairing
 from app.session.runner import SessionRunner
@@ -197,3 +204,36 @@ def test_a_token_file_others_could_write_is_refused(tmp_path: Path):
     path.symlink_to(chosen)
     with pytest.raises(UnsafeTokenFile, match="is a symbolic link"):
         dashboard_token(study)
+
+
+def test_the_paired_browser_is_the_tablet_again_after_a_restart_without_the_code(tmp_path: Path):
+    """A restart cost a new pairing code (issue 37, item 5): the browser that paired is kept with
+    the study (hashed, owner-only) and is the tablet again when it connects, from any address."""
+    study = tmp_path / "study"
+    first = TabletPairing(code="4711", known=KnownBrowsers(study, TABLET_BROWSER_FILE))
+    first.connected(1, "10.0.0.5", browser="a" * 32)
+    assert first.pair(1, "4711") is None
+    stored = (study / TABLET_BROWSER_FILE).read_text()
+    assert "a" * 32 not in stored and stat.S_IMODE(os.stat(study / TABLET_BROWSER_FILE).st_mode) == 0o600
+    again = TabletPairing(code="0815", known=KnownBrowsers(study, TABLET_BROWSER_FILE))  # a restart
+    assert again.connected(7, "10.0.0.5", browser="b" * 32) is False  # another browser: the code
+    assert again.role(7) == "pair"
+    assert again.connected(8, "10.0.0.9", browser="a" * 32) is True  # the paired one, new address
+    assert again.role(8) == "tablet" and again.status().taken_over_from is None
+    assert again.connected(9, "10.0.0.9", browser="a" * 32) is False  # a second tab: not in use
+    assert again.role(9) == "unused"
+
+
+def test_known_browsers_forget_with_a_new_salt_and_refuse_a_planted_file(tmp_path: Path):
+    study = tmp_path / "study"
+    known = KnownBrowsers(study, DASHBOARD_BROWSERS_FILE, salt="token-1", keep=2)
+    for browser in ("1" * 32, "2" * 32, "3" * 32):
+        known.remember(browser)
+    assert [known.known(b) for b in ("1" * 32, "2" * 32, "3" * 32)] == [False, True, True]
+    assert not known.known(None)
+    assert not KnownBrowsers(study, DASHBOARD_BROWSERS_FILE, salt="token-2").known("3" * 32)
+    path = study / DASHBOARD_BROWSERS_FILE
+    path.unlink()
+    path.symlink_to(tmp_path / "elsewhere")
+    with pytest.raises(UnsafeTokenFile, match="is a symbolic link"):
+        known.known("3" * 32)
