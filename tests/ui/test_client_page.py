@@ -2,10 +2,12 @@
 the study's title, the cover instead of viser's own screens on a page without its connection, pages
 that come back by themselves after a restart although their window is not focused, paired and
 unlocked without a code or a token (issue 37, items 4, 5 and 15), and a token (or a pairing code)
-typed and confirmed at once, by click or by Enter (item 6)."""
+typed and confirmed at once, by click or by Enter (item 6); and the copy of viser's page, or
+viser's own page with a warning when a later viser's page is not what the copy expects."""
 
 from __future__ import annotations
 
+import shutil
 import urllib.request
 from pathlib import Path
 
@@ -28,9 +30,9 @@ from support.browser import (
     wait_unlocked,
 )
 
+from app.ui.client_page import VISER_BUILD, client_folder
+from app.ui.server import TABLET_PAGE
 from app.ui.style import COVER_DELAY_S
-
-pytestmark = pytest.mark.browser
 
 SHOTS = Path("/tmp/tablet-shots")
 #: A window without the focus, as viser's client asks it (it retries a lost connection only while
@@ -61,6 +63,7 @@ def assert_covered(page: Page, says: str) -> None:
     assert page.evaluate(COVERED_JS) == "the cover"
 
 
+@pytest.mark.browser
 def test_a_restart_brings_the_pages_back_unfocused_paired_and_unlocked(tmp_path: Path) -> None:
     """Both pages lose the server, their windows not focused; the tablet is reloaded while the
     server is down (its page from the browser's cache: here, Playwright's route answers with the
@@ -98,6 +101,7 @@ def test_a_restart_brings_the_pages_back_unfocused_paired_and_unlocked(tmp_path:
     assert "wrong token" not in output and "token accepted" not in output  # no token was typed
 
 
+@pytest.mark.browser
 def test_a_token_confirmed_at_once_by_click_or_enter_unlocks(tmp_path: Path) -> None:
     """A token pasted and Unlock clicked at once, or typed and Unlock clicked at once, reached the
     server as the old value ("Wrong token.", counted as a failed attempt): viser's client sends a
@@ -134,3 +138,22 @@ def test_a_token_confirmed_at_once_by_click_or_enter_unlocks(tmp_path: Path) -> 
         output = served.shutdown()
     assert output.count("dashboard: token accepted") == 4
     assert "wrong token" not in output and "wrong code" not in output
+
+
+def test_the_page_is_a_copy_of_visers_with_the_studys_head(tmp_path: Path) -> None:
+    folder = client_folder(TABLET_PAGE)
+    try:
+        page, original = (folder / "index.html").read_text(), (VISER_BUILD / "index.html").read_text()
+        assert "<title>Handover study</title>" in page and "<title>Viser</title>" not in page
+        assert "<script" not in page[:page.index(TABLET_PAGE.head())]  # ours runs before viser's
+        assert page.replace(TABLET_PAGE.head(), "<title>Viser</title>") == original
+    finally:
+        shutil.rmtree(folder)
+
+
+def test_a_later_visers_page_without_a_title_falls_back_to_its_own(tmp_path: Path, caplog) -> None:
+    build = tmp_path / "build"
+    build.mkdir()
+    (build / "index.html").write_text("<html><head><script>viser()</script></head></html>")
+    assert client_folder(TABLET_PAGE, build) is None
+    assert "the screens use viser's own page" in caplog.text
