@@ -96,13 +96,18 @@ class Guard:
 
     def browser_of(self, client_id: int) -> str | None:
         """The id of a connected client's browser (its ``hl-<role>-browser`` cookie), if it sent
-        one of the right form."""
+        one of the right form from the page this server served. (Cookies do not tell ports apart:
+        a page of this host on another port would send it too, and may be answered before the
+        origin check has closed it.)"""
         connection = self._infra._live_connections.get(client_id)
         if connection is None:
             return None
+        headers = connection.request.headers
+        if not same_origin(headers.get("Origin"), headers.get("Host"), self.port):
+            return None
         cookie = SimpleCookie()
         try:
-            cookie.load(connection.request.headers.get("Cookie", ""))
+            cookie.load(headers.get("Cookie", ""))
         except CookieError:
             return None
         morsel = cookie.get(f"hl-{self.role}-browser")
