@@ -175,7 +175,11 @@ class StudyViserServer(viser.ViserServer):
 
     def __init__(self, *args, client_root: Path | None = None, **kwargs) -> None:
         self._client_root = client_root
-        super().__init__(*args, **kwargs)
+        try:
+            super().__init__(*args, **kwargs)
+        except BaseException:
+            self._remove_client_root()
+            raise
         served = getattr(getattr(self, "_websock_server", None), "_http_server_root", None)
         if client_root is not None and served != client_root:
             log.warning("this viser (%s) did not take the study's page folder: the screens use "
@@ -191,5 +195,8 @@ class StudyViserServer(viser.ViserServer):
 
     def stop(self) -> None:
         super().stop()
+        self._remove_client_root()
+
+    def _remove_client_root(self) -> None:
         if self._client_root is not None:
             shutil.rmtree(self._client_root, ignore_errors=True)
