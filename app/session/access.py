@@ -3,6 +3,13 @@
 * The dashboard token is stored in the study folder (``.dashboard-token``, readable by its owner
   only), so restarting ``handover serve`` keeps the experimenter's token; ``--token`` overrides it
   (and is not stored).
+* :class:`KnownBrowsers`: the browsers (by the random id their page keeps, app/ui/client_page.py)
+  in which the dashboard was unlocked or the tablet paired, kept in the study folder so that a
+  restart of ``handover serve`` asks neither again. Only a hash of each id is stored, salted with
+  what it stands for (the dashboard's token: a new token forgets every unlocked browser).
+* Files in the study folder that decide who may do what (the token, the known browsers) are written
+  owner-only (mode 600) and atomically, and one that is a symbolic link or that others may write is
+  refused (:class:`UnsafeTokenFile`), not read: whoever can write it decides who moves the arm.
 * :class:`AttemptLimit` checks a secret (the dashboard token, the tablet's pairing code) at most
   ``max_failures`` times per ``window_s`` from one remote address; every wrong attempt is logged with
   its address, further attempts are refused unchecked until the window has slid past the oldest
@@ -11,6 +18,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import os
 import secrets
@@ -24,10 +32,45 @@ log = logging.getLogger(__name__)
 
 #: The dashboard token's file in the study folder.
 TOKEN_FILE = ".dashboard-token"
+#: The browsers in which the dashboard was unlocked, and the one in which the tablet was paired.
+DASHBOARD_BROWSERS_FILE = ".dashboard-browsers"
+TABLET_BROWSER_FILE = ".tablet-browser"
+#: How many unlocked dashboard browsers are remembered (the latest).
+KNOWN_DASHBOARDS = 20
 
 
 class UnsafeTokenFile(ValueError):
-    """The study's token file could have been written by someone else: refused, not read."""
+    """A file of the study's that decides access could have been written by someone else: refused,
+    not read."""
+
+
+def read_private(path: Path) -> str | None:
+    """The text of an access file of the study (None if there is none); refused
+    (:class:`UnsafeTokenFile`) if it is a symbolic link or others may write it."""
+    if path.is_symlink():
+        raise UnsafeTokenFile(f"{path} is a symbolic link: refused (delete it; serve makes a new "
+                              "one)")
+    if not path.exists():
+        return None
+    if (mode := path.stat().st_mode & 0o777) & 0o022:
+        raise UnsafeTokenFile(f"{path} is writable by others (mode {mode:o}): refused, as anyone "
+                              "could choose who uses the screens (chmod 600 it, or delete it and "
+                              "serve makes a new one)")
+    return path.read_text()
+
+
+def write_private(path: Path, text: str) -> None:
+    """Write an access file of the study: owner-only, atomically (a crash leaves the old file or the
+    new one, never half of one)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(path.name + ".partial")
+    partial.unlink(missing_ok=True)  # O_EXCL below: never write through a link planted here
+    descriptor = os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(descriptor, "w") as out:
+        out.write(text)
+        out.flush()
+        os.fsync(out.fileno())
+    partial.replace(path)
 
 
 def dashboard_token(study: Path, override: str | None = None) -> str:
@@ -37,27 +80,40 @@ def dashboard_token(study: Path, override: str | None = None) -> str:
     if override:
         return override
     path = Path(study) / TOKEN_FILE
-    if path.is_symlink():
-        raise UnsafeTokenFile(f"{path} is a symbolic link: refused (delete it; serve makes a new "
-                              "token)")
-    if path.exists():
-        if (mode := path.stat().st_mode & 0o777) & 0o022:
-            raise UnsafeTokenFile(f"{path} is writable by others (mode {mode:o}): refused, as anyone "
-                                  "could choose the dashboard's token (chmod 600 it, or delete it and "
-                                  "serve makes a new one)")
-        token = path.read_text().strip()
-        if token:
-            return token
-    token = secrets.token_urlsafe(9)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(path.name + ".partial")
-    descriptor = os.open(partial, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(descriptor, "w") as out:
-        out.write(token + "\n")
-        out.flush()
-        os.fsync(out.fileno())
-    partial.replace(path)  # atomic: a crash leaves the old file or the new one, never half of one
+    token = (read_private(path) or "").strip()
+    if not token:
+        token = secrets.token_urlsafe(9)
+        write_private(path, token + "\n")
     return token
+
+
+class KnownBrowsers:
+    """Browser ids remembered in the study folder's ``file`` (the latest ``keep``), each stored as
+    the hash of ``salt`` and the id (thread-safe)."""
+
+    def __init__(self, study: Path, file: str, salt: str = "", keep: int = 1) -> None:
+        self.path, self.salt, self.keep = Path(study) / file, salt, keep
+        self._lock = threading.Lock()
+
+    def _hash(self, browser: str) -> str:
+        return hashlib.sha256(f"{self.salt}\n{browser}".encode()).hexdigest()
+
+    def _stored(self) -> list[str]:
+        return (read_private(self.path) or "").split()
+
+    def known(self, browser: str | None) -> bool:
+        if browser is None:
+            return False
+        with self._lock:
+            return self._hash(browser) in self._stored()
+
+    def remember(self, browser: str | None) -> None:
+        if browser is None:
+            return
+        with self._lock:
+            digest = self._hash(browser)
+            stored = [d for d in self._stored() if d != digest] + [digest]
+            write_private(self.path, "\n".join(stored[-self.keep:]) + "\n")
 
 
 class AttemptLimit:
@@ -71,9 +127,8 @@ class AttemptLimit:
         self._failures: dict[str, deque[float]] = {}
         self._lock = threading.Lock()
         self.refused_unchecked = 0
-        #: every wrong attempt so far, and the addresses they came from
+        #: every wrong attempt so far
         self.wrong = 0
-        self.wrong_sources: set[str] = set()
 
     def check(self, source: str, given: str, secret: str) -> str | None:
         """None if ``given`` is ``secret``; otherwise why not, for the screen."""
@@ -96,7 +151,6 @@ class AttemptLimit:
                 return None
             failures.append(now)
             self.wrong += 1
-            self.wrong_sources.add(source)
             log.warning("%s: wrong %s from %s (%d of %d allowed in %g s)", self.role, self.what,
                         source, len(failures), self.max_failures, self.window_s)
             return f"Wrong {self.what}."

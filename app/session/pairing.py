@@ -10,6 +10,15 @@ rate-limited per address (:class:`~app.session.access.AttemptLimit`), and after
 :data:`CODE_GUESSES` wrong codes from all addresses together the code is replaced by a new one (the
 dashboard shows it and says why): however many addresses guess, one code is guessed at most that
 many times, one chance in a thousand for four digits.
+
+A browser that paired is remembered in the study folder (:class:`~app.session.access.KnownBrowsers`,
+by the id its page keeps): when it connects again, after a restart of ``handover serve`` or from a
+new address, it is the tablet again without the code. Only the browser that paired last is
+remembered: a tablet taken over is forgotten.
+
+The dashboard's alert about wrong codes names the recent ones: those of the last
+:data:`WRONG_CODE_ALERT_S`, and not those of an address that has paired since (a participant's typo
+on the tablet that then paired is no alarm). The code's replacement still counts every wrong code.
 """
 
 from __future__ import annotations
@@ -17,12 +26,13 @@ from __future__ import annotations
 import logging
 import secrets
 import threading
+import time
 from collections.abc import Callable
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict
 
-from app.session.access import AttemptLimit
+from app.session.access import AttemptLimit, KnownBrowsers
 
 log = logging.getLogger(__name__)
 
@@ -30,6 +40,8 @@ log = logging.getLogger(__name__)
 CODE_DIGITS = 4
 #: Wrong codes, from all addresses together, after which the code is replaced.
 CODE_GUESSES = 10
+#: How long a wrong code stays in the dashboard's alert [s] (unless its address pairs first).
+WRONG_CODE_ALERT_S = 600.0
 
 
 def new_code() -> str:
@@ -46,7 +58,7 @@ class TabletStatus(BaseModel):
     paired: bool = False  # one of them is the paired tablet
     address: str | None = None  # the paired device's address
     taken_over_from: str | None = None  # the address a later pairing moved the session from
-    wrong_codes: int = 0  # wrong codes typed on the tablet port so far
+    wrong_codes: int = 0  # recent wrong codes of addresses not paired since (WRONG_CODE_ALERT_S)
     guessers: int = 0  # the addresses they came from
     code_changes: int = 0  # codes replaced after CODE_GUESSES wrong ones
 
@@ -83,25 +95,41 @@ class TabletStatus(BaseModel):
 
 
 class TabletPairing:
-    """The pages open on the tablet port and the paired address (thread-safe)."""
+    """The pages open on the tablet port and the paired address (thread-safe); ``known``: the
+    browser that paired, remembered across restarts (None: none is)."""
 
-    def __init__(self, code: str | None = None, clock: Callable[[], float] | None = None) -> None:
+    def __init__(self, code: str | None = None, clock: Callable[[], float] | None = None,
+                 known: KnownBrowsers | None = None) -> None:
         self.code = code or new_code()
         self._pages: dict[int, str] = {}  # page → address, in the order they connected
+        self._browsers: dict[int, str | None] = {}  # page → its browser's id
+        self._known = known
         self._address: str | None = None
         self._taken_over_from: str | None = None
         self._guessed = 0  # wrong codes since the code was made
         self._code_changes = 0
+        self._wrong: list[tuple[float, str]] = []  # (when, address) of each wrong code, for the alert
         self._lock = threading.Lock()
-        self._limit = AttemptLimit(**({} if clock is None else {"clock": clock}))
+        self._clock = clock or time.monotonic
+        self._limit = AttemptLimit(clock=self._clock)
 
-    def connected(self, page: int, address: str) -> None:
+    def connected(self, page: int, address: str, browser: str | None = None) -> bool:
+        """A page opened; True if that paired it again: the browser that paired before, after a
+        restart or from a new address (the same browser: not a take-over)."""
         with self._lock:
-            self._pages[page] = address
+            self._pages[page], self._browsers[page] = address, browser
+            if (self._known is None or address == self._address
+                    or not self._known.known(browser)):
+                return False
+            self._address = address
+            log.info("tablet paired again: page %d at %s is the browser paired before", page,
+                     address)
+            return True
 
     def closed(self, page: int) -> None:
         with self._lock:
             self._pages.pop(page, None)
+            self._browsers.pop(page, None)
 
     def pair(self, page: int, code: str) -> str | None:
         """Pair ``page``'s device if ``code`` is right; None on success, otherwise why not."""
@@ -111,7 +139,9 @@ class TabletPairing:
                 return "This page is no longer connected."
             wrong_before = self._limit.wrong
             refusal = self._limit.check(address, code.strip(), self.code)
-            self._guessed += self._limit.wrong - wrong_before
+            if self._limit.wrong > wrong_before:
+                self._guessed += 1
+                self._wrong.append((self._clock(), address))
             if self._guessed >= CODE_GUESSES:
                 self.code, self._guessed = new_code(), 0
                 self._code_changes += 1
@@ -122,6 +152,9 @@ class TabletPairing:
                     self._taken_over_from = self._address
                     log.warning("tablet taken over: from %s to %s", self._address, address)
                 self._address = address
+                self._wrong = [(when, a) for when, a in self._wrong if a != address]
+                if self._known is not None:
+                    self._known.remember(self._browsers.get(page))
                 # the page it was typed on is the tablet, ahead of older pages of that address
                 self._pages = {page: address} | {p: a for p, a in self._pages.items() if p != page}
                 log.info("tablet paired: page %d at %s", page, address)
@@ -139,8 +172,10 @@ class TabletPairing:
     def status(self) -> TabletStatus:
         with self._lock:
             paired = any(a == self._address for a in self._pages.values())
+            now = self._clock()
+            self._wrong = [(when, a) for when, a in self._wrong if now - when < WRONG_CODE_ALERT_S]
             return TabletStatus(code=self.code, pages=len(self._pages), paired=paired,
                                 address=self._address, taken_over_from=self._taken_over_from,
-                                wrong_codes=self._limit.wrong,
-                                guessers=len(self._limit.wrong_sources),
+                                wrong_codes=len(self._wrong),
+                                guessers=len({a for _, a in self._wrong}),
                                 code_changes=self._code_changes)

@@ -43,6 +43,7 @@ from app.protocol.stored import stored_session
 from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Actor, Rater
 from app.session import faults
+from app.session.access import TABLET_BROWSER_FILE, KnownBrowsers
 from app.session.config import LabConfig
 from app.session.drawing import with_links
 from app.session.faults import StagedFault
@@ -262,13 +263,15 @@ class SessionRunner:
     def attach_tablet(self) -> TabletPairing:
         """The tablet screen's pairing: from now on a trial starts only with exactly one paired
         tablet open (the simulated participant on a simulated rig excepted)."""
-        self._pairing = TabletPairing()
+        self._pairing = TabletPairing(known=KnownBrowsers(self.study, TABLET_BROWSER_FILE))
         self._publish()
         return self._pairing
 
-    def tablet_connected(self, page: int, address: str) -> None:
-        self._pairing.connected(page, address)
-        self._changed_now(None)
+    def tablet_connected(self, page: int, address: str, browser: str | None = None) -> None:
+        """A page opened on the tablet port from ``address``, in ``browser`` (its id, if known)."""
+        again = self._pairing.connected(page, address, browser)
+        self._changed_now("the tablet is paired again (the browser paired before)" if again
+                          else None)
 
     def tablet_closed(self, page: int) -> None:
         self._pairing.closed(page)

@@ -2,7 +2,8 @@
 the participant (:mod:`app.ui.on_behalf`), devices, live view and replay, a rehearsal's staged
 faults, learner.
 
-A client sees only a token field until it enters the dashboard token (kept with the study). After
+A client sees only a token field until it enters the dashboard token (kept with the study); a
+browser in which it was entered before is let in without it (:class:`~app.ui.guard.TokenGate`). After
 that its panels are rendered from the runner's published :class:`RunnerView` (a reload rebuilds them
 from the session state). Safety first:
 
@@ -53,7 +54,7 @@ from app.ui.status_text import (
     status_line,
     tablet_markdown,
 )
-from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, style_block
+from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, STOP_LABEL, style_block
 from robot_io.errors import RobotIOError
 from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
@@ -171,7 +172,10 @@ class DashboardClient:
         self._code: str | None = "-"
         self._error_key: tuple | None = None
         self._lock = threading.Lock()
-        self._locked_screen()
+        if gate.recognised(client.client_id):  # unlocked in this browser before
+            self.refresh(runner.view, rebuild=True)
+        else:
+            self._locked_screen()
 
     # -- access -----------------------------------------------------------------------------------
     def _locked_screen(self) -> None:
@@ -273,7 +277,7 @@ class DashboardClient:
         panel = gui.add_panel()
         with panel.add_tab("Safety", viser.Icon.HAND_STOP):
             gui.add_html('<span class="hl-safety"></span>')
-            safety = Safety(stop=gui.add_button("STOP ARM", color="red", icon=viser.Icon.HAND_STOP),
+            safety = Safety(stop=gui.add_button(STOP_LABEL, color="red", icon=viser.Icon.HAND_STOP),
                             rearm=gui.add_button("Re-arm (scene is safe)", color="teal",
                                                  disabled=True),
                             state=gui.add_markdown(""))
@@ -282,7 +286,7 @@ class DashboardClient:
         panel.set_width(SAFETY_WIDTH)
         safety.stop.on_click(lambda _: self._act(self.runner.stop, control=False))
         safety.rearm.on_click(lambda _: self._act(self.runner.rearm))
-        command = gui.add_command("STOP ARM", description="Stop the arm now", hotkey="escape",
+        command = gui.add_command(STOP_LABEL, description="Stop the arm now", hotkey="escape",
                                   icon=viser.Icon.HAND_STOP)
         command.on_trigger(lambda _: self._act(self.runner.stop, control=False))
         return safety

@@ -10,6 +10,9 @@
 * **A busy port is an error naming it.** viser moves on to the next free port without a word, so the
   tablet could end up on the dashboard's port; here the port actually bound must be the one asked for.
 * **Token attempts rate-limited and logged** (:class:`TokenGate`), per remote address.
+* **The browser's id** (:meth:`Guard.browser_of`): the cookie the study's page sets
+  (:mod:`app.ui.client_page`), read from the websocket's request headers; an id of any other form
+  is no id.
 
 viser 1.1.1 offers no switch for the first three, so this module reaches into its infra server
 (``ViserServer._websock_server``): ``unregister_handler``/``register_handler`` and ``on_client_connect``
@@ -21,16 +24,19 @@ from __future__ import annotations
 
 import ipaddress
 import logging
+import re
 import socket
 import time
 from collections.abc import Callable
+from http.cookies import CookieError, SimpleCookie
 from urllib.parse import urlsplit
 
 import viser
 from viser import _messages
 from viser.infra import WebsockClientConnection
 
-from app.session.access import AttemptLimit
+from app.session.access import AttemptLimit, KnownBrowsers
+from app.ui.client_page import BROWSER_ID_PATTERN, ClientPage, StudyViserServer, client_folder
 from app.ui.streams import safe_streams
 
 log = logging.getLogger(__name__)
@@ -45,10 +51,13 @@ class PortInUse(ValueError):
     """The port asked for a screen is taken; viser would have moved to another one."""
 
 
-def open_server(host: str, port: int, role: str, **kwargs) -> tuple[viser.ViserServer, Guard]:
+def open_server(host: str, port: int, role: str, page: ClientPage | None = None,
+                **kwargs) -> tuple[viser.ViserServer, Guard]:
     """A viser server for ``role`` ("tablet", "dashboard") on exactly ``host:port``, guarded, its
-    message streams woken safely from any thread (:mod:`app.ui.streams`)."""
-    server = viser.ViserServer(host=host, port=port, verbose=False, **kwargs)
+    message streams woken safely from any thread (:mod:`app.ui.streams`), its browsers served
+    ``page`` (None: viser's own page)."""
+    server = StudyViserServer(host=host, port=port, verbose=False,
+                              client_root=None if page is None else client_folder(page), **kwargs)
     bound = server.get_port()
     if port != 0 and bound != port:
         server.stop()
@@ -84,6 +93,27 @@ class Guard:
             if connection is not None and connection.remote_address:
                 return connection.remote_address[0]
         return self._addresses.get(client_id, "unknown")
+
+    def browser_of(self, client_id: int) -> str | None:
+        """The id of a connected client's browser (its ``hl-<role>-browser`` cookie), if it sent
+        one of the right form from the page this server served. (Cookies do not tell ports apart:
+        a page of this host on another port would send it too, and may be answered before the
+        origin check has closed it.)"""
+        connection = self._infra._live_connections.get(client_id)
+        if connection is None:
+            return None
+        headers = connection.request.headers
+        if not same_origin(headers.get("Origin"), headers.get("Host"), self.port):
+            return None
+        cookie = SimpleCookie()
+        try:
+            cookie.load(headers.get("Cookie", ""))
+        except CookieError:
+            return None
+        morsel = cookie.get(f"hl-{self.role}-browser")
+        if morsel is None or not re.fullmatch(BROWSER_ID_PATTERN, morsel.value):
+            return None
+        return morsel.value
 
     def _refuse(self, what: str) -> None:
         self.refused.append(what)
@@ -136,17 +166,31 @@ def _trusted_name(name: str) -> bool:
 
 class TokenGate:
     """The dashboard token, checked at most ``max_failures`` times per ``window_s`` from one remote
-    address (:class:`~app.session.access.AttemptLimit`)."""
+    address (:class:`~app.session.access.AttemptLimit`). A browser in which it was given is
+    ``known`` (its id from ``browser_of``) and needs no token again, across restarts."""
 
     def __init__(self, token: str, source_of: Callable[[int], str], max_failures: int = 5,
-                 window_s: float = 60.0, clock: Callable[[], float] = time.monotonic) -> None:
+                 window_s: float = 60.0, clock: Callable[[], float] = time.monotonic,
+                 known: KnownBrowsers | None = None,
+                 browser_of: Callable[[int], str | None] = lambda _: None) -> None:
         self._token, self._source_of = token, source_of
+        self._known, self._browser_of = known, browser_of
         self._limit = AttemptLimit(max_failures, window_s, clock, what="token", role="dashboard")
 
     @property
     def refused_unchecked(self) -> int:
         return self._limit.refused_unchecked
 
+    def recognised(self, client_id: int) -> bool:
+        """Whether the client's browser was unlocked before (with this token)."""
+        return self._known is not None and self._known.known(self._browser_of(client_id))
+
     def attempt(self, client_id: int, given: str) -> str | None:
-        """None if ``given`` is the token; otherwise why not, for the screen."""
-        return self._limit.check(self._source_of(client_id), given, self._token)
+        """None if ``given`` is the token; otherwise why not, for the screen. Nothing typed is no
+        attempt (not counted)."""
+        if not given:
+            return "Type the token first."
+        refusal = self._limit.check(self._source_of(client_id), given, self._token)
+        if refusal is None and self._known is not None:
+            self._known.remember(self._browser_of(client_id))
+        return refusal

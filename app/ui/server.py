@@ -3,7 +3,9 @@
 Roles are told apart by port, since viser passes no URL query to the server. The dashboard is
 token-gated (attempts rate-limited per address); the tablet offers nothing but rating and answering.
 Both are closed to the outside (:mod:`app.ui.guard`): exactly the ports asked for, no share links,
-same-origin websockets only. A ticker thread redraws the
+same-origin websockets only. Each screen's browser loads the study's own page
+(:mod:`app.ui.client_page`: its title, its cover from the first byte, its watchdog, its browser
+id). A ticker thread redraws the
 dashboard's live view ten times a second while the control loop runs in its own thread.
 """
 
@@ -13,10 +15,17 @@ import logging
 import threading
 from dataclasses import dataclass
 
-from app.session.access import dashboard_token
+from app.session.access import (
+    DASHBOARD_BROWSERS_FILE,
+    KNOWN_DASHBOARDS,
+    KnownBrowsers,
+    dashboard_token,
+)
 from app.session.runner import SessionRunner
+from app.ui.client_page import ClientPage
 from app.ui.dashboard import Dashboard
 from app.ui.guard import TokenGate, open_server
+from app.ui.style import DASHBOARD_OFFLINE_CSS, OFFLINE_CSS
 from app.ui.tablet import Tablet
 from app.ui.unreadable import quiet_unreadable_messages
 
@@ -24,6 +33,14 @@ log = logging.getLogger(__name__)
 
 #: Live-view refresh period [s].
 TICK_S = 0.1
+#: The participant's page: a title that tells nothing of θ or the condition, the cover. (Not the
+#: kiosk CSS, which comes with the first screen: hidden from the start, viser's 3-D canvas never
+#: starts the frame loop that also applies the server's messages, and the page stays blank.)
+TABLET_PAGE = ClientPage(role="tablet", title="Handover study", css=OFFLINE_CSS,
+                         enter={"Code": "Connect"})
+#: The experimenter's page.
+DASHBOARD_PAGE = ClientPage(role="dashboard", title="handover-lab dashboard",
+                            css=DASHBOARD_OFFLINE_CSS, enter={"Token": "Unlock"})
 
 
 @dataclass(frozen=True)
@@ -43,15 +60,20 @@ class HandoverServers:
         self.runner, self.options = runner, options
         self.token = dashboard_token(runner.study, options.token)
         self.tablet_server, self.tablet_guard = open_server(options.host, options.tablet_port,
-                                                            "tablet")
+                                                            "tablet", TABLET_PAGE)
         try:
             self.dashboard_server, self.dashboard_guard = open_server(
-                options.host, options.dashboard_port, "dashboard", label="handover-lab dashboard")
+                options.host, options.dashboard_port, "dashboard", DASHBOARD_PAGE,
+                label="handover-lab dashboard")
         except Exception:
             self.tablet_server.stop()
             raise
-        self.tablet = Tablet(self.tablet_server, runner, self.tablet_guard.source_of)
-        self.gate = TokenGate(self.token, self.dashboard_guard.source_of)
+        self.tablet = Tablet(self.tablet_server, runner, self.tablet_guard.source_of,
+                             self.tablet_guard.browser_of)
+        self.gate = TokenGate(self.token, self.dashboard_guard.source_of,
+                              known=KnownBrowsers(runner.study, DASHBOARD_BROWSERS_FILE,
+                                                  salt=self.token, keep=KNOWN_DASHBOARDS),
+                              browser_of=self.dashboard_guard.browser_of)
         self.dashboard = Dashboard(self.dashboard_server, runner, self.gate,
                                    self.dashboard_guard.source_of, blind=options.blind)
         runner.set_blinding(options.blind)  # recorded in each session this dashboard serves

@@ -1,8 +1,9 @@
 """Looks of the two screens: the tablet's large touch-friendly type, and the "Go!" cue.
 
-viser serves no static files and runs no ``<script>`` from ``add_html``, but a ``<style>`` element
-in an ``add_html`` block applies to the whole page, and an ``<audio autoplay>`` element with a
-``data:`` URL plays when the browser allows autoplay (see docs/running-a-study.md, "Sound").
+viser runs no ``<script>`` from ``add_html`` (the page's own script is in the page it serves,
+:mod:`app.ui.client_page`), but a ``<style>`` element in an ``add_html`` block applies to the whole
+page, and an ``<audio autoplay>`` element with a ``data:`` URL plays when the browser allows
+autoplay (see docs/running-a-study.md, "Sound").
 """
 
 from __future__ import annotations
@@ -15,6 +16,8 @@ from functools import cache
 import numpy as np
 
 ORANGE, BLUE, GREY, RED = "#f08c00", "#1c7ed6", "#495057", "#c92a2a"
+#: The dashboard's stop button: the page's script never holds a click on it (app/ui/client_page.py).
+STOP_LABEL = "STOP ARM"
 
 #: The kiosk: none of viser's own chrome is visible or reachable on the tablet — no settings gear
 #: (with its editable server URL and dev settings), no « collapse arrow or panel handles, no
@@ -42,26 +45,39 @@ canvas, .mantine-Notifications-root, [data-dock-region-handle], [data-dock-heade
 DISCONNECTED = '[style*="opacity: 0.5"][style*="pointer-events: none"] .hl-live'
 
 
+#: How long a page without the server's screen stays blank before its cover says why [s]: a page
+#: loading normally draws its first screen well within it, so a participant never reads the cover
+#: on an ordinary load.
+COVER_DELAY_S = 3
+
+
 def offline_cover(message: str, colour: str, font: str) -> str:
-    """CSS that covers the whole page with ``message`` while the connection is down.
+    """CSS that covers the whole page with ``message`` while it has no connection to the server.
 
     When the connection drops, viser keeps the last screen but dims it and blocks its input (its
     ``DisconnectedGate``: inline ``opacity: 0.5; pointer-events: none``). Over that, the cover
     says what to do; it goes away when the page reconnects and the server draws the current
-    screen again. ``.hl-live`` is an empty marker in every screen."""
+    screen again. ``.hl-live`` is an empty marker in every screen. A page that shows no screen of
+    the server's at all (loading, or a reload while the server is down: viser's own "connecting"
+    screens) is blank white at once and shows the message after :data:`COVER_DELAY_S`. The page
+    carries this CSS from its first byte (:mod:`app.ui.client_page`) and every screen again."""
     text = message.replace("\n", "\\A ")
     return f"""
-body:has({DISCONNECTED})::after {{
+body:has({DISCONNECTED})::after, body:not(:has(.hl-live))::after {{
   content: "{text}";
   white-space: pre-wrap; position: fixed; inset: 0; z-index: 2147483647; display: flex;
   align-items: center; justify-content: center; text-align: center; padding: 24px;
   background: white; color: {colour}; font: {font}; }}
+body:not(:has(.hl-live))::after {{ animation: hl-cover-late {COVER_DELAY_S}s; }}
+body:not(:has(.hl-live))::before {{ content: ""; position: fixed; inset: 0;
+  z-index: 2147483646; background: white; }}
+@keyframes hl-cover-late {{ from, to {{ opacity: 0; }} }}
 """
 
 
 #: The tablet's cover: the participant asks the experimenter.
 OFFLINE_CSS = offline_cover("Please tell the experimenter.\n\nThe tablet has lost its connection.",
-                            RED, "700 var(--hl-title) / 1.25 sans-serif")
+                            RED, "700 var(--hl-title, 44px) / 1.25 sans-serif")
 
 #: The tablet's own look: big type, big buttons, the slider as a big orange drag handle, the scale
 #: at a fixed height (stacked "equal" markers close up rather than push Confirm down), sizes for a
@@ -157,12 +173,12 @@ DASHBOARD_CSS = f"""
 
 #: The dashboard's cover when the server is unreachable: this page cannot stop the arm then. viser
 #: (1.1.1) retries a lost connection only while its page has the focus (``WebsocketInterface.tsx``:
-#: ``!isConnected && document.hasFocus()``), so the cover says so: a dashboard behind another
-#: window stays disconnected until it is clicked.
+#: ``!isConnected && document.hasFocus()``); the page's own watchdog (:mod:`app.ui.client_page`)
+#: reloads it once the server answers, focused or not.
 DASHBOARD_OFFLINE_CSS = offline_cover(
     "SERVER UNREACHABLE\n\nThis dashboard is not connected: its STOP ARM does nothing.\n"
     "Use the PHYSICAL E-STOP if the arm must stop.\n\nThe page reconnects by itself when the "
-    "server is back, while this window is in front (click it).", RED, "700 34px / 1.3 sans-serif")
+    "server is back.", RED, "700 34px / 1.3 sans-serif")
 
 
 def style_block(css: str) -> str:

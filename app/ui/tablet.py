@@ -15,10 +15,11 @@ never starts on an earlier marker; a rating or an answer is a choice followed by
 
 One tablet per session (:mod:`app.session.pairing`): a page on the tablet port becomes the study's
 tablet once the pairing code shown on the dashboard is typed on it ("Connect this tablet"); the
-pairing holds for that device across reloads. Another page of the same device shows "This tablet is
-not in use" and is offered nothing to rate, until the tablet's page closes; a page of another device
-is offered only the code. The runner hears of every page (:meth:`SessionRunner.tablet_connected`),
-so the dashboard shows how many are open and Start is refused without exactly one paired tablet.
+pairing holds for that device across reloads, and for that browser across restarts. Another page of
+the same device shows "This tablet is not in use" and is offered nothing to rate, until the
+tablet's page closes; a page of another device is offered only the code. The runner hears of every
+page (:meth:`SessionRunner.tablet_connected`), so the dashboard shows how many are open and Start
+is refused without exactly one paired tablet.
 
 The page is a kiosk: viser's own chrome is hidden by CSS delivered with every screen
 (:data:`~app.ui.style.KIOSK_CSS`), and a dropped connection covers the screen with "Please tell the
@@ -335,15 +336,17 @@ class TabletClient:
 class Tablet:
     """The tablet server: one :class:`TabletClient` per open page; the paired one is the study's
     tablet (:class:`~app.session.pairing.TabletPairing`). ``source_of`` gives a page's remote
-    address (:meth:`app.ui.guard.Guard.source_of`); ``settle_s``: input is ignored for this long
+    address (:meth:`app.ui.guard.Guard.source_of`), ``browser_of`` its browser's id
+    (:meth:`app.ui.guard.Guard.browser_of`); ``settle_s``: input is ignored for this long
     after each screen change, on ``clock`` (a test's own clock ends the window when it says so)."""
 
     def __init__(self, server: viser.ViserServer, runner: SessionRunner,
-                 source_of: Callable[[int], str], settle_s: float = SETTLE_S,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 source_of: Callable[[int], str],
+                 browser_of: Callable[[int], str | None] = lambda _: None,
+                 settle_s: float = SETTLE_S, clock: Callable[[], float] = time.monotonic) -> None:
         self.server, self.runner, self.settle_s, self._clock = server, runner, settle_s, clock
         self._pages: dict[int, TabletClient] = {}  # in the order they connected
-        self._source_of = source_of
+        self._source_of, self._browser_of = source_of, browser_of
         self.pairing = runner.attach_tablet()
         self._lock = threading.RLock()
         server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
@@ -363,7 +366,8 @@ class Tablet:
         with self._lock:
             self._pages[client.client_id] = TabletClient(client, self.runner, self.redraw,
                                                          self.settle_s, self._clock)
-        self.runner.tablet_connected(client.client_id, self._source_of(client.client_id))
+        self.runner.tablet_connected(client.client_id, self._source_of(client.client_id),
+                                     self._browser_of(client.client_id))
         log.info("tablet page %d connected (%d open)", client.client_id, self.connected_count())
         self.redraw()
 

@@ -13,9 +13,16 @@ from support.engine import SHORT_PROTOCOL
 from support.runner import READY_CEILING_S, Probe
 
 from app.protocol.errors import RefusedAction
-from app.session.access import TOKEN_FILE, UnsafeTokenFile, dashboard_token
+from app.session.access import (
+    DASHBOARD_BROWSERS_FILE,
+    TABLET_BROWSER_FILE,
+    TOKEN_FILE,
+    KnownBrowsers,
+    UnsafeTokenFile,
+    dashboard_token,
+)
 from app.session.config import LabConfig
-from app.session.pairing import CODE_GUESSES, TabletPairing
+from app.session.pairing import CODE_GUESSES, WRONG_CODE_ALERT_S, TabletPairing
 from app.session.runner import SessionRunner
 from app.ui.status_text import status_line
 from robot_io.simulated_hand import Scenario
@@ -68,8 +75,37 @@ def test_guesses_from_many_addresses_replace_the_code_and_the_dashboard_says_so(
     pairing.connected(99, "10.0.0.5")
     assert pairing.pair(99, "4711") == "Wrong code."  # the code an attacker might have learned
     assert pairing.pair(99, status.code) is None  # the one the dashboard shows
-    assert pairing.status().alert() == ("106 wrong pairing codes from 22 addresses; the code was "
+    # 10.0.0.5's own wrong code is no alarm once it has paired; the 21 guessers' still are
+    assert pairing.status().alert() == ("105 wrong pairing codes from 21 addresses; the code was "
                                         "replaced 10×")
+
+
+def test_a_typo_on_the_tablet_leaves_the_alert_once_that_tablet_pairs():
+    """One mistyped code left "⚠ 1 wrong pairing code from 1 address" on the dashboard until a
+    restart (issue 37, item 7)."""
+    pairing = TabletPairing(code="4711")
+    pairing.connected(1, "10.0.0.5")
+    pairing.connected(2, "10.0.0.66")
+    assert pairing.pair(2, "0000") == "Wrong code."  # someone else's guess
+    assert pairing.pair(1, "4771") == "Wrong code."  # the participant's typo
+    assert pairing.status().alert() == "2 wrong pairing codes from 2 addresses"
+    assert pairing.pair(1, "4711") is None
+    assert pairing.status().alert() == "1 wrong pairing code from 1 address"  # the other one stays
+
+
+def test_wrong_codes_age_out_of_the_alert():
+    now = [0.0]
+    pairing = TabletPairing(code="4711", clock=lambda: now[0])
+    pairing.connected(1, "10.0.0.66")
+    assert pairing.pair(1, "0000") == "Wrong code."
+    now[0] = 300.0
+    assert pairing.pair(1, "0001") == "Wrong code."
+    assert pairing.status().alert() == "2 wrong pairing codes from 1 address"
+    now[0] = WRONG_CODE_ALERT_S  # the first has aged out
+    assert pairing.status().alert() == "1 wrong pairing code from 1 address"
+    now[0] = 300.0 + WRONG_CODE_ALERT_S
+    status = pairing.status()
+    assert status.alert() is None and (status.wrong_codes, status.guessers) == (0, 0)
 
 
 def test_a_take_over_of_the_tablet_leads_the_dashboards_status_line(tmp_path: Path):
@@ -168,3 +204,36 @@ def test_a_token_file_others_could_write_is_refused(tmp_path: Path):
     path.symlink_to(chosen)
     with pytest.raises(UnsafeTokenFile, match="is a symbolic link"):
         dashboard_token(study)
+
+
+def test_the_paired_browser_is_the_tablet_again_after_a_restart_without_the_code(tmp_path: Path):
+    """A restart cost a new pairing code (issue 37, item 5): the browser that paired is kept with
+    the study (hashed, owner-only) and is the tablet again when it connects, from any address."""
+    study = tmp_path / "study"
+    first = TabletPairing(code="4711", known=KnownBrowsers(study, TABLET_BROWSER_FILE))
+    first.connected(1, "10.0.0.5", browser="a" * 32)
+    assert first.pair(1, "4711") is None
+    stored = (study / TABLET_BROWSER_FILE).read_text()
+    assert "a" * 32 not in stored and stat.S_IMODE(os.stat(study / TABLET_BROWSER_FILE).st_mode) == 0o600
+    again = TabletPairing(code="0815", known=KnownBrowsers(study, TABLET_BROWSER_FILE))  # a restart
+    assert again.connected(7, "10.0.0.5", browser="b" * 32) is False  # another browser: the code
+    assert again.role(7) == "pair"
+    assert again.connected(8, "10.0.0.9", browser="a" * 32) is True  # the paired one, new address
+    assert again.role(8) == "tablet" and again.status().taken_over_from is None
+    assert again.connected(9, "10.0.0.9", browser="a" * 32) is False  # a second tab: not in use
+    assert again.role(9) == "unused"
+
+
+def test_known_browsers_forget_with_a_new_salt_and_refuse_a_planted_file(tmp_path: Path):
+    study = tmp_path / "study"
+    known = KnownBrowsers(study, DASHBOARD_BROWSERS_FILE, salt="token-1", keep=2)
+    for browser in ("1" * 32, "2" * 32, "3" * 32):
+        known.remember(browser)
+    assert [known.known(b) for b in ("1" * 32, "2" * 32, "3" * 32)] == [False, True, True]
+    assert not known.known(None)
+    assert not KnownBrowsers(study, DASHBOARD_BROWSERS_FILE, salt="token-2").known("3" * 32)
+    path = study / DASHBOARD_BROWSERS_FILE
+    path.unlink()
+    path.symlink_to(tmp_path / "elsewhere")
+    with pytest.raises(UnsafeTokenFile, match="is a symbolic link"):
+        known.known("3" * 32)

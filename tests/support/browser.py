@@ -698,6 +698,11 @@ def unlock_dashboard(page: Page, token: str = TOKEN) -> None:
     """Type the token and press Unlock; wait for the unlocked dashboard (its STOP ARM)."""
     fill(page, "Token", token)
     click(page, "Unlock")
+    wait_unlocked(page)
+
+
+def wait_unlocked(page: Page) -> None:
+    """Wait for the unlocked dashboard (its STOP ARM); a browser unlocked before needs no token."""
     with awaiting(page, "waiting for the unlocked dashboard (STOP ARM)"):
         button(page, "STOP ARM").wait_for(state="visible")
 

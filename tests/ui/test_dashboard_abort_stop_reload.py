@@ -28,9 +28,9 @@ from support.browser import (
     tablet_screen,
     tap,
     touch_drag_to,
-    unlock_dashboard,
     wait_enabled,
     wait_text,
+    wait_unlocked,
 )
 
 from session_store.store import ParticipantStore
@@ -73,7 +73,7 @@ def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
         assert tablet_screen(tablet) == "place"
         assert "Handover 2" in tablet.inner_text("body")
         assert tablet.locator(".hl-marker").count() == 2  # marker 1 where it was, and the newest
-        unlock_dashboard(dashboard)
+        wait_unlocked(dashboard)  # the browser was unlocked before: no token again
         wait_text(dashboard, "2 of 9 handovers completed")
         shot(tablet, screens, "tablet-after-reload")
         touch_drag_to(tablet, 0.9)
