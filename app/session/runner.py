@@ -566,7 +566,7 @@ class SessionRunner:
         except (RobotIOError, OSError) as exc:
             self._rig_fault = explain(exc)
             raise RefusedAction(f"the rig could not start: {explain(exc)}") from exc
-        self._devices, self._rig_fault = self._rig.devices, None
+        self._devices, self._rig_fault, self._timing = self._rig.devices, None, None
 
     def _start_trial(self) -> TrialPlan:
         engine = self._require_engine()
