@@ -187,7 +187,7 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
     stream = SampleStream(capacity, name=stream_name)
     gc.freeze()  # what the rig holds from here on is never scanned by a collection again
     inbox = Inbox(conn, outbox, devices, watch_application=spec.realtime)
-    timing = (TimingReporter(stream, TimingWatch(spec.config.loop, raised), outbox.send)
+    timing = (TimingReporter(stream, TimingWatch(devices.config.loop, raised), outbox.send)
               if spec.realtime else None)
     outbox.send(RigOpened(devices=devices.report().model_copy(update={"realtime_priority": raised}),
                           pid=os.getpid()))
