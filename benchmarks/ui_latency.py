@@ -101,7 +101,8 @@ def run(tmp: Path, *extra: str) -> tuple[list[float], list[float], int, int]:
 
 def main() -> None:
     """The same session twice: the normal scheduling policy (the baseline) and --realtime-priority."""
-    for label, extra in (("normal policy", ()), ("--realtime-priority", ("--realtime-priority",))):
+    for label, extra in (("normal policy", ("--no-realtime-priority",)),
+                         ("--realtime-priority", ("--realtime-priority",))):
         with tempfile.TemporaryDirectory() as tmp:
             latencies, answers, misses, cycles = run(Path(tmp), *extra)
         for what, seconds in (("placement Confirm", latencies),

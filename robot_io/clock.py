@@ -13,10 +13,13 @@ import logging
 import math
 import os
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from datetime import UTC, datetime
-from typing import NamedTuple, Protocol
+from typing import Literal, NamedTuple, Protocol
+
+from robot_io.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
@@ -109,6 +112,52 @@ def raise_priority(priority: int = CONTROL_PRIORITY) -> tuple[int, int] | None:
         log.info("control thread keeps the normal scheduling policy (%s)", exc)
         return None
     return before
+
+
+#: ``[loop] realtime_priority``: "auto" runs the rig under SCHED_FIFO where the OS permits it and says
+#: so where it does not; true refuses to start without it; false never asks for it.
+PrioritySetting = bool | Literal["auto"]
+
+#: How a lab grants the rig real-time priority, for the messages that say it runs without.
+GRANT_PRIORITY = ("grant it with `sudo setcap cap_sys_nice+ep` on the venv's python (the real file, "
+                  "`readlink -f .venv/bin/python`), or an rtprio limit for the lab's user in "
+                  "/etc/security/limits.conf (`labuser - rtprio 60`, then log in again), or run as "
+                  "root; see docs/hardware.md, \"Real-time priority\"")
+
+
+def priority_refusal() -> str | None:
+    """Why this process may not run threads under SCHED_FIFO (the OS's words), or None if it may.
+    Asks on a thread of its own, which ends at once, so no thread of the caller changes policy."""
+    refusal: list[str | None] = [None]
+
+    def probe() -> None:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(CONTROL_PRIORITY))
+        except AttributeError:
+            refusal[0] = "this OS has no SCHED_FIFO"
+        except OSError as exc:
+            refusal[0] = f"the OS refused SCHED_FIFO: {exc.strerror or exc}"
+
+    thread = threading.Thread(target=probe, name="priority-probe")
+    thread.start()
+    thread.join()
+    return refusal[0]
+
+
+def resolve_priority(setting: PrioritySetting) -> tuple[bool, str | None]:
+    """Whether the rig asks for SCHED_FIFO under ``setting``, and what to tell the experimenter at
+    start (None: nothing). ``True`` where it is refused raises :class:`ConfigError` with the OS's
+    reason and how to grant it; ``"auto"`` then runs on the normal policy and says so."""
+    if setting is False:
+        return False, None
+    refusal = priority_refusal()
+    if refusal is None:
+        return True, None
+    if setting is True:
+        raise ConfigError(f"[loop] realtime_priority = true (or --realtime-priority), but {refusal}: "
+                          f"{GRANT_PRIORITY}; or set realtime_priority = \"auto\" to run without")
+    return False, (f"the rig runs without real-time priority ({refusal}): on a busy machine its "
+                   f"control loop and tracker can run late and trials abort; {GRANT_PRIORITY}")
 
 
 @contextlib.contextmanager

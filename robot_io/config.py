@@ -18,6 +18,7 @@ from typing import Annotated, Any, Literal
 import numpy as np
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
 
+from robot_io.clock import PrioritySetting
 from robot_io.errors import ConfigError
 from robot_io.vector import written
 
@@ -194,9 +195,11 @@ class LoopConfig(_Frozen):
                          "most 0.5 s, so the arm never moves long towards a person it cannot see")
     timeout_s: in_range(0, 120, "s") = Field(
         20.0, description="a trial longer than this ends as 'timeout' [s]")
-    realtime_priority: bool = Field(
-        False, description="run the control thread under SCHED_FIFO on the wall clock (needs root "
-                           "or CAP_SYS_NICE; see docs/controller.md)")
+    realtime_priority: PrioritySetting = Field(
+        "auto", description="the rig's threads under SCHED_FIFO on the wall clock (needs root, "
+                            "CAP_SYS_NICE or an rtprio limit; docs/hardware.md): \"auto\" where "
+                            "the OS permits it, saying so at start where it does not; true: refuse "
+                            "to start without it; false: never")
 
 
 class URConfig(_Frozen):

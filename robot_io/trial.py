@@ -17,13 +17,15 @@ from robot_io.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
 
 
-def make_clock(config: ControllerConfig, realtime: bool, *, realtime_priority: bool = False) -> Clock:
+def make_clock(config: ControllerConfig, realtime: bool, *,
+               realtime_priority: bool | None = None) -> Clock:
     """The wall clock at the loop's rate (``realtime``) or the simulated one. The wall clock raises the
-    control thread's priority when ``[loop] realtime_priority`` or the caller (``serve
-    --realtime-priority``) asks for it."""
+    control thread's priority where the OS permits it when ``realtime_priority`` says so (a rig's
+    setting, resolved at start), or, for None, unless ``[loop] realtime_priority = false``."""
     if realtime:
-        return RealClock(config.loop.rate_hz,
-                         realtime_priority=realtime_priority or config.loop.realtime_priority)
+        wanted = (config.loop.realtime_priority is not False if realtime_priority is None
+                  else realtime_priority)
+        return RealClock(config.loop.rate_hz, realtime_priority=wanted)
     return SimClock(config.loop.rate_hz)
 
 

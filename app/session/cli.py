@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import logging
 import signal
 from collections.abc import Iterator
 from typing import get_args
@@ -12,8 +13,10 @@ from typing import get_args
 from app.session.config import LabConfig
 from app.session.rehearsal import HandKind, Rehearsal
 from app.session.runner import SessionRunner
+from robot_io.clock import resolve_priority
 from robot_io.errors import ConfigError
 
+log = logging.getLogger(__name__)
 #: The signals that end a session's command as Ctrl-C does.
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
@@ -28,9 +31,11 @@ def add_rig_arguments(parser: argparse.ArgumentParser) -> None:
                              "[hand_source] kind when it is one of these, else lsl)")
     parser.add_argument("--rehearse-series", choices=("cb3", "e"), default="cb3",
                         help="with --rehearse: a CB-series (125 Hz) or e-Series (500 Hz) stand-in")
-    parser.add_argument("--realtime-priority", action="store_true",
-                        help="run the rig's control loop under SCHED_FIFO (needs root or "
-                             "CAP_SYS_NICE); also [loop] realtime_priority")
+    parser.add_argument("--realtime-priority", action=argparse.BooleanOptionalAction, default=None,
+                        help="the rig under SCHED_FIFO: --realtime-priority refuses to start "
+                             "without it, --no-realtime-priority never asks for it (default: "
+                             "[loop] realtime_priority, \"auto\": where the OS permits it, saying "
+                             "so at start where it does not; docs/hardware.md)")
 
 
 def rehearsed_hand(args: argparse.Namespace, lab: LabConfig) -> HandKind:
@@ -77,12 +82,26 @@ def interruptible() -> Iterator[None]:
             signal.signal(signum, handler)
 
 
+def rig_priority(args: argparse.Namespace, lab: LabConfig, *, realtime: bool) -> bool:
+    """Whether the rig runs under SCHED_FIFO: ``--[no-]realtime-priority``, else ``[loop]
+    realtime_priority``, resolved here at start (robot_io.clock.resolve_priority): refused at once
+    when it is required and the OS will not grant it, and said on stderr when "auto" runs without.
+    Never on simulated time: a rig that computes trials as fast as it can must not hold a core."""
+    setting = lab.loop.realtime_priority if args.realtime_priority is None else args.realtime_priority
+    if not realtime:
+        return False
+    wanted, note = resolve_priority(setting)
+    if note is not None:
+        log.warning("%s", note)
+    return wanted
+
+
 @contextlib.contextmanager
 def open_runner(args: argparse.Namespace, lab: LabConfig, *, realtime: bool,
                 auto_experimenter: bool = False) -> Iterator[SessionRunner]:
     """The session runner on the lab's devices, or on a rehearsal rig; closed (arm stopped first)
     on the way out, also on Ctrl-C."""
-    priority = args.realtime_priority or lab.loop.realtime_priority
+    priority = rig_priority(args, lab, realtime=realtime)
     rehearsal = (Rehearsal(lab, hand=rehearsed_hand(args, lab), series=args.rehearse_series)
                  if args.rehearse else None)
     runner = SessionRunner(args.study, lab, realtime=realtime, rehearsal=rehearsal,

@@ -64,6 +64,7 @@ from robot_io.rig.messages import (
     Report,
     RigDied,
     RigSpec,
+    RigTiming,
     RunTrial,
     StageReached,
     TrialDone,
@@ -129,6 +130,8 @@ class RunnerView(BaseModel):
     arm_fault: str | None = None
     hand: str = ""
     gripper: str = ""
+    timing: str = ""  # the rig's scheduling: real-time priority or not
+    timing_warning: str | None = None  # the latest trial's cycles or hand samples ran late: how
     waiting_for: Waiting | None = None  # the cycle waits for the experimenter's confirmation
     ready_wait: str | None = None  # why the hand is not ready at the start A
     learner: str = "idle"
@@ -180,6 +183,7 @@ class SessionRunner:
         self._outlets: StudyOutlets | None = None  # the open session's LSL outlets ([record])
         self._devices: DeviceReport | None = None
         self._rig_fault: str | None = None
+        self._timing: RigTiming | None = None  # the latest late timing, until a trial runs on time
         self._plan: TrialPlan | None = None
         self._abort_reason: str | None = None
         self._abort_actor = Actor.SYSTEM
@@ -596,7 +600,7 @@ class SessionRunner:
         except (RobotIOError, OSError) as exc:
             self._rig_fault = explain(exc)
             raise RefusedAction(f"the rig could not start: {explain(exc)}") from exc
-        self._devices, self._rig_fault = self._rig.devices, None
+        self._devices, self._rig_fault, self._timing = self._rig.devices, None, None
 
     def _start_trial(self) -> TrialPlan:
         engine = self._require_engine()
@@ -685,6 +689,8 @@ class SessionRunner:
         return {"arm": "no rig open" if devices is None else devices.arm_detail,
                 "hand": "" if devices is None else devices.hand_detail,
                 "gripper": "" if devices is None else devices.gripper_detail,
+                "timing": timing_words(devices, self.realtime),
+                "timing_warning": None if self._timing is None else self._timing.describe(),
                 "arm_fault": self._rig_fault, "rehearsal": self.rehearsal is not None,
                 "refusing_object": self._refusing_object,
                 "learner": "fitting the next θ" if self._preparing else "idle",
@@ -724,7 +730,16 @@ class SessionRunner:
         elif isinstance(report, ReadyWaiting):
             self._ready_wait = report.why
             self._changed(None)
+        elif isinstance(report, RigTiming):
+            first = self._timing is None or self._timing.trial_index != report.trial_index
+            self._timing = report
+            if first:  # the whole of it on stderr (headless too); the dashboard shows it by the devices
+                log.warning("%s", report.describe())
+            self._changed(f"trial {report.trial_index}: the rig's timing runs late (see Devices)"
+                          if first else None)
         elif isinstance(report, TrialDone):
+            if self._timing is not None and self._timing.trial_index != report.trial_index:
+                self._timing = None  # this trial ran on time
             self._flush_outlets()
             self._finish(report.trial_index, TrialRecord(report.summary, self._rig.stream.columns()))
         elif isinstance(report, RigDied):
@@ -904,6 +919,16 @@ class SessionRunner:
         finally:
             self._preparing = False
             self._changed(None)
+
+
+def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
+    """The rig's scheduling in words: under real-time priority or not (nothing without a rig)."""
+    if devices is None:
+        return ""
+    if not realtime:
+        return "simulated time"
+    return ("real-time priority (SCHED_FIFO)" if devices.realtime_priority else
+            "no real-time priority (normal scheduling): trials may run late on a busy machine")
 
 
 class RecordedSession(NamedTuple):

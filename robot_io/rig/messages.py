@@ -7,8 +7,9 @@ wall clock stops the arm.
 Rig → application: :class:`RigOpened` or :class:`RigFailed` once, then per trial
 :class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is not at A, and
 :class:`TrialDone` with the summary; :class:`Recovered` answers a :class:`Recover`;
-:class:`StopReceived` acknowledges a stop at once. Samples do not travel here: the rig writes them
-into shared memory (:mod:`robot_io.rig.stream`).
+:class:`StopReceived` acknowledges a stop at once; :class:`RigTiming` says that a trial's cycles or
+hand samples run late. Samples do not travel here: the rig writes them into shared memory
+(:mod:`robot_io.rig.stream`).
 """
 
 from __future__ import annotations
@@ -47,7 +48,9 @@ class RigSpec(_Message):
                                                         "hand source only)")
     realtime: bool = Field(True, description="wall clock; False: simulated time (mock arm and "
                                              "simulated hand only)")
-    realtime_priority: bool = False
+    realtime_priority: bool = Field(False, description="run the rig under SCHED_FIFO where the OS "
+                                                       "permits it (wall clock only), as resolved "
+                                                       "at start from [loop] realtime_priority")
 
 
 # -- application → rig ---------------------------------------------------------------------------
@@ -106,6 +109,8 @@ class DeviceReport(_Message):
     hand_detail: str
     gripper: str = Field(description="none, tool_output or robotiq_socket")
     gripper_detail: str
+    realtime_priority: bool = Field(False, description="the rig's threads run under SCHED_FIFO (its "
+                                                       "control loop above them during a trial)")
 
 
 class RigOpened(_Message):
@@ -150,6 +155,38 @@ class TrialDone(_Message):
     rows: int = Field(description="sample rows written to the shared stream")
 
 
+class RigTiming(_Message):
+    """The running trial's timing is degraded (robot_io.rig.timing): its worst so far, sent as soon as
+    it passes a bound and again (at most every second) while it grows."""
+
+    kind: Literal["rig_timing"] = "rig_timing"
+    trial_index: int
+    late_cycles: int = Field(description="control cycles that started more than late_bound_s late")
+    latest_start_s: float = Field(description="the latest of those starts, after its schedule [s]")
+    late_bound_s: float
+    oldest_hand_sample_s: float = Field(description="the oldest hand sample a cycle steered by [s]")
+    old_bound_s: float
+    staleness_limit_s: float = Field(description="[loop] staleness_limit_s: the tracker is lost")
+    realtime_priority: bool = Field(description="the rig runs under SCHED_FIFO")
+
+    def describe(self) -> str:
+        """What ran late and by how much, and what to do about it, in the experimenter's words."""
+        parts = []
+        if self.late_cycles:
+            parts.append(f"{self.late_cycles} control cycles started late, by up to "
+                         f"{self.latest_start_s * 1e3:.0f} ms (warned above "
+                         f"{self.late_bound_s * 1e3:.0f} ms)")
+        if self.oldest_hand_sample_s > self.old_bound_s:
+            parts.append(f"the hand samples it steered by were up to "
+                         f"{self.oldest_hand_sample_s * 1e3:.0f} ms old (the tracker counts as lost "
+                         f"at {self.staleness_limit_s * 1e3:.0f} ms)")
+        advice = ("the machine is too busy even for the rig's real-time priority: close other "
+                  "programs" if self.realtime_priority else
+                  "the rig runs without real-time priority: grant it (docs/hardware.md, "
+                  "\"Real-time priority\") or close other programs")
+        return f"timing degraded in trial {self.trial_index}: {'; '.join(parts)} — {advice}"
+
+
 class RigDied(_Message):
     """Made by the application's client, not sent: the rig process ended without being told to."""
 
@@ -159,4 +196,4 @@ class RigDied(_Message):
 
 
 Report = (RigOpened | RigFailed | StageReached | ReadyWaiting | StopReceived | Recovered
-          | TrialDone)
+          | TrialDone | RigTiming)

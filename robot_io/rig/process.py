@@ -2,7 +2,9 @@
 :class:`~robot_io.rig.messages.RunTrial` until told to shut down or until the application is gone.
 
 Its main thread runs the control loop; with ``realtime_priority`` (``[loop] realtime_priority``,
-``--realtime-priority``) the whole process runs under SCHED_FIFO where the OS allows it;
+"auto" by default, ``--[no-]realtime-priority``) the whole process runs under SCHED_FIFO where the
+OS allows it (on the wall clock; it says in its
+:class:`~robot_io.rig.messages.DeviceReport` whether it does);
 an inbox thread receives commands, so a Stop reaches the running loop within one cycle. When the
 pipe to the application closes (the application exited or was killed), the arm is stopped and the
 process exits; when this process dies, the UR's control worker sees its pipe close and stops the arm
@@ -48,6 +50,7 @@ from robot_io.rig.messages import (
     TrialDone,
 )
 from robot_io.rig.stream import SampleStream, StreamRecorder
+from robot_io.rig.timing import TimingReporter, TimingWatch
 from robot_io.stages import Stage
 
 log = logging.getLogger(__name__)
@@ -173,10 +176,9 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
     # arm itself (Inbox), rather than being frozen mid-reach with it
     signal.signal(signal.SIGTSTP, signal.SIG_IGN)
     outbox = Outbox(conn)
-    if spec.realtime_priority:
-        # every thread of the rig inherits it (the hand receiver, ur_rtde's, the inbox); the loop's own
-        # thread runs above them while a trial runs (RealClock.start)
-        raise_priority(SUPPORT_PRIORITY)
+    # every thread of the rig inherits it (the hand receiver, ur_rtde's, the inbox); the loop's own
+    # thread runs above them while a trial runs (RealClock.start)
+    raised = spec.realtime and spec.realtime_priority and raise_priority(SUPPORT_PRIORITY) is not None
     try:
         devices = RigDevices(spec)
     except (RobotIOError, OSError, ValueError) as exc:
@@ -185,7 +187,10 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
     stream = SampleStream(capacity, name=stream_name)
     gc.freeze()  # what the rig holds from here on is never scanned by a collection again
     inbox = Inbox(conn, outbox, devices, watch_application=spec.realtime)
-    outbox.send(RigOpened(devices=devices.report(), pid=os.getpid()))
+    timing = (TimingReporter(stream, TimingWatch(devices.config.loop, raised), outbox.send)
+              if spec.realtime else None)
+    outbox.send(RigOpened(devices=devices.report().model_copy(update={"realtime_priority": raised}),
+                          pid=os.getpid()))
     try:
         while (item := inbox.commands.get()) is not None:
             if isinstance(item, Recover):
@@ -197,6 +202,8 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
             command, gates = item
             _run(command, gates, devices, stream, outbox, inbox)
     finally:
+        if timing is not None:
+            timing.close()
         devices.close()
         stream.close()
 

@@ -262,11 +262,14 @@ def test_real_clock_completes_a_handover_like_the_simulated_clock(config):
 
 
 @pytest.mark.parametrize(("in_config", "by_caller", "expected"), [
-    (False, False, False), (True, False, True), (False, True, True)])
+    ("auto", None, True), (True, None, True), (False, None, False), ("auto", False, False),
+    (False, True, True)])
 def test_real_time_priority_comes_from_the_config_or_the_caller(config, in_config, by_caller,
                                                                expected):
     """One factory for every wall-clock loop (simulated trial, web app, UR): ``[loop]
-    realtime_priority`` is honoured everywhere, and ``serve --realtime-priority`` can add it."""
+    realtime_priority`` is honoured where the caller says nothing ("auto", the default, asks for
+    it), and a rig's setting, resolved at start (``--realtime-priority``,
+    ``--no-realtime-priority``), decides where it says something."""
     loop = config.loop.model_copy(update={"rate_hz": 125, "realtime_priority": in_config})
     clock = make_clock(config.model_copy(update={"loop": loop}), realtime=True,
                        realtime_priority=by_caller)

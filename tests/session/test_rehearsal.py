@@ -45,7 +45,7 @@ def test_run_session_rehearse_completes_a_session_through_the_standin(tmp_path):
     config = tmp_path / "lab.toml"
     config.write_text(f"[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")
     done = handover("run-session", "--study", str(tmp_path), "--participant", "R01", "--scenario",
-                    "perturbed", "--seed", "5", "--auto", "--rehearse", "--realtime-priority",
+                    "perturbed", "--seed", "5", "--auto", "--rehearse",
                     "--config", str(config), "--json", "--no-progress")
     assert done.returncode == 0, done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])

@@ -28,7 +28,7 @@ def test_run_session_rehearse_drives_a_robotiq_gripper_that_opens_once_per_trial
     done = subprocess.run(
         [sys.executable, "-m", "app.cli", "run-session", "--study", str(tmp_path), "--participant",
          "R01", "--scenario", "perturbed", "--seed", "5", "--auto", "--rehearse",
-         "--realtime-priority", "--config", str(config), "--json", "--no-progress"],
+         "--config", str(config), "--json", "--no-progress"],
         capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])

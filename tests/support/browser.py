@@ -462,11 +462,11 @@ def serve(tmp: Path, *extra: str, rate: int = 125, protocol_toml: str = SHORT_TO
                "--study", str(study),
                "--tablet-port", str(tablet), "--dashboard-port", str(dashboard),
                "--config", str(config), *(["--token", token] if token else []),
-               # The rig process under SCHED_FIFO, as a lab runs it (where permitted; otherwise the
-               # normal policy): on a loaded machine a stalled rig wrote no sample for 0.5 s, the
+               # The rig process under SCHED_FIFO where permitted, by default, as a lab runs it: on
+               # the normal policy a stalled rig on a loaded machine wrote no sample for 0.5 s, the
                # backstop killed it as it must, and a session test stood at "the arm has a fault"
                # (test_serve_kill under a load of 13 in a full make test).
-               "--realtime-priority", *extra]
+               *extra]
     with log.open("w") as out:
         process = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT,
                                    env={**os.environ, "PYTHONUNBUFFERED": "1"})

@@ -45,7 +45,7 @@ def start_session(folder: Path, ur: Standin) -> subprocess.Popen:
         return subprocess.Popen(
             [sys.executable, "-m", "app.cli", "run-session", "--study", str(folder / "study"),
              "--participant", "F1", "--scenario", "perturbed", "--auto", "--no-progress",
-             "--realtime-priority", "--config", str(lab)],
+             "--config", str(lab)],
             stdout=subprocess.DEVNULL, stderr=err, process_group=0)  # a job of its own, as in a terminal
 
 

@@ -1,5 +1,6 @@
 """Tests that run a control loop on the wall clock inside the test process run it as a lab does:
-under SCHED_FIFO (where the OS allows it), so that the suite's own load cannot make them late."""
+under SCHED_FIFO (where the OS allows it), so that the suite's own load cannot make them late; and
+tests of a machine that does not allow it run their command under :func:`without_priority`."""
 
 from __future__ import annotations
 
@@ -31,3 +32,13 @@ def realtime_threads(priority: int = SUPPORT_PRIORITY) -> Iterator[None]:
 #: other FIFO threads on its core (robot_io.clock.children_start_on_the_normal_policy).
 REALTIME_CLI = [sys.executable, "-c", "import sys, app.cli; from robot_io.clock import SUPPORT_PRIORITY, "
                 "raise_priority; raise_priority(SUPPORT_PRIORITY); sys.exit(app.cli.main())"]
+
+
+def without_priority() -> list[str]:
+    """A command prefix under which a process may not have SCHED_FIFO, as on a lab PC where nobody
+    granted it: an rtprio limit of 0 (``prlimit``) and, for root, no CAP_SYS_NICE (``setpriv``
+    drops it from the bounding set, so the command never gains it)."""
+    prefix = ["prlimit", "--rtprio=0"]
+    if os.geteuid() == 0:
+        prefix += ["setpriv", "--bounding-set", "-sys_nice", "--"]
+    return prefix

@@ -1,0 +1,41 @@
+"""The rig's timing watch on its sample stream (robot_io.rig.timing): rows on time say nothing;
+late cycles and old hand samples are reported with their figures, once per growth."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robot_io.config import LoopConfig
+from robot_io.recorder import SLICES
+from robot_io.rig.stream import SampleStream, StreamRecorder
+from robot_io.rig.timing import TimingWatch
+
+LOOP = LoopConfig(rate_hz=125)
+
+
+def write_rows(recorder: StreamRecorder, n: int, lateness: float, age: float) -> None:
+    for _ in range(n):
+        row = recorder.next_row()
+        t = recorder.count / LOOP.rate_hz
+        row[SLICES["t"]], row[SLICES["lateness_s"]], row[SLICES["hand_t"]] = t, lateness, t - age
+
+
+def test_rows_on_time_say_nothing_and_old_hand_samples_are_reported():
+    stream = SampleStream(200)
+    try:
+        watch = TimingWatch(LOOP, realtime_priority=True)
+        recorder = StreamRecorder(stream, trial_index=4)
+        write_rows(recorder, 50, lateness=0.001, age=0.02)  # the normal policy's jitter, a 50 Hz tracker
+        assert watch.check(stream) is None
+        write_rows(recorder, 20, lateness=0.001, age=0.07)  # the tracker's samples fall behind
+        write_rows(recorder, 1, lateness=0.0, age=0.0)  # the row being written is not read
+        timing = watch.check(stream)
+        assert timing is not None and timing.trial_index == 4 and timing.late_cycles == 0
+        assert np.isclose(timing.oldest_hand_sample_s, 0.07)
+        assert watch.check(stream) is None  # nothing new: reported once
+        assert timing.describe() == (
+            "timing degraded in trial 4: the hand samples it steered by were up to 70 ms old (the "
+            "tracker counts as lost at 100 ms) — the machine is too busy even for the rig's "
+            "real-time priority: close other programs")
+    finally:
+        stream.close(unlink=True)
