@@ -113,8 +113,9 @@ def test_a_token_confirmed_at_once_by_click_or_enter_unlocks(tmp_path: Path) -> 
         for way in ways.values():
             page = open_page(browser, served.dashboard_url, size=(1400, 900))
             field = labelled(page, "Token")
-            unlock = page.get_by_role("button", name="Unlock").bounding_box()
             field.click()
+            # where Unlock is once the field has the focus (focusing it may scroll the panel)
+            unlock = page.get_by_role("button", name="Unlock").bounding_box()
             if way.startswith("paste"):
                 page.keyboard.insert_text(TOKEN)  # one input event, as a paste
             else:
