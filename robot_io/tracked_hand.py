@@ -22,6 +22,11 @@ cannot move so). They are counted in ``invalid`` (and in ``dropouts``), logged o
 is :attr:`TrackedHand.refusal`. A jump that persists is lost tracking: the loop sees no valid sample
 and stops the arm after ``staleness_limit_s``, as for an occluded marker; once the new position is
 as far as ``max_speed`` could have carried the hand, it is accepted (a hand that moved unseen).
+
+The link itself: each source counts in :attr:`TrackedHand.link` (a :class:`Link`) the packets it
+dropped as unreadable and the times its link to the tracker was lost and came back (how each source
+notices and heals that: its module docstring); :meth:`Link.notice` says it in one line, which the
+rig process reports to the dashboard's Devices panel.
 """
 
 from __future__ import annotations
@@ -46,6 +51,67 @@ PLAUSIBLE_RANGE_M = 5.0
 TRACKER_JITTER_M = 0.01
 
 
+class Link:
+    """What a source's link to its tracker went through, in counts and one line of words:
+    unreadable packets dropped, and outages (lost, then back after how long). Thread-safe."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+        self._lock = threading.Lock()
+        #: packets (frames, datagrams, samples) dropped because they could not be read
+        self.malformed = 0
+        #: times the link was lost
+        self.outages = 0
+        self.down_since: float | None = None  # time.monotonic() it was lost; None: up
+        self.why: str | None = None  # why it was lost (the latest outage)
+        self.last_outage_s: float | None = None  # how long the latest outage lasted [s]
+
+    def dropped(self, what: str) -> None:
+        """One packet that could not be read, dropped (logged the first time)."""
+        with self._lock:
+            self.malformed += 1
+            first = self.malformed == 1
+        if first:
+            log.warning("%s: an unreadable packet was dropped (%s); further ones are counted",
+                        self.source, what)
+
+    def lost(self, why: str) -> None:
+        """The link is down (once per outage; repeats while it is down change nothing)."""
+        with self._lock:
+            if self.down_since is not None:
+                return
+            self.down_since, self.why = time.monotonic(), why
+            self.outages += 1
+        log.warning("%s: link lost (%s); reconnecting", self.source, why)
+
+    def back(self) -> None:
+        """The link is up again (nothing if it was not down)."""
+        with self._lock:
+            if self.down_since is None:
+                return
+            self.last_outage_s = time.monotonic() - self.down_since
+            self.down_since = None
+        log.warning("%s: link back after %.2f s", self.source, self.last_outage_s)
+
+    @property
+    def up(self) -> bool:
+        return self.down_since is None
+
+    def notice(self) -> str | None:
+        """One line for the Devices panel; None while nothing happened."""
+        with self._lock:
+            parts = [f"{self.malformed} unreadable packet{'s' * (self.malformed != 1)} dropped"] \
+                if self.malformed else []
+            if self.down_since is not None:
+                at = time.strftime("%H:%M:%S", time.localtime(time.time() - (time.monotonic()
+                                                                              - self.down_since)))
+                parts.append(f"link lost at {at} ({self.why}), reconnecting")
+            elif self.outages:
+                parts.append(f"link lost {self.outages}× and back, the last time after "
+                             f"{self.last_outage_s:.1f} s ({self.why})")
+        return "; ".join(parts) or None
+
+
 class TrackedHand:
     """Thread-safe newest sample of a tracked hand, in the robot base frame."""
 
@@ -63,6 +129,7 @@ class TrackedHand:
         self._accepted: tuple[float, np.ndarray] | None = None  # the newest valid sample
         self._thread: threading.Thread | None = None
         self._running = False
+        self.link = Link(type(self).__name__)
 
     def put(self, measured_at: float, tracker_xyz) -> None:
         """One sample: ``measured_at`` on ``time.monotonic``, position in tracker units. An occluded

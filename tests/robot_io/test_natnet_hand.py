@@ -271,3 +271,60 @@ def test_check_devices_reports_the_rigid_body_rate_and_latency(tmp_path, capsys)
 ])
 def test_an_incomplete_natnet_table_is_refused_naming_the_field(tmp_path, capsys, text, message):
     assert_hand_source_refused(tmp_path, capsys, text, message)
+
+
+def test_a_truncated_frame_is_dropped_and_counted_and_the_frames_after_it_are_read():
+    """Issue 38: one truncated frame raised struct.error in the natnet client's receiving thread,
+    which ended; every later frame arrived unread and every later trial ended tracker_lost."""
+    scene = Scene()
+    with motive(scene.poses) as server:
+        hand = open_hand(server)
+        try:
+            wait_for(lambda: hand.valid_age() is not None, "a tracked sample",
+                     seen=lambda: hand.received)
+            sent, received = server.frames_sent, hand.received
+            server.send_truncated_frame()
+            wait_for(lambda: server.truncated_sent == 1, "the truncated frame sent",
+                     seen=lambda: server.frames_sent - sent)
+            cut_at = server.frames_sent
+            wait_for(lambda: hand.received >= received + (cut_at - sent) + 60,
+                     "60 frames read after the truncated one",
+                     seen=lambda: f"{hand.received - received} read of {server.frames_sent - sent} "
+                                  f"sent; the link: {hand.link.notice()}")
+            lost = (server.frames_sent - sent) - (hand.received - received)
+        finally:
+            hand.close()
+    print(f"\nNatNet, one truncated frame: {lost} frames of {server.frames_sent - sent} not read "
+          f"(the truncated one, and any sent since the last count); no outage")
+    assert (hand.link.malformed, hand.link.outages) == (1, 0)
+    assert hand.link.notice() == "1 unreadable packet dropped"
+    assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
+
+
+def test_motive_restarted_on_its_port_is_connected_again_and_the_rigid_body_resolved_anew():
+    """Motive closed, then started again on the same port, forgets its clients and may number
+    the rigid bodies anew: the watchdog notices the silence, connects again until Motive answers,
+    asks for the model definitions, and the hand is tracked again under its new id."""
+    scene = Scene()
+    renumbered = RigidBodySpec(HAND.name, 11)
+    with motive(scene.poses) as server:
+        hand = StampRecordingHand(natnet_source(server), TRACKER_M, MAX_SPEED)
+        wait_for(lambda: hand.valid_age() is not None, "a tracked sample", seen=lambda: hand.received)
+    try:  # Motive is gone
+        wait_for(lambda: not hand.link.up, "the link seen lost", seen=hand.link.notice)
+        with motive(lambda: {renumbered.id: scene.poses()[HAND.id]}, (OBJECT, renumbered),
+                    port=server.address[1]) as again:
+            restarted = time.monotonic()
+            wait_for(lambda: hand.link.up and hand.valid_age() is not None
+                     and hand.stamps[-1][1] > restarted, "a tracked sample from Motive restarted",
+                     seen=lambda: f"{again.frames_sent} sent to {again.clients}; the link: "
+                                  f"{hand.link.notice()}")
+            back = next(put_at for _, put_at, _ in hand.stamps if put_at > restarted)
+    finally:
+        hand.close()
+    print(f"\nNatNet, Motive restarted: the link was down {hand.link.last_outage_s:.2f} s; tracked "
+          f"again {back - restarted:.2f} s after Motive came back")
+    assert hand.body_id == renumbered.id and hand.link.outages == 1
+    assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
+    assert re.fullmatch(r"link lost 1× and back, the last time after \d+\.\d s \(no frame for 0\.\d s\)",
+                        hand.link.notice()), hand.link.notice()
