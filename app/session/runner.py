@@ -59,6 +59,7 @@ from robot_io.loop import Outcome, TrialRecord
 from robot_io.rig.client import RigClient
 from robot_io.rig.messages import (
     DeviceReport,
+    HandLink,
     ReadyWaiting,
     Report,
     RigDied,
@@ -123,6 +124,7 @@ class RunnerView(BaseModel):
     arm: str = "no rig open"
     arm_fault: str | None = None
     hand: str = ""
+    hand_link: str | None = None  # what the tracked hand's link went through (None: nothing)
     gripper: str = ""
     waiting_for: Waiting | None = None  # the cycle waits for the experimenter's confirmation
     ready_wait: str | None = None  # why the hand is not ready at the start A
@@ -175,6 +177,7 @@ class SessionRunner:
         self._outlets: StudyOutlets | None = None  # the open session's LSL outlets ([record])
         self._devices: DeviceReport | None = None
         self._rig_fault: str | None = None
+        self._hand_link: str | None = None
         self._plan: TrialPlan | None = None
         self._abort_reason: str | None = None
         self._abort_actor = Actor.SYSTEM
@@ -568,7 +571,7 @@ class SessionRunner:
         except (RobotIOError, OSError) as exc:
             self._rig_fault = explain(exc)
             raise RefusedAction(f"the rig could not start: {explain(exc)}") from exc
-        self._devices, self._rig_fault = self._rig.devices, None
+        self._devices, self._rig_fault, self._hand_link = self._rig.devices, None, None
 
     def _start_trial(self) -> TrialPlan:
         engine = self._require_engine()
@@ -655,7 +658,7 @@ class SessionRunner:
         """The view's fields that do not come from the engine (read without its thread)."""
         devices = self._devices
         return {"arm": "no rig open" if devices is None else devices.arm_detail,
-                "hand": "" if devices is None else devices.hand_detail,
+                "hand": "" if devices is None else devices.hand_detail, "hand_link": self._hand_link,
                 "gripper": "" if devices is None else devices.gripper_detail,
                 "arm_fault": self._rig_fault, "rehearsal": self.rehearsal is not None,
                 "refusing_object": self._refusing_object,
@@ -696,6 +699,9 @@ class SessionRunner:
         elif isinstance(report, ReadyWaiting):
             self._ready_wait = report.why
             self._changed(None)
+        elif isinstance(report, HandLink):
+            self._hand_link = report.notice
+            self._changed_now(None)
         elif isinstance(report, TrialDone):
             self._flush_outlets()
             self._finish(report.trial_index, TrialRecord(report.summary, self._rig.stream.columns()))

@@ -163,7 +163,7 @@ def devices_markdown(view: RunnerView) -> str:
         else []
     arm = {"armed": view.arm, "stopping": f"stopping … ({view.arm})",
            "stopped": f"stopped, waiting for Re-arm ({view.arm})"}[view.stop]
-    return "\n".join([*rig, line("arm", arm, view.arm_fault), line("hand", view.hand, None),
+    return "\n".join([*rig, line("arm", arm, view.arm_fault), line("hand", view.hand, view.hand_link),
                       line("gripper", view.gripper, None),
                       line("learner", view.learner, view.learner_fault),
                       "", "Recent events:", *[f"- {m}" for m in view.messages]])

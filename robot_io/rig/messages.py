@@ -7,8 +7,9 @@ wall clock stops the arm.
 Rig → application: :class:`RigOpened` or :class:`RigFailed` once, then per trial
 :class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is not at A, and
 :class:`TrialDone` with the summary; :class:`Recovered` answers a :class:`Recover`;
-:class:`StopReceived` acknowledges a stop at once. Samples do not travel here: the rig writes them
-into shared memory (:mod:`robot_io.rig.stream`).
+:class:`StopReceived` acknowledges a stop at once; :class:`HandLink` whenever what the tracked hand's
+link went through changes (unreadable packets dropped, lost and back). Samples do not travel here:
+the rig writes them into shared memory (:mod:`robot_io.rig.stream`).
 """
 
 from __future__ import annotations
@@ -150,6 +151,14 @@ class TrialDone(_Message):
     rows: int = Field(description="sample rows written to the shared stream")
 
 
+class HandLink(_Message):
+    """What the tracked hand's link to its tracker went through, in one line
+    (:meth:`robot_io.tracked_hand.Link.notice`), sent each time it changes."""
+
+    kind: Literal["hand_link"] = "hand_link"
+    notice: str
+
+
 class RigDied(_Message):
     """Made by the application's client, not sent: the rig process ended without being told to."""
 
@@ -159,4 +168,4 @@ class RigDied(_Message):
 
 
 Report = (RigOpened | RigFailed | StageReached | ReadyWaiting | StopReceived | Recovered
-          | TrialDone)
+          | TrialDone | HandLink)
