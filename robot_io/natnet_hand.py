@@ -46,7 +46,7 @@ from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
 from robot_io.frame_clock import FrameClock
-from robot_io.tracked_hand import TrackedHand
+from robot_io.tracked_hand import LINK_STALL_S, RECONNECT_TIMEOUT_S, TrackedHand
 
 log = logging.getLogger(__name__)
 
@@ -57,11 +57,6 @@ RATE_BASELINE_S = 0.5
 MAX_REPORTED_LATENCY_S = 0.5
 #: How often the model definitions are asked for again while none have come [s] (UDP may drop one).
 MODELDEF_RETRY_S = 0.5
-#: No frame for this long is a lost link: the client is made anew [s]. Motive streams at 30 Hz or
-#: more; a live stream is never this silent.
-LINK_STALL_S = 0.5
-#: How long one try to connect again waits for the server's answer and its model definitions [s].
-RECONNECT_TIMEOUT_S = 1.0
 #: How often the watchdog looks at the link [s].
 WATCH_S = 0.05
 
@@ -121,15 +116,21 @@ def describe_bodies(descriptions: DataDescriptions) -> str:
     return ", ".join(f"{body.name!r} (id {body.id_num})" for body in descriptions.rigid_bodies) or "none"
 
 
+#: The first two bytes of a ``NAT_SERVERINFO`` packet (its message id, little endian).
+SERVER_INFO_ID = struct.pack("<H", NatNetClient.NAT_SERVERINFO)
+
+
 class TolerantNatNetClient(NatNetClient):
     """The ``natnet`` client (0.3), whose receiving threads survive a packet they cannot read.
 
     The library reads each packet in its private ``NatNetClient.__process_message``, on a receiving
     thread that an exception ends. This subclass overrides that one method (by its mangled name):
     a packet that cannot be read (``struct.error`` of a truncated one, a bad string, an index past
-    its end) is dropped and reported to ``on_malformed``; everything else is the library's. Should
-    a later ``natnet`` rename the method, the override goes unused and the watchdog of
-    :class:`NatNetHand` still makes the client anew after a dead thread."""
+    its end) is dropped and reported to ``on_malformed``; and a packet that comes before the
+    server's info is dropped uncounted: the library cannot read it without the protocol's version
+    (it raised TypeError out of ``connect`` when a frame overtook the info). Everything else is the
+    library's. Should a later ``natnet`` rename the method, the override goes unused and the
+    watchdog of :class:`NatNetHand` still makes the client anew after a dead thread."""
 
     def __init__(self, on_malformed: Callable[[str], None], **kwargs) -> None:
         super().__init__(**kwargs)
@@ -137,6 +138,8 @@ class TolerantNatNetClient(NatNetClient):
 
     def _NatNetClient__process_message(self, buffer) -> None:  # noqa: N802 (the library's name)
         try:
+            if self.protocol_version is None and buffer.data[:2] != SERVER_INFO_ID:
+                return
             super()._NatNetClient__process_message(buffer)
         except (struct.error, ValueError, IndexError) as exc:
             self._on_malformed(f"{type(exc).__name__}: {exc}")
@@ -145,6 +148,8 @@ class TolerantNatNetClient(NatNetClient):
 class NatNetHand(TrackedHand):
     """Connects to Motive, resolves the rigid body's name to its id, then puts every frame's sample
     from the client's receiving thread; a watchdog thread connects again when the frames stop."""
+
+    HEALING = "reconnecting"
 
     def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float) -> None:
         super().__init__(transform, max_speed)
@@ -241,10 +246,9 @@ class NatNetHand(TrackedHand):
         try:
             if self.body_id is None:
                 return
-            if not self.link.up:  # a new connection: Motive's clock may have started anew
-                self._rate.reset()
+            if not self.link.up:  # a new connection (put says the link is back): Motive's clock
+                self._rate.reset()  # may have started anew
                 self._clock.reset()
-                self.link.back()
             latency = reported_latency(frame, self._rate)
             body = next((b for b in frame.rigid_bodies if b.id_num == self.body_id), None)
             lost = body is None or body.tracking_valid is False

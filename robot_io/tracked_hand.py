@@ -24,9 +24,12 @@ and stops the arm after ``staleness_limit_s``, as for an occluded marker; once t
 as far as ``max_speed`` could have carried the hand, it is accepted (a hand that moved unseen).
 
 The link itself: each source counts in :attr:`TrackedHand.link` (a :class:`Link`) the packets it
-dropped as unreadable and the times its link to the tracker was lost and came back (how each source
-notices and heals that: its module docstring); :meth:`Link.notice` says it in one line, which the
-rig process reports to the dashboard's Devices panel.
+dropped as unreadable and the times its link to the tracker was lost and came back; :meth:`Link.notice`
+says it in one line, which the rig process reports to the dashboard's Devices panel. Nothing received
+for :data:`LINK_STALL_S`, after something was, is a lost link: the receiver thread then calls
+:meth:`TrackedHand.reconnect` (what a source can do to heal it: its module docstring; UDP has nothing
+to reconnect and waits) and tries again every ``LINK_STALL_S`` while nothing comes; the next sample
+is the link back.
 """
 
 from __future__ import annotations
@@ -49,14 +52,19 @@ log = logging.getLogger(__name__)
 PLAUSIBLE_RANGE_M = 5.0
 #: What a tracker's noise may add to the distance a hand can move between two samples [m].
 TRACKER_JITTER_M = 0.01
+#: Nothing received for this long, after something was, is a lost link [s]. Trackers stream at 30 Hz
+#: or more; a live stream is never this silent.
+LINK_STALL_S = 0.5
+#: How long one try to connect again may wait for the tracker [s].
+RECONNECT_TIMEOUT_S = 1.0
 
 
 class Link:
     """What a source's link to its tracker went through, in counts and one line of words:
     unreadable packets dropped, and outages (lost, then back after how long). Thread-safe."""
 
-    def __init__(self, source: str) -> None:
-        self.source = source
+    def __init__(self, source: str, healing: str) -> None:
+        self.source, self.healing = source, healing
         self._lock = threading.Lock()
         #: packets (frames, datagrams, samples) dropped because they could not be read
         self.malformed = 0
@@ -82,7 +90,7 @@ class Link:
                 return
             self.down_since, self.why = time.monotonic(), why
             self.outages += 1
-        log.warning("%s: link lost (%s); reconnecting", self.source, why)
+        log.warning("%s: link lost (%s); %s", self.source, why, self.healing)
 
     def back(self) -> None:
         """The link is up again (nothing if it was not down)."""
@@ -105,7 +113,7 @@ class Link:
             if self.down_since is not None:
                 at = time.strftime("%H:%M:%S", time.localtime(time.time() - (time.monotonic()
                                                                               - self.down_since)))
-                parts.append(f"link lost at {at} ({self.why}), reconnecting")
+                parts.append(f"link lost at {at} ({self.why}), {self.healing}")
             elif self.outages:
                 parts.append(f"link lost {self.outages}× and back, the last time after "
                              f"{self.last_outage_s:.1f} s ({self.why})")
@@ -114,6 +122,9 @@ class Link:
 
 class TrackedHand:
     """Thread-safe newest sample of a tracked hand, in the robot base frame."""
+
+    #: What the source does while its link is down, in the words of :meth:`Link.notice`.
+    HEALING = "waiting for it"
 
     def __init__(self, transform: FrameTransform, max_speed: float) -> None:
         self.transform, self.max_speed = transform, max_speed
@@ -129,7 +140,8 @@ class TrackedHand:
         self._accepted: tuple[float, np.ndarray] | None = None  # the newest valid sample
         self._thread: threading.Thread | None = None
         self._running = False
-        self.link = Link(type(self).__name__)
+        self.link = Link(type(self).__name__, self.HEALING)
+        self._arrived_at: float | None = None  # time.monotonic() the newest sample was put
 
     def put(self, measured_at: float, tracker_xyz) -> None:
         """One sample: ``measured_at`` on ``time.monotonic``, position in tracker units. An occluded
@@ -166,6 +178,9 @@ class TrackedHand:
             if self._newest is None or measured_at >= self._newest[0]:
                 self._newest = (measured_at, position)
             self.received += 1
+            self._arrived_at = time.monotonic()
+        if not self.link.up:
+            self.link.back()
 
     def _jump(self, measured_at: float, position: np.ndarray) -> str | None:
         """Why ``position`` cannot be the hand, if it is farther from the newest accepted sample
@@ -226,6 +241,22 @@ class TrackedHand:
             except Exception:
                 log.exception("%s: receiving failed; retrying", type(self).__name__)
                 time.sleep(0.1)
+            self._watch_link()
+
+    def _watch_link(self) -> None:
+        """Nothing received for LINK_STALL_S (after something was) is a lost link: one try to
+        :meth:`reconnect`, the next LINK_STALL_S later if nothing comes meanwhile."""
+        arrived = self._arrived_at
+        if arrived is None or (silent := time.monotonic() - arrived) < LINK_STALL_S:
+            return
+        self.link.lost(f"nothing received for {silent:.1f} s")
+        self.reconnect()
+        with self._lock:
+            self._arrived_at = max(self._arrived_at, time.monotonic())
+
+    def reconnect(self) -> None:
+        """One try to open the link to the tracker anew, waiting at most RECONNECT_TIMEOUT_S; never
+        raises (subclasses that can; by default the source waits for the tracker to send again)."""
 
     def receive_once(self) -> None:
         """Block briefly (≤ 0.1 s) for samples and :meth:`put` them; subclasses implement it."""
