@@ -328,3 +328,36 @@ def test_motive_restarted_on_its_port_is_connected_again_and_the_rigid_body_reso
     assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
     assert re.fullmatch(r"link lost 1× and back, the last time after \d+\.\d s \(no frame for 0\.\d s\)",
                         hand.link.notice()), hand.link.notice()
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # the fault made
+def test_a_receiving_thread_that_ends_anyway_is_noticed_by_its_silence_and_the_client_made_anew():
+    """Whatever else ends the natnet client's receiving thread (here an error raised on it, from a
+    handler of its frame event, once) leaves every later frame unread: the watchdog sees the
+    silence and makes the client anew."""
+    scene = Scene()
+    with motive(scene.poses) as server:
+        hand = open_hand(server)
+        crashed = threading.Event()
+
+        def crash(frame: DataFrame) -> None:  # the client's receiving thread, before the hand's
+            if not crashed.is_set():
+                crashed.set()
+                raise RuntimeError("the receiving thread ends here")
+
+        first = hand.client
+        try:
+            wait_for(lambda: hand.valid_age() is not None, "a tracked sample",
+                     seen=lambda: hand.received)
+            first.on_data_frame_received_event.handlers.insert(0, crash)
+            wait_for(crashed.is_set, "the receiving thread ended", seen=lambda: hand.received)
+            ended_at, received = time.monotonic(), hand.received
+            wait_for(lambda: hand.client is not first and hand.received > received and hand.link.up,
+                     "frames read by a new client",
+                     seen=lambda: f"{hand.received - received} read; the link: {hand.link.notice()}")
+            back_after = time.monotonic() - ended_at
+        finally:
+            hand.close()
+    print(f"\nNatNet receiving thread ended: frames read again {back_after:.2f} s later "
+          f"({round(back_after * server.rate_hz)} frames at {server.rate_hz:g} Hz lost)")
+    assert hand.link.outages == 1 and hand.link.malformed == 0
