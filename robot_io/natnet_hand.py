@@ -23,11 +23,12 @@ A link that heals: the ``natnet`` client reads each packet on its own receiving 
 exception ends for good (a truncated frame raises ``struct.error``; every later frame arrives and is
 never read). :class:`TolerantNatNetClient` drops a packet it cannot read and counts it in
 :attr:`TrackedHand.link`. Whatever else stops the frames — a receiving thread that ended anyway,
-Motive closed, restarted or its PC gone from the network — a watchdog notices: no frame for
-:data:`LINK_STALL_S` is a lost link, and the client is made anew (connect, model definitions, the
-rigid body resolved by name again: Motive may number it differently after a restart) until one
-streams again; each try waits at most :data:`RECONNECT_TIMEOUT_S`. Motive restarted forgets its
-unicast clients, so only a new connection is streamed to again.
+Motive closed, restarted or its PC gone from the network — a watchdog thread notices: nothing
+received for ``robot_io.tracked_hand.LINK_STALL_S`` is a lost link, and the client is made anew
+(connect, model definitions, the rigid body resolved by name again: Motive may number it
+differently after a restart) until one streams again; each try waits at most
+``RECONNECT_TIMEOUT_S``. Motive restarted forgets its unicast clients, so only a new connection is
+streamed to again.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
 from robot_io.frame_clock import FrameClock
-from robot_io.tracked_hand import LINK_STALL_S, RECONNECT_TIMEOUT_S, TrackedHand
+from robot_io.tracked_hand import RECONNECT_TIMEOUT_S, TrackedHand
 
 log = logging.getLogger(__name__)
 
@@ -168,7 +169,6 @@ class NatNetHand(TrackedHand):
         self.server_detail = f"{info.application_name} (NatNet {self.client.protocol_version})"
         log.info("NatNet hand source: rigid body %r (id %d) from %s at %s:%d", self.rigid_body,
                  self.body_id, self.server_detail, *self.server)
-        self._heard_at = time.monotonic()
         self._closing = threading.Event()
         self._watchdog = threading.Thread(target=self._watch, name="natnet-watchdog", daemon=True)
         self._watchdog.start()
@@ -222,27 +222,24 @@ class NatNetHand(TrackedHand):
         self.body_id = ids[0]
 
     def _watch(self) -> None:
-        """The watchdog's thread: no frame for LINK_STALL_S is a lost link; make the client anew
-        until one streams again."""
+        """The watchdog's thread: the link watch of every tracked hand (TrackedHand._watch_link),
+        which the client's own receiving thread cannot do (it may be the one that ended)."""
         while not self._closing.wait(WATCH_S):
-            silent = time.monotonic() - self._heard_at
-            if silent < LINK_STALL_S:
-                continue
-            self.link.lost(f"no frame for {silent:.1f} s")
-            self.body_id = None  # frames of the old client, if any still come, are not the hand's
-            self.client.shutdown()
-            try:
-                self.client = self._open(RECONNECT_TIMEOUT_S, "")
-            except HandSourceError as exc:
-                log.debug("NatNet hand source: connecting again failed: %s", exc)
-            # the next try once this one's frames (or none) have had LINK_STALL_S
-            self._heard_at = time.monotonic()
+            self._watch_link()
+
+    def reconnect(self) -> None:
+        """Make the client anew: one try, waiting at most RECONNECT_TIMEOUT_S."""
+        self.body_id = None  # frames of the old client, if any still come, are not the hand's
+        self.client.shutdown()
+        try:
+            self.client = self._open(RECONNECT_TIMEOUT_S, "")
+        except HandSourceError as exc:
+            log.debug("NatNet hand source: connecting again failed: %s", exc)
 
     def _on_frame(self, frame: DataFrame) -> None:
         """The client's thread: one sample per frame once the rigid body is known (an exception
         here would end the client's thread: it is logged instead)."""
         arrived = time.monotonic()
-        self._heard_at = arrived
         try:
             if self.body_id is None:
                 return

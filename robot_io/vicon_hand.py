@@ -260,7 +260,8 @@ class ViconHand(TrackedHand):
 
     def reconnect(self) -> None:
         """Disconnect, then one try to connect anew (waiting at most RECONNECT_TIMEOUT_S for a
-        frame); the frames' numbers and clock start anew."""
+        frame); the frame clock starts anew. The last frame number is kept: a paused Tracker
+        repeats its frame, which is no new sample (one outage, not one per try)."""
         try:
             self.client.Disconnect()
         except Exception as exc:  # the SDK's own exceptions: a connection already gone
@@ -270,7 +271,7 @@ class ViconHand(TrackedHand):
         except Exception as exc:  # HandSourceError, or the SDK's own: the server is not back yet
             log.debug("Vicon hand source: connecting again failed: %s", exc)
             return
-        self.client, self._last_number, self._failing = client, None, False
+        self.client, self._failing = client, False
         self._clock.reset()
 
     def _first_frame(self, client: ViconClient, timeout: float) -> float:

@@ -8,6 +8,8 @@ from __future__ import annotations
 import re
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -56,6 +58,16 @@ class Scene:
 
 def open_hand(server, rigid_body: str = HAND.name) -> NatNetHand:
     return NatNetHand(natnet_source(server, rigid_body), TRACKER_M, MAX_SPEED)
+
+
+@contextmanager
+def tracking(hand: NatNetHand) -> Iterator[NatNetHand]:
+    """``hand`` once it has a tracked sample; closed when the block ends."""
+    try:
+        wait_for(lambda: hand.valid_age() is not None, "a tracked sample", seen=lambda: hand.received)
+        yield hand
+    finally:
+        hand.close()
 
 
 class StampRecordingHand(NatNetHand):
@@ -178,20 +190,14 @@ def test_the_reported_latency_needs_the_tick_rate_and_refuses_what_is_no_latency
 
 def test_a_rigid_body_motive_lost_is_a_dropout_never_zero_nor_its_last_position():
     scene = Scene()
-    with motive(scene.poses) as server:
-        hand = open_hand(server)
-        try:
-            wait_for(lambda: hand.valid_age() is not None, "a tracked sample",
-                     seen=lambda: hand.received)
-            scene.set_hand(hidden())  # tracking-valid off; Motive's position is zeros then
-            lost = wait_for(lambda: (s := hand.latest(0.0)) is not None and not s.is_valid() and s,
-                            "a lost-hand sample", seen=lambda: hand.latest(0.0))
-            dropouts = hand.dropouts
-            scene.set_hand(pose_at(to_tracker_m(WANTED)))
-            back = wait_for(lambda: (s := hand.latest(0.0)).is_valid() and s, "the hand seen again",
-                            seen=lambda: hand.latest(0.0))
-        finally:
-            hand.close()
+    with motive(scene.poses) as server, tracking(open_hand(server)) as hand:
+        scene.set_hand(hidden())  # tracking-valid off; Motive's position is zeros then
+        lost = wait_for(lambda: (s := hand.latest(0.0)) is not None and not s.is_valid() and s,
+                        "a lost-hand sample", seen=lambda: hand.latest(0.0))
+        dropouts = hand.dropouts
+        scene.set_hand(pose_at(to_tracker_m(WANTED)))
+        back = wait_for(lambda: (s := hand.latest(0.0)).is_valid() and s, "the hand seen again",
+                        seen=lambda: hand.latest(0.0))
     assert np.all(np.isnan(lost.position)) and dropouts >= 1 and hand.invalid == 0
     assert back.position == pytest.approx(WANTED, abs=1e-6)
 
@@ -277,23 +283,17 @@ def test_a_truncated_frame_is_dropped_and_counted_and_the_frames_after_it_are_re
     """Issue 38: one truncated frame raised struct.error in the natnet client's receiving thread,
     which ended; every later frame arrived unread and every later trial ended tracker_lost."""
     scene = Scene()
-    with motive(scene.poses) as server:
-        hand = open_hand(server)
-        try:
-            wait_for(lambda: hand.valid_age() is not None, "a tracked sample",
-                     seen=lambda: hand.received)
-            sent, received = server.frames_sent, hand.received
-            server.send_truncated_frame()
-            wait_for(lambda: server.truncated_sent == 1, "the truncated frame sent",
-                     seen=lambda: server.frames_sent - sent)
-            cut_at = server.frames_sent
-            wait_for(lambda: hand.received >= received + (cut_at - sent) + 60,
-                     "60 frames read after the truncated one",
-                     seen=lambda: f"{hand.received - received} read of {server.frames_sent - sent} "
-                                  f"sent; the link: {hand.link.notice()}")
-            lost = (server.frames_sent - sent) - (hand.received - received)
-        finally:
-            hand.close()
+    with motive(scene.poses) as server, tracking(open_hand(server)) as hand:
+        sent, received = server.frames_sent, hand.received
+        server.send_truncated_frame()
+        wait_for(lambda: server.truncated_sent == 1, "the truncated frame sent",
+                 seen=lambda: server.frames_sent - sent)
+        cut_at = server.frames_sent
+        wait_for(lambda: hand.received >= received + (cut_at - sent) + 60,
+                 "60 frames read after the truncated one",
+                 seen=lambda: f"{hand.received - received} read of {server.frames_sent - sent} "
+                              f"sent; the link: {hand.link.notice()}")
+        lost = (server.frames_sent - sent) - (hand.received - received)
     print(f"\nNatNet, one truncated frame: {lost} frames of {server.frames_sent - sent} not read "
           f"(the truncated one, and any sent since the last count); no outage")
     assert (hand.link.malformed, hand.link.outages) == (1, 0)
@@ -326,8 +326,8 @@ def test_motive_restarted_on_its_port_is_connected_again_and_the_rigid_body_reso
           f"again {back - restarted:.2f} s after Motive came back")
     assert hand.body_id == renumbered.id and hand.link.outages == 1
     assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
-    assert re.fullmatch(r"link lost 1× and back, the last time after \d+\.\d s \(no frame for 0\.\d s\)",
-                        hand.link.notice()), hand.link.notice()
+    assert re.fullmatch(r"link lost 1× and back, the last time after \d+\.\d s \(nothing received "
+                        r"for 0\.\d s\)", hand.link.notice()), hand.link.notice()
 
 
 @pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # the fault made
@@ -335,29 +335,22 @@ def test_a_receiving_thread_that_ends_anyway_is_noticed_by_its_silence_and_the_c
     """Whatever else ends the natnet client's receiving thread (here an error raised on it, from a
     handler of its frame event, once) leaves every later frame unread: the watchdog sees the
     silence and makes the client anew."""
-    scene = Scene()
-    with motive(scene.poses) as server:
-        hand = open_hand(server)
-        crashed = threading.Event()
+    scene, crashed = Scene(), threading.Event()
 
-        def crash(frame: DataFrame) -> None:  # the client's receiving thread, before the hand's
-            if not crashed.is_set():
-                crashed.set()
-                raise RuntimeError("the receiving thread ends here")
+    def crash(frame: DataFrame) -> None:  # the client's receiving thread, before the hand's
+        if not crashed.is_set():
+            crashed.set()
+            raise RuntimeError("the receiving thread ends here")
 
+    with motive(scene.poses) as server, tracking(open_hand(server)) as hand:
         first = hand.client
-        try:
-            wait_for(lambda: hand.valid_age() is not None, "a tracked sample",
-                     seen=lambda: hand.received)
-            first.on_data_frame_received_event.handlers.insert(0, crash)
-            wait_for(crashed.is_set, "the receiving thread ended", seen=lambda: hand.received)
-            ended_at, received = time.monotonic(), hand.received
-            wait_for(lambda: hand.client is not first and hand.received > received and hand.link.up,
-                     "frames read by a new client",
-                     seen=lambda: f"{hand.received - received} read; the link: {hand.link.notice()}")
-            back_after = time.monotonic() - ended_at
-        finally:
-            hand.close()
+        first.on_data_frame_received_event.handlers.insert(0, crash)
+        wait_for(crashed.is_set, "the receiving thread ended", seen=lambda: hand.received)
+        ended_at, received = time.monotonic(), hand.received
+        wait_for(lambda: hand.client is not first and hand.received > received and hand.link.up,
+                 "frames read by a new client",
+                 seen=lambda: f"{hand.received - received} read; the link: {hand.link.notice()}")
+        back_after = time.monotonic() - ended_at
     print(f"\nNatNet receiving thread ended: frames read again {back_after:.2f} s later "
           f"({round(back_after * server.rate_hz)} frames at {server.rate_hz:g} Hz lost)")
     assert hand.link.outages == 1 and hand.link.malformed == 0
