@@ -129,7 +129,7 @@ class LSLHand(TrackedHand):
         except LostError:
             self._lost = True
             self.link.lost(f"stream {self.name!r} lost; it has no source_id, which LSL needs to "
-                           "recover it itself")
+                           "recover it itself", since=self._arrived_at)
 
     def _pull(self) -> None:
         # Wait for one sample (pull_chunk waits out its whole timeout, which would age every

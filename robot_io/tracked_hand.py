@@ -83,12 +83,13 @@ class Link:
             log.warning("%s: an unreadable packet was dropped (%s); further ones are counted",
                         self.source, what)
 
-    def lost(self, why: str) -> None:
-        """The link is down (once per outage; repeats while it is down change nothing)."""
+    def lost(self, why: str, since: float | None = None) -> None:
+        """The link is down since ``since`` (``time.monotonic``: the last packet's arrival; None:
+        now); once per outage, repeats while it is down change nothing."""
         with self._lock:
             if self.down_since is not None:
                 return
-            self.down_since, self.why = time.monotonic(), why
+            self.down_since, self.why = time.monotonic() if since is None else since, why
             self.outages += 1
         log.warning("%s: link lost (%s); %s", self.source, why, self.healing)
 
@@ -249,7 +250,7 @@ class TrackedHand:
         arrived = self._arrived_at
         if arrived is None or (silent := time.monotonic() - arrived) < LINK_STALL_S:
             return
-        self.link.lost(f"nothing received for {silent:.1f} s")
+        self.link.lost(f"nothing received for {silent:.1f} s", since=arrived)
         self.reconnect()
         with self._lock:
             self._arrived_at = max(self._arrived_at, time.monotonic())
