@@ -7,18 +7,27 @@ stream answers, so with a second stream of the type on the network (another rehe
 suite's Mocap stream, a second tracker bridge) the answer could be either: the name is therefore part
 of the resolve's predicate, and after the first answer the network gets :data:`DISCOVERY_WINDOW_S`
 to show a second match, which is refused with the list of what answered.
+
+A stream that goes away and comes back: LSL's inlet recovers a stream that has a ``source_id`` by
+itself (it resolves it anew in the background, a second or two); meanwhile nothing arrives, which the
+source's link notice shows as lost, then back. A stream without one cannot be recovered by LSL: every
+pull raises ``LostError``. The source then resolves the stream anew (the same predicate, refusing two
+as at open) and opens an inlet on it, trying again until it answers; the samples in between are lost.
 """
 
 from __future__ import annotations
 
 import logging
+import time
 
 import pylsl
+from pylsl.util import LostError
+from pylsl.util import TimeoutError as LSLTimeoutError
 
 from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
-from robot_io.tracked_hand import TrackedHand
+from robot_io.tracked_hand import RECONNECT_TIMEOUT_S, TrackedHand
 
 log = logging.getLogger(__name__)
 
@@ -75,21 +84,54 @@ def resolve_one(config: HandSourceConfig, window: float = DISCOVERY_WINDOW_S) ->
 class LSLHand(TrackedHand):
     """Resolves the one stream of the type (and name), then pulls samples in a thread."""
 
+    HEALING = "reconnecting"
+
     def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float) -> None:
         super().__init__(transform, max_speed)
+        self.config = config
         self.channels = list(config.lsl_channels)
+        self.inlet = self._open(config)
+        self._lost = False  # the inlet raised LostError: a stream LSL cannot recover
+        self.start()
+
+    def _open(self, config: HandSourceConfig) -> pylsl.StreamInlet:
+        """An inlet on the one stream ``config`` names, open (waiting at most resolve_timeout_s)."""
         info = resolve_one(config)
         if max(self.channels) >= info.channel_count():
             raise HandSourceError(f"hand_source.lsl_channels = {tuple(self.channels)} but stream "
                                   f"{info.name()!r} has {info.channel_count()} channels")
         self.name, self.nominal_rate_hz = info.name(), info.nominal_srate()
         self.source_id, self.hostname = info.source_id(), info.hostname()
-        self.inlet = pylsl.StreamInlet(info, max_buflen=1, processing_flags=pylsl.proc_clocksync)
-        self.inlet.open_stream(timeout=config.resolve_timeout_s)
+        inlet = pylsl.StreamInlet(info, max_buflen=1, processing_flags=pylsl.proc_clocksync)
+        inlet.open_stream(timeout=config.resolve_timeout_s)
         log.info("LSL hand source: stream %s at %g Hz", describe_stream(info), self.nominal_rate_hz)
-        self.start()
+        return inlet
+
+    def reconnect(self) -> None:
+        """A stream LSL cannot recover (no source_id) is resolved anew; one with a source_id LSL
+        recovers by itself, and its inlet stays."""
+        if not self._lost:
+            return
+        try:
+            inlet = self._open(self.config.model_copy(update={"resolve_timeout_s": RECONNECT_TIMEOUT_S}))
+        except (HandSourceError, LSLTimeoutError, LostError) as exc:
+            log.debug("LSL hand source: the stream is not back yet: %s", exc)
+            return
+        lost, self.inlet, self._lost = self.inlet, inlet, False
+        lost.close_stream()
 
     def receive_once(self) -> None:
+        if self._lost:  # the receiver's link watch calls reconnect
+            time.sleep(0.1)
+            return
+        try:
+            self._pull()
+        except LostError:
+            self._lost = True
+            self.link.lost(f"stream {self.name!r} lost; it has no source_id, which LSL needs to "
+                           "recover it itself", since=self._arrived_at)
+
+    def _pull(self) -> None:
         # Wait for one sample (pull_chunk waits out its whole timeout, which would age every
         # sample), then take whatever else has queued without waiting: a backlog (the stream's first
         # ~0.6 s arrive at once while clock sync starts, or a network stall) is put in one wake.

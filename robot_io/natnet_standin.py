@@ -12,6 +12,11 @@ The packets are packed with :mod:`struct` field by field as the ``natnet`` packa
 them for protocol 3.1 (``data_frame.py``, ``data_descriptions.py``, ``server_info.py``): little
 endian, strings NUL-terminated, the server's name in a fixed 256 bytes. It is a test and rehearsal
 stand-in for Motive, not a mock: the client talks to it over real UDP sockets.
+
+Faults, for the tests of a link that heals: :meth:`NatNetStandin.send_truncated_frame` cuts the next
+frame short (a packet damaged on its way; its header still gives the whole length), and a stand-in
+closed and started anew on the same port is Motive restarted: it has forgotten its clients, which
+must connect again to be streamed to.
 """
 
 from __future__ import annotations
@@ -131,6 +136,8 @@ class NatNetStandin:
         self.address: tuple[str, int] = self.sock.getsockname()
         self.clients: list[tuple[str, int]] = []
         self.frames_sent = 0
+        self.truncated_sent = 0  # frames sent cut short (send_truncated_frame)
+        self._truncate = threading.Event()
         self._lock = threading.Lock()
         self._running = False
         self._threads: list[threading.Thread] = []
@@ -174,12 +181,20 @@ class NatNetStandin:
                                    if isinstance(taken, Snapshot) else (taken, now - self.latency_s))
                 packet = frame_of_data(self.frames_sent, poses, exposure - self._started,
                                        FrameStamps(exposure, (exposure + now) / 2, now))
+                if self._truncate.is_set():
+                    packet = packet[:len(packet) // 2]
+                    self._truncate.clear()
+                    self.truncated_sent += 1
                 for client in clients:
                     self._send(packet, client)
                 self.frames_sent += 1
             next_at = max(next_at + 1.0 / self.rate_hz, now)
             # pacing, not waiting for a state: a tracker streams at its own rate
             time.sleep(max(0.0, next_at - time.monotonic()))
+
+    def send_truncated_frame(self) -> None:
+        """Cut the next frame to half its length (its header still says the whole length)."""
+        self._truncate.set()
 
     def _send(self, packet: bytes, client: tuple[str, int]) -> None:
         try:

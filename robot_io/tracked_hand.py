@@ -22,6 +22,14 @@ cannot move so). They are counted in ``invalid`` (and in ``dropouts``), logged o
 is :attr:`TrackedHand.refusal`. A jump that persists is lost tracking: the loop sees no valid sample
 and stops the arm after ``staleness_limit_s``, as for an occluded marker; once the new position is
 as far as ``max_speed`` could have carried the hand, it is accepted (a hand that moved unseen).
+
+The link itself: each source counts in :attr:`TrackedHand.link` (a :class:`Link`) the packets it
+dropped as unreadable and the times its link to the tracker was lost and came back; :meth:`Link.notice`
+says it in one line, which the rig process reports to the dashboard's Devices panel. Nothing received
+for :data:`LINK_STALL_S`, after something was, is a lost link: the receiver thread then calls
+:meth:`TrackedHand.reconnect` (what a source can do to heal it: its module docstring; UDP has nothing
+to reconnect and waits) and tries again every ``LINK_STALL_S`` while nothing comes; the next sample
+is the link back.
 """
 
 from __future__ import annotations
@@ -44,10 +52,80 @@ log = logging.getLogger(__name__)
 PLAUSIBLE_RANGE_M = 5.0
 #: What a tracker's noise may add to the distance a hand can move between two samples [m].
 TRACKER_JITTER_M = 0.01
+#: Nothing received for this long, after something was, is a lost link [s]. Trackers stream at 30 Hz
+#: or more; a live stream is never this silent.
+LINK_STALL_S = 0.5
+#: How long one try to connect again may wait for the tracker [s].
+RECONNECT_TIMEOUT_S = 1.0
+
+
+class Link:
+    """What a source's link to its tracker went through, in counts and one line of words:
+    unreadable packets dropped, and outages (lost, then back after how long). Thread-safe."""
+
+    def __init__(self, source: str, healing: str) -> None:
+        self.source, self.healing = source, healing
+        self._lock = threading.Lock()
+        #: packets (frames, datagrams, samples) dropped because they could not be read
+        self.malformed = 0
+        #: times the link was lost
+        self.outages = 0
+        self.down_since: float | None = None  # time.monotonic() it was lost; None: up
+        self.why: str | None = None  # why it was lost (the latest outage)
+        self.last_outage_s: float | None = None  # how long the latest outage lasted [s]
+
+    def dropped(self, what: str) -> None:
+        """One packet that could not be read, dropped (logged the first time)."""
+        with self._lock:
+            self.malformed += 1
+            first = self.malformed == 1
+        if first:
+            log.warning("%s: an unreadable packet was dropped (%s); further ones are counted",
+                        self.source, what)
+
+    def lost(self, why: str, since: float | None = None) -> None:
+        """The link is down since ``since`` (``time.monotonic``: the last packet's arrival; None:
+        now); once per outage, repeats while it is down change nothing."""
+        with self._lock:
+            if self.down_since is not None:
+                return
+            self.down_since, self.why = time.monotonic() if since is None else since, why
+            self.outages += 1
+        log.warning("%s: link lost (%s); %s", self.source, why, self.healing)
+
+    def back(self) -> None:
+        """The link is up again (nothing if it was not down)."""
+        with self._lock:
+            if self.down_since is None:
+                return
+            self.last_outage_s = time.monotonic() - self.down_since
+            self.down_since = None
+        log.warning("%s: link back after %.2f s", self.source, self.last_outage_s)
+
+    @property
+    def up(self) -> bool:
+        return self.down_since is None
+
+    def notice(self) -> str | None:
+        """One line for the Devices panel; None while nothing happened."""
+        with self._lock:
+            parts = [f"{self.malformed} unreadable packet{'s' * (self.malformed != 1)} dropped"] \
+                if self.malformed else []
+            if self.down_since is not None:
+                at = time.strftime("%H:%M:%S", time.localtime(time.time() - (time.monotonic()
+                                                                              - self.down_since)))
+                parts.append(f"link lost at {at} ({self.why}), {self.healing}")
+            elif self.outages:
+                parts.append(f"link lost {self.outages}× and back, the last time after "
+                             f"{self.last_outage_s:.1f} s ({self.why})")
+        return "; ".join(parts) or None
 
 
 class TrackedHand:
     """Thread-safe newest sample of a tracked hand, in the robot base frame."""
+
+    #: What the source does while its link is down, in the words of :meth:`Link.notice`.
+    HEALING = "waiting for it"
 
     def __init__(self, transform: FrameTransform, max_speed: float) -> None:
         self.transform, self.max_speed = transform, max_speed
@@ -63,6 +141,8 @@ class TrackedHand:
         self._accepted: tuple[float, np.ndarray] | None = None  # the newest valid sample
         self._thread: threading.Thread | None = None
         self._running = False
+        self.link = Link(type(self).__name__, self.HEALING)
+        self._arrived_at: float | None = None  # time.monotonic() the newest sample was put
 
     def put(self, measured_at: float, tracker_xyz) -> None:
         """One sample: ``measured_at`` on ``time.monotonic``, position in tracker units. An occluded
@@ -99,6 +179,9 @@ class TrackedHand:
             if self._newest is None or measured_at >= self._newest[0]:
                 self._newest = (measured_at, position)
             self.received += 1
+            self._arrived_at = time.monotonic()
+        if not self.link.up:
+            self.link.back()
 
     def _jump(self, measured_at: float, position: np.ndarray) -> str | None:
         """Why ``position`` cannot be the hand, if it is farther from the newest accepted sample
@@ -159,6 +242,22 @@ class TrackedHand:
             except Exception:
                 log.exception("%s: receiving failed; retrying", type(self).__name__)
                 time.sleep(0.1)
+            self._watch_link()
+
+    def _watch_link(self) -> None:
+        """Nothing received for LINK_STALL_S (after something was) is a lost link: one try to
+        :meth:`reconnect`, the next LINK_STALL_S later if nothing comes meanwhile."""
+        arrived = self._arrived_at
+        if arrived is None or (silent := time.monotonic() - arrived) < LINK_STALL_S:
+            return
+        self.link.lost(f"nothing received for {silent:.1f} s", since=arrived)
+        self.reconnect()
+        with self._lock:
+            self._arrived_at = max(self._arrived_at, time.monotonic())
+
+    def reconnect(self) -> None:
+        """One try to open the link to the tracker anew, waiting at most RECONNECT_TIMEOUT_S; never
+        raises (subclasses that can; by default the source waits for the tracker to send again)."""
 
     def receive_once(self) -> None:
         """Block briefly (≤ 0.1 s) for samples and :meth:`put` them; subclasses implement it."""

@@ -1,7 +1,12 @@
 """A hand source for anything that can send UDP: one JSON object per datagram,
 ``{"x": …, "y": …, "z": …}`` in tracker units, optionally ``"t"``: the measurement time on this
 machine's ``time.monotonic`` clock (otherwise the arrival time is used). ``null`` coordinates mark
-an occluded marker."""
+an occluded marker.
+
+A datagram that is not such an object (not JSON, not UTF-8, nested past the parser's depth, a
+coordinate that is no number) is dropped and counted in the source's link notice; the receiver goes
+on with the next at once. UDP has no connection: a sender that stops and starts again is simply read
+again (nothing for 0.5 s shows as a lost link until then)."""
 
 from __future__ import annotations
 
@@ -24,7 +29,6 @@ class UDPHand(TrackedHand):
         self.sock.bind((config.udp_host, config.udp_port))
         self.sock.settimeout(0.1)
         self.address = self.sock.getsockname()
-        self.malformed = 0
         log.info("UDP hand source on %s:%d", *self.address)
         self.start()
 
@@ -38,8 +42,8 @@ class UDPHand(TrackedHand):
             message = json.loads(data)
             xyz = [float("nan") if message[k] is None else float(message[k]) for k in "xyz"]
             stamp = float(message.get("t", arrived))
-        except (ValueError, KeyError, TypeError):
-            self.malformed += 1
+        except (ValueError, KeyError, TypeError, RecursionError) as exc:
+            self.link.dropped(f"{type(exc).__name__}: {str(exc)[:80]}")
             return
         self.put(min(stamp, arrived), xyz)
 

@@ -25,6 +25,13 @@ adapts; it is imported only when a Vicon source is opened. Frames are read in th
 ``ClientPullPreFetch`` mode and polled every :data:`POLL_S`: ``pyvicon-datastream`` holds the GIL in
 ``get_frame``, and in ``ServerPush`` mode that call blocks until the next frame, which would stall
 the control loop for up to a camera period.
+
+A link that heals: a frame that cannot be read (the SDK refused a call about it, or returned no
+number) is dropped and counted in the source's link notice, and the next poll reads the next frame.
+A connection the SDK reports lost (``GetFrame`` fails: Tracker closed, the network gone) is logged
+once; with no new frame for ``robot_io.tracked_hand.LINK_STALL_S`` (the stream lost, or Tracker
+paused, which the prefetching SDK shows as the same frame again) the source disconnects and connects
+anew, waits for a frame and resolves the names again, trying until the server answers.
 """
 
 from __future__ import annotations
@@ -42,7 +49,7 @@ from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
 from robot_io.frame import FrameTransform
 from robot_io.frame_clock import FRAME_CLOCK_WINDOW_S, FrameClock
-from robot_io.tracked_hand import TrackedHand
+from robot_io.tracked_hand import RECONNECT_TIMEOUT_S, TrackedHand
 
 log = logging.getLogger(__name__)
 
@@ -212,11 +219,15 @@ class ViconHand(TrackedHand):
     """Connects, waits for a first frame, resolves the subject and segment by name, then polls the
     SDK for frames on the receiver thread and puts one sample per new frame."""
 
+    HEALING = "reconnecting"
+
     def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float,
                  connect: Callable[[str, int], ViconClient] | None = None) -> None:
         super().__init__(transform, max_speed)
         self.subject, self.segment = config.vicon_subject, config.vicon_segment
         self.server = f"{config.vicon_server}:{config.vicon_port}"
+        self._address = (config.vicon_server, config.vicon_port)
+        self._connect = connect or connect_sdk
         self.frames = 0
         self.missed = 0  # frames the numbers skipped
         self.first_seen: float | None = None
@@ -226,10 +237,8 @@ class ViconHand(TrackedHand):
         self._last_number: int | None = None
         self._clock = CameraFrameClock()
         self._failing = False
-        self.client: ViconClient = (connect or connect_sdk)(config.vicon_server, config.vicon_port)
+        self.client, seen = self._open(config.resolve_timeout_s)
         try:
-            seen = self._first_frame(config.resolve_timeout_s)
-            resolve(self.client, self.subject, self.segment, self.server)
             self.take(read_frame(self.client, self.subject, self.segment), seen)
         except BaseException:
             self.client.Disconnect()
@@ -237,10 +246,38 @@ class ViconHand(TrackedHand):
         log.info("Vicon hand source: %s", self.describe())
         self.start()
 
-    def _first_frame(self, timeout: float) -> float:
+    def _open(self, timeout: float) -> tuple[ViconClient, float]:
+        """A client connected to the server, a frame there and the names resolved in it; the
+        instant that frame was seen."""
+        client = self._connect(*self._address)
+        try:
+            seen = self._first_frame(client, timeout)
+            resolve(client, self.subject, self.segment, self.server)
+        except BaseException:
+            client.Disconnect()
+            raise
+        return client, seen
+
+    def reconnect(self) -> None:
+        """Disconnect, then one try to connect anew (waiting at most RECONNECT_TIMEOUT_S for a
+        frame); the frame clock starts anew. The last frame number is kept: a paused Tracker
+        repeats its frame, which is no new sample (one outage, not one per try)."""
+        try:
+            self.client.Disconnect()
+        except Exception as exc:  # the SDK's own exceptions: a connection already gone
+            log.debug("Vicon hand source: disconnecting the lost connection: %s", exc)
+        try:
+            client, _ = self._open(RECONNECT_TIMEOUT_S)
+        except Exception as exc:  # HandSourceError, or the SDK's own: the server is not back yet
+            log.debug("Vicon hand source: connecting again failed: %s", exc)
+            return
+        self.client, self._failing = client, False
+        self._clock.reset()
+
+    def _first_frame(self, client: ViconClient, timeout: float) -> float:
         """Wait for a frame; the instant it was seen."""
         deadline = time.monotonic() + timeout
-        while not self.client.GetFrame():
+        while not client.GetFrame():
             if time.monotonic() > deadline:
                 raise HandSourceError(f"the Vicon DataStream at {self.server} sent no frame within "
                                       f"resolve_timeout_s = {timeout} s (is it live, not paused?)")
@@ -252,9 +289,6 @@ class ViconHand(TrackedHand):
         only then: most polls find the frame they found before)."""
         try:
             fresh = self.client.GetFrame()
-            seen = time.monotonic()
-            reading = (read_frame(self.client, self.subject, self.segment)
-                       if fresh and self.client.GetFrameNumber() != self._last_number else None)
         except Exception:
             if not self._failing:
                 log.exception("Vicon hand source: reading a frame failed (logged once until one is read)")
@@ -262,9 +296,25 @@ class ViconHand(TrackedHand):
             time.sleep(0.1)
             return
         self._failing = False
-        if reading is not None:
-            self.take(reading, seen)
+        seen = time.monotonic()
+        if fresh:
+            self._read(seen)
         time.sleep(POLL_S)
+
+    def _read(self, seen: float) -> None:
+        """The current frame's sample if its number is new; a frame that cannot be read is
+        dropped and counted, once if its number could be read (else at each poll until it can)."""
+        number = None
+        try:
+            number = int(self.client.GetFrameNumber())
+            if number == self._last_number:
+                return
+            reading = read_frame(self.client, self.subject, self.segment)
+        except Exception as exc:  # the SDK's own exceptions, or a value that is no number
+            self.link.dropped(f"{type(exc).__name__}: {exc}")
+            self._last_number = number if number is not None else self._last_number
+            return
+        self.take(reading, seen)
 
     def take(self, reading: Reading, seen: float) -> None:
         """One sample from a new frame first seen at ``seen`` (``time.monotonic``)."""

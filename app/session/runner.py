@@ -60,6 +60,7 @@ from robot_io.loop import Outcome, TrialRecord
 from robot_io.rig.client import RigClient
 from robot_io.rig.messages import (
     DeviceReport,
+    HandLink,
     ReadyWaiting,
     Report,
     RigDied,
@@ -129,6 +130,7 @@ class RunnerView(BaseModel):
     arm: str = "no rig open"
     arm_fault: str | None = None
     hand: str = ""
+    hand_link: str | None = None  # what the tracked hand's link went through (None: nothing)
     gripper: str = ""
     timing: str = ""  # the rig's scheduling: real-time priority or not
     timing_warning: str | None = None  # the latest trial's cycles or hand samples ran late: how
@@ -184,6 +186,7 @@ class SessionRunner:
         self._devices: DeviceReport | None = None
         self._rig_fault: str | None = None
         self._timing: RigTiming | None = None  # the latest late timing, until a trial runs on time
+        self._hand_link: str | None = None
         self._plan: TrialPlan | None = None
         self._abort_reason: str | None = None
         self._abort_actor = Actor.SYSTEM
@@ -600,7 +603,8 @@ class SessionRunner:
         except (RobotIOError, OSError) as exc:
             self._rig_fault = explain(exc)
             raise RefusedAction(f"the rig could not start: {explain(exc)}") from exc
-        self._devices, self._rig_fault, self._timing = self._rig.devices, None, None
+        self._devices, self._rig_fault = self._rig.devices, None
+        self._timing, self._hand_link = None, None
 
     def _start_trial(self) -> TrialPlan:
         engine = self._require_engine()
@@ -687,7 +691,7 @@ class SessionRunner:
         """The view's fields that do not come from the engine (read without its thread)."""
         devices = self._devices
         return {"arm": "no rig open" if devices is None else devices.arm_detail,
-                "hand": "" if devices is None else devices.hand_detail,
+                "hand": "" if devices is None else devices.hand_detail, "hand_link": self._hand_link,
                 "gripper": "" if devices is None else devices.gripper_detail,
                 "timing": timing_words(devices, self.realtime),
                 "timing_warning": None if self._timing is None else self._timing.describe(),
@@ -737,6 +741,9 @@ class SessionRunner:
                 log.warning("%s", report.describe())
             self._changed(f"trial {report.trial_index}: the rig's timing runs late (see Devices)"
                           if first else None)
+        elif isinstance(report, HandLink):
+            self._hand_link = report.notice
+            self._changed_now(None)
         elif isinstance(report, TrialDone):
             if self._timing is not None and self._timing.trial_index != report.trial_index:
                 self._timing = None  # this trial ran on time

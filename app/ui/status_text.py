@@ -164,7 +164,7 @@ def devices_markdown(view: RunnerView) -> str:
     arm = {"armed": view.arm, "stopping": f"stopping … ({view.arm})",
            "stopped": f"stopped, waiting for Re-arm ({view.arm})"}[view.stop]
     timing = [line("timing", view.timing, view.timing_warning)] if view.timing else []
-    return "\n".join([*rig, line("arm", arm, view.arm_fault), line("hand", view.hand, None),
+    return "\n".join([*rig, line("arm", arm, view.arm_fault), line("hand", view.hand, view.hand_link),
                       line("gripper", view.gripper, None), *timing,
                       line("learner", view.learner, view.learner_fault),
                       "", "Recent events:", *[f"- {m}" for m in view.messages]])

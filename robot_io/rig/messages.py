@@ -8,8 +8,9 @@ Rig → application: :class:`RigOpened` or :class:`RigFailed` once, then per tri
 :class:`StageReached` for each stage, :class:`ReadyWaiting` while the hand is not at A, and
 :class:`TrialDone` with the summary; :class:`Recovered` answers a :class:`Recover`;
 :class:`StopReceived` acknowledges a stop at once; :class:`RigTiming` says that a trial's cycles or
-hand samples run late. Samples do not travel here: the rig writes them into shared memory
-(:mod:`robot_io.rig.stream`).
+hand samples run late; :class:`HandLink` whenever what the tracked hand's link went through
+changes (unreadable packets dropped, lost and back). Samples do not travel here: the rig writes
+them into shared memory (:mod:`robot_io.rig.stream`).
 """
 
 from __future__ import annotations
@@ -187,6 +188,14 @@ class RigTiming(_Message):
         return f"timing degraded in trial {self.trial_index}: {'; '.join(parts)} — {advice}"
 
 
+class HandLink(_Message):
+    """What the tracked hand's link to its tracker went through, in one line
+    (:meth:`robot_io.tracked_hand.Link.notice`), sent each time it changes."""
+
+    kind: Literal["hand_link"] = "hand_link"
+    notice: str
+
+
 class RigDied(_Message):
     """Made by the application's client, not sent: the rig process ended without being told to."""
 
@@ -196,4 +205,4 @@ class RigDied(_Message):
 
 
 Report = (RigOpened | RigFailed | StageReached | ReadyWaiting | StopReceived | Recovered
-          | TrialDone | RigTiming)
+          | TrialDone | RigTiming | HandLink)

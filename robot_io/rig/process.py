@@ -8,7 +8,8 @@ OS allows it (on the wall clock; it says in its
 an inbox thread receives commands, so a Stop reaches the running loop within one cycle. When the
 pipe to the application closes (the application exited or was killed), the arm is stopped and the
 process exits; when this process dies, the UR's control worker sees its pipe close and stops the arm
-(servoStop, stopScript), and the controller's watchdog stops the program anyway.
+(servoStop, stopScript), and the controller's watchdog stops the program anyway. A thread reports
+the tracked hand's link notice (:class:`~robot_io.rig.messages.HandLink`) each time it changes.
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from robot_io.rig.messages import (
     APP_SILENCE_S,
     HEARTBEAT_S,
     Go,
+    HandLink,
     ObjectLoaded,
     ReadyWaiting,
     Recover,
@@ -52,8 +54,12 @@ from robot_io.rig.messages import (
 from robot_io.rig.stream import SampleStream, StreamRecorder
 from robot_io.rig.timing import TimingReporter, TimingWatch
 from robot_io.stages import Stage
+from robot_io.tracked_hand import Link, TrackedHand
 
 log = logging.getLogger(__name__)
+
+#: How often the rig looks whether the tracked hand's link notice changed [s].
+LINK_REPORT_S = 0.25
 
 #: The application sends it to a rig it is about to kill: every thread's stack goes to stderr.
 STACKS_SIGNAL = signal.SIGUSR1
@@ -167,6 +173,16 @@ class Inbox:
             self._devices.stop_arm()
 
 
+def report_link(link: Link, outbox: Outbox) -> None:
+    """Send ``link``'s notice each time it changes (a daemon thread's loop, for the rig's life)."""
+    said = None
+    while True:
+        time.sleep(LINK_REPORT_S)  # pacing a look, not waiting for a state
+        if (notice := link.notice()) is not None and notice != said:
+            outbox.send(HandLink(notice=notice))
+            said = notice
+
+
 def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_level: int) -> None:
     """Entry point of the rig process (``multiprocessing`` spawn); logs at the application's level."""
     logging.basicConfig(level=log_level, format=f"rig[{os.getpid()}] %(levelname)s %(name)s: %(message)s")
@@ -191,6 +207,9 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
               if spec.realtime else None)
     outbox.send(RigOpened(devices=devices.report().model_copy(update={"realtime_priority": raised}),
                           pid=os.getpid()))
+    if isinstance(devices.tracked, TrackedHand):
+        threading.Thread(target=report_link, args=(devices.tracked.link, outbox), name="rig-link",
+                         daemon=True).start()
     try:
         while (item := inbox.commands.get()) is not None:
             if isinstance(item, Recover):

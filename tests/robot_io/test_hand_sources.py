@@ -4,7 +4,9 @@ tracker → robot-base transform; and the Kabsch calibration."""
 from __future__ import annotations
 
 import json
+import logging
 import os
+import re
 import socket
 import threading
 import time
@@ -216,8 +218,8 @@ def test_udp_json_samples_are_transformed_stamped_and_dropouts_become_nan():
         assert 10.0 - (read_at - sent_at) <= sample.t <= 10.0
         sender.sendto(json.dumps({"x": None, "y": 1.0, "z": 2.0}).encode(), hand.address)
         sender.sendto(b"not json", hand.address)
-        wait_for(lambda: hand.received == 2 and hand.malformed == 1, "the dropout and the malformed one",
-                 seen=lambda: (hand.received, hand.malformed))
+        wait_for(lambda: hand.received == 2 and hand.link.malformed == 1, "the dropout and the malformed one",
+                 seen=lambda: (hand.received, hand.link.malformed))
         assert not hand.latest(now=10.0).is_valid() and hand.dropouts == 1
     finally:
         sender.close()
@@ -274,3 +276,87 @@ def test_a_tracker_jump_mid_reach_ends_the_trial_tracker_lost_not_at_a_hand_2m_o
     nearest = np.min(np.linalg.norm(hand_xyz[valid][:, None, :] - np.array(replay.sent)[None],
                                     axis=2), axis=1)
     assert np.max(nearest) < 1e-5
+
+
+def test_an_lsl_stream_without_source_id_that_goes_away_and_comes_back_is_read_again():
+    """Issue 38: LSL recovers a stream with a source_id by itself; one without raised LostError at
+    every pull, for good (logged each 0.1 s). The source resolves it anew until it is back."""
+    name, stream_type = unique("handover-comeback"), unique("MocapTest")
+    config = source_config(ControllerConfig(), kind="lsl", lsl_stream_name=name,
+                           lsl_stream_type=stream_type)
+    xyz = to_tracker(np.array([0.55, 0.05, 0.30])).tolist()
+
+    def outlet() -> pylsl.StreamOutlet:  # no source_id, as some tracker bridges publish
+        return pylsl.StreamOutlet(pylsl.StreamInfo(name, stream_type, 3, 100.0, pylsl.cf_float32, ""))
+
+    def pushed_and(check):  # the tracker streams while the test waits (a push per look)
+        return lambda: (streaming.push_sample(xyz), check())[1]
+
+    streaming = outlet()
+    hand = LSLHand(config.hand_source, _transform(config), config.hand.max_speed)
+    try:
+        wait_for(pushed_and(lambda: hand.valid_age() is not None), "a sample",
+                 seen=lambda: hand.received)
+        del streaming  # the tracker's process ends ...
+        wait_for(lambda: not hand.link.up, "the stream seen lost", seen=hand.link.notice)
+        streaming, came_back, received = outlet(), time.monotonic(), hand.received  # ... and is back
+        wait_for(pushed_and(lambda: hand.received > received), "a sample from the stream back",
+                 seen=lambda: f"{hand.received - received} received; the link: {hand.link.notice()}")
+        read_again_after = time.monotonic() - came_back
+    finally:
+        hand.close()
+    print(f"\nLSL stream without source_id gone and back: read again {read_again_after:.2f} s after "
+          f"its outlet came back (down {hand.link.last_outage_s:.2f} s in all)")
+    assert hand.link.outages == 1 and hand.link.up
+    assert hand.latest(0.0).position == pytest.approx([0.55, 0.05, 0.30], abs=1e-5)
+
+
+#: Datagrams no tracker means: not JSON, not UTF-8, nested past the parser's depth (RecursionError,
+#: which ended the receiver's wake with a logged traceback and a 0.1 s pause), a list, a coordinate
+#: that is an object, a time stamp that is a word.
+GARBAGE = [b"not json", b"\xff\xfe\x00", b"[" * 60_000, b"[1, 2, 3]", b'{"x": {}, "y": 0, "z": 0}',
+           b'{"x": 1, "y": 2, "z": 3, "t": "soon"}']
+
+
+def test_udp_garbage_is_dropped_and_counted_and_each_good_datagram_after_it_is_read(caplog):
+    config = source_config(ControllerConfig(), kind="udp", udp_host="127.0.0.108", udp_port=0)
+    hand = UDPHand(config.hand_source, _transform(config), config.hand.max_speed)
+    x, y, z = to_tracker(np.array([0.55, 0.05, 0.30]))
+    good = json.dumps({"x": x, "y": y, "z": z}).encode()
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender, \
+                caplog.at_level(logging.WARNING, logger="robot_io"):
+            sender.sendto(good, hand.address)
+            wait_for(lambda: hand.received == 1, "the first good datagram", seen=lambda: hand.received)
+            for garbage in GARBAGE:
+                sender.sendto(garbage, hand.address)
+                sender.sendto(good, hand.address)
+            wait_for(lambda: hand.link.malformed == len(GARBAGE) and hand.received == 1 + len(GARBAGE),
+                     "every garbage datagram dropped and every good one read",
+                     seen=lambda: f"{hand.link.malformed} dropped, {hand.received} read")
+    finally:
+        hand.close()
+    print(f"\nUDP, {len(GARBAGE)} garbage datagrams among {1 + len(GARBAGE)} good ones: "
+          f"{1 + len(GARBAGE) - hand.received} good ones lost")
+    assert hand.link.notice() == f"{len(GARBAGE)} unreadable packets dropped"
+    # one line says it (the first), and no traceback
+    assert [(r.levelname, r.exc_info) for r in caplog.records] == [("WARNING", None)]
+
+
+def test_a_udp_sender_that_stops_is_a_lost_link_until_it_sends_again():
+    config = source_config(ControllerConfig(), kind="udp", udp_host="127.0.0.108", udp_port=0)
+    hand = UDPHand(config.hand_source, _transform(config), config.hand.max_speed)
+    x, y, z = to_tracker(np.array([0.55, 0.05, 0.30]))
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            sender.sendto(json.dumps({"x": x, "y": y, "z": z}).encode(), hand.address)
+            wait_for(lambda: hand.received == 1, "the first datagram", seen=lambda: hand.received)
+            lost = wait_for(hand.link.notice, "the silence seen as a lost link")
+            sender.sendto(json.dumps({"x": x, "y": y, "z": z}).encode(), hand.address)
+            wait_for(lambda: hand.link.up, "the link back", seen=hand.link.notice)
+    finally:
+        hand.close()
+    assert re.fullmatch(r"link lost at \d\d:\d\d:\d\d \(nothing received for 0\.\d s\), waiting for it",
+                        lost), lost
+    assert re.fullmatch(r"link lost 1× and back, the last time after \d+\.\d s \(nothing received "
+                        r"for 0\.\d s\)", hand.link.notice()), hand.link.notice()

@@ -8,6 +8,8 @@ from __future__ import annotations
 import re
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -56,6 +58,16 @@ class Scene:
 
 def open_hand(server, rigid_body: str = HAND.name) -> NatNetHand:
     return NatNetHand(natnet_source(server, rigid_body), TRACKER_M, MAX_SPEED)
+
+
+@contextmanager
+def tracking(hand: NatNetHand) -> Iterator[NatNetHand]:
+    """``hand`` once it has a tracked sample; closed when the block ends."""
+    try:
+        wait_for(lambda: hand.valid_age() is not None, "a tracked sample", seen=lambda: hand.received)
+        yield hand
+    finally:
+        hand.close()
 
 
 class StampRecordingHand(NatNetHand):
@@ -178,20 +190,14 @@ def test_the_reported_latency_needs_the_tick_rate_and_refuses_what_is_no_latency
 
 def test_a_rigid_body_motive_lost_is_a_dropout_never_zero_nor_its_last_position():
     scene = Scene()
-    with motive(scene.poses) as server:
-        hand = open_hand(server)
-        try:
-            wait_for(lambda: hand.valid_age() is not None, "a tracked sample",
-                     seen=lambda: hand.received)
-            scene.set_hand(hidden())  # tracking-valid off; Motive's position is zeros then
-            lost = wait_for(lambda: (s := hand.latest(0.0)) is not None and not s.is_valid() and s,
-                            "a lost-hand sample", seen=lambda: hand.latest(0.0))
-            dropouts = hand.dropouts
-            scene.set_hand(pose_at(to_tracker_m(WANTED)))
-            back = wait_for(lambda: (s := hand.latest(0.0)).is_valid() and s, "the hand seen again",
-                            seen=lambda: hand.latest(0.0))
-        finally:
-            hand.close()
+    with motive(scene.poses) as server, tracking(open_hand(server)) as hand:
+        scene.set_hand(hidden())  # tracking-valid off; Motive's position is zeros then
+        lost = wait_for(lambda: (s := hand.latest(0.0)) is not None and not s.is_valid() and s,
+                        "a lost-hand sample", seen=lambda: hand.latest(0.0))
+        dropouts = hand.dropouts
+        scene.set_hand(pose_at(to_tracker_m(WANTED)))
+        back = wait_for(lambda: (s := hand.latest(0.0)).is_valid() and s, "the hand seen again",
+                        seen=lambda: hand.latest(0.0))
     assert np.all(np.isnan(lost.position)) and dropouts >= 1 and hand.invalid == 0
     assert back.position == pytest.approx(WANTED, abs=1e-6)
 
@@ -271,3 +277,82 @@ def test_check_devices_reports_the_rigid_body_rate_and_latency(tmp_path, capsys)
 ])
 def test_an_incomplete_natnet_table_is_refused_naming_the_field(tmp_path, capsys, text, message):
     assert_hand_source_refused(tmp_path, capsys, text, message)
+
+
+def test_a_truncated_frame_is_dropped_and_counted_and_the_frames_after_it_are_read():
+    """Issue 38: one truncated frame raised struct.error in the natnet client's receiving thread,
+    which ended; every later frame arrived unread and every later trial ended tracker_lost."""
+    scene = Scene()
+    read: list[int] = []  # the numbers of the frames the client read, in order
+    with motive(scene.poses) as server, tracking(open_hand(server)) as hand:
+        hand.client.on_data_frame_received_event.handlers.append(
+            lambda frame: read.append(frame.prefix.frame_number))
+        wait_for(lambda: read, "a frame's number noted", seen=lambda: hand.received)
+        server.send_truncated_frame()
+        wait_for(lambda: server.truncated_sent == 1, "the truncated frame sent",
+                 seen=lambda: server.frames_sent)
+        cut_at = server.frames_sent
+        wait_for(lambda: read and read[-1] >= cut_at + 60, "60 frames read after the truncated one",
+                 seen=lambda: f"{len(read)} read, the last {read[-1:]}, of {server.frames_sent} sent; "
+                              f"the link: {hand.link.notice()}")
+    lost = sorted(set(range(read[0], read[-1] + 1)) - set(read))
+    print(f"\nNatNet, one truncated frame: frames {lost} of {read[0]}–{read[-1]} not read; no outage")
+    assert len(lost) == 1 and lost[0] <= cut_at
+    assert (hand.link.malformed, hand.link.outages) == (1, 0)
+    assert hand.link.notice() == "1 unreadable packet dropped"
+    assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
+
+
+def test_motive_restarted_on_its_port_is_connected_again_and_the_rigid_body_resolved_anew():
+    """Motive closed, then started again on the same port, forgets its clients and may number
+    the rigid bodies anew: the watchdog notices the silence, connects again until Motive answers,
+    asks for the model definitions, and the hand is tracked again under its new id."""
+    scene = Scene()
+    renumbered = RigidBodySpec(HAND.name, 11)
+    with motive(scene.poses) as server:
+        hand = StampRecordingHand(natnet_source(server), TRACKER_M, MAX_SPEED)
+        wait_for(lambda: hand.valid_age() is not None, "a tracked sample", seen=lambda: hand.received)
+    try:  # Motive is gone
+        wait_for(lambda: not hand.link.up, "the link seen lost", seen=hand.link.notice)
+        with motive(lambda: {renumbered.id: scene.poses()[HAND.id]}, (OBJECT, renumbered),
+                    port=server.address[1]) as again:
+            restarted = time.monotonic()
+            wait_for(lambda: hand.link.up and hand.valid_age() is not None
+                     and hand.stamps[-1][1] > restarted, "a tracked sample from Motive restarted",
+                     seen=lambda: f"{again.frames_sent} sent to {again.clients}; the link: "
+                                  f"{hand.link.notice()}")
+            back = next(put_at for _, put_at, _ in hand.stamps if put_at > restarted)
+    finally:
+        hand.close()
+    print(f"\nNatNet, Motive restarted: the link was down {hand.link.last_outage_s:.2f} s; tracked "
+          f"again {back - restarted:.2f} s after Motive came back")
+    assert hand.body_id == renumbered.id and hand.link.outages == 1
+    assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
+    assert re.fullmatch(r"link lost 1× and back, the last time after \d+\.\d s \(nothing received "
+                        r"for 0\.\d s\)", hand.link.notice()), hand.link.notice()
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # the fault made
+def test_a_receiving_thread_that_ends_anyway_is_noticed_by_its_silence_and_the_client_made_anew():
+    """Whatever else ends the natnet client's receiving thread (here an error raised on it, from a
+    handler of its frame event, once) leaves every later frame unread: the watchdog sees the
+    silence and makes the client anew."""
+    scene, crashed = Scene(), threading.Event()
+
+    def crash(frame: DataFrame) -> None:  # the client's receiving thread, before the hand's
+        if not crashed.is_set():
+            crashed.set()
+            raise RuntimeError("the receiving thread ends here")
+
+    with motive(scene.poses) as server, tracking(open_hand(server)) as hand:
+        first = hand.client
+        first.on_data_frame_received_event.handlers.insert(0, crash)
+        wait_for(crashed.is_set, "the receiving thread ended", seen=lambda: hand.received)
+        ended_at, received = time.monotonic(), hand.received
+        wait_for(lambda: hand.client is not first and hand.received > received and hand.link.up,
+                 "frames read by a new client",
+                 seen=lambda: f"{hand.received - received} read; the link: {hand.link.notice()}")
+        back_after = time.monotonic() - ended_at
+    print(f"\nNatNet receiving thread ended: frames read again {back_after:.2f} s later "
+          f"({round(back_after * server.rate_hz)} frames at {server.rate_hz:g} Hz lost)")
+    assert hand.link.outages == 1 and hand.link.malformed == 0

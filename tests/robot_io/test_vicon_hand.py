@@ -275,3 +275,57 @@ def test_the_rig_opens_the_vicon_source_and_reports_it(monkeypatch):
         devices.close()
     assert (report.hand_source, report.hand_detail) == (
         "vicon", f"Vicon subject 'hand', segment 'hand' from {SERVER}:801 (DataStream SDK 1.11.0)")
+
+
+def stream_mm(first: int, count: int) -> list[dict]:
+    """``count`` frames from number ``first``, the hand still at HAND_MM[0]."""
+    return [hand_at(first + n, HAND_MM[0]) for n in range(count)]
+
+
+def test_a_frame_that_cannot_be_read_is_dropped_and_counted_and_the_next_one_is_read(caplog):
+    """A frame whose translation is no number (the SDK's reply garbled): it cost a logged
+    traceback and 0.1 s without polling; now it is one frame dropped."""
+    bad = frame(3, [("hand", [("hand", ((None, 0.0, 0.0), False))])])
+    client = RecordedClient([*stream_mm(1, 2), bad, *stream_mm(4, 3)])
+    with caplog.at_level(logging.WARNING, logger="robot_io"):
+        hand = opened(client)
+        try:
+            wait_for(lambda: hand.frames == 5, "every readable frame read",
+                     seen=lambda: f"{hand.frames} read; the link: {hand.link.notice()}")
+        finally:
+            hand.close()
+    print(f"\nVicon, one unreadable frame among 6: {6 - hand.frames} lost, {hand.missed} missed")
+    assert (hand.link.malformed, hand.missed) == (1, 0)
+    assert [(r.levelname, r.exc_info) for r in caplog.records] == [("WARNING", None)]
+
+
+def test_a_vicon_server_that_goes_away_and_comes_back_is_connected_again():
+    """The SDK reports the connection lost (Tracker closed); while the server is away a connection
+    is refused; once it is back, the source connects anew, resolves the names and reads on."""
+    server = {"up": True}
+    clients: list[RecordedClient] = []
+    stream = stream_mm(1, 6000)  # a minute at 100 Hz (the server's stream starts anew each time)
+
+    def connect(host: str, port: int) -> RecordedClient:
+        if not server["up"]:
+            raise HandSourceError(f"no Vicon DataStream server answered at {host}:{port}")
+        clients.append(RecordedClient(stream, 100.0))
+        return clients[-1]
+
+    hand = ViconHand(vicon_source(), TRACKER, MAX_SPEED, connect=connect)
+    try:
+        wait_for(lambda: hand.frames >= 3, "three frames", seen=lambda: hand.frames)
+        server["up"], clients[0].connected = False, False  # Tracker closed
+        wait_for(lambda: not hand.link.up, "the link seen lost", seen=hand.link.notice)
+        frames, came_back = hand.frames, time.monotonic()
+        server["up"] = True
+        wait_for(lambda: hand.frames > frames and hand.link.up, "frames from the server back",
+                 seen=lambda: f"{len(clients)} connections, {hand.frames - frames} frames; the link: "
+                              f"{hand.link.notice()}")
+        read_again_after = time.monotonic() - came_back
+    finally:
+        hand.close()
+    print(f"\nVicon server gone and back: read again {read_again_after:.2f} s after it came back "
+          f"(down {hand.link.last_outage_s:.2f} s in all)")
+    assert len(clients) == 2 and hand.link.outages == 1 and not clients[0].connected
+    assert hand.latest(0.0).position == pytest.approx(TRACKER.apply(np.array(HAND_MM[0])), abs=1e-9)

@@ -26,10 +26,10 @@ def to_tracker_m(base_xyz: np.ndarray) -> tuple[float, float, float]:
 
 @contextmanager
 def motive(poses: Poses, bodies: Sequence[RigidBodySpec] = (HAND, OBJECT),
-           rate_hz: float = 120.0) -> Iterator[NatNetStandin]:
-    """A stand-in Motive streaming ``poses`` on 127.0.0.1 (port 0: the kernel's free port); closed
-    when the block ends."""
-    server = NatNetStandin(bodies, poses, rate_hz=rate_hz).start()
+           rate_hz: float = 120.0, port: int = 0) -> Iterator[NatNetStandin]:
+    """A stand-in Motive streaming ``poses`` on 127.0.0.1 (port 0: the kernel's free port; the
+    port of one that closed: that Motive restarted); closed when the block ends."""
+    server = NatNetStandin(bodies, poses, port=port, rate_hz=rate_hz).start()
     try:
         yield server
     finally:
