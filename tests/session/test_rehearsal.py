@@ -183,6 +183,29 @@ def test_a_protective_stop_during_hold_aborts_and_the_trial_completes_after_reco
     assert next(t for t in view.trials if t.outcome.value == "completed").interaction == 1
 
 
+def test_an_rtde_drop_mid_reach_costs_that_trial_only_and_the_next_one_releases_the_object(
+        rehearsed):
+    """Every RTDE socket of the stand-in dropped mid-reach (the arm's and the tool-output gripper's,
+    as a bumped cable or a switch reboot drops them): the trial ends, Recover connects both again,
+    and the next trial opens the gripper on the pull. Before, the gripper's link stayed dead: the
+    next trial held the object out and its release ended the rig ("write: Broken pipe")."""
+    runner, probe = rehearsed
+    runner.open("F06", Scenario.STRAIGHTFORWARD, seed=6)
+    start_until(runner, probe, Stage.REACH)
+    assert runner.rehearsal.control("drop_sockets")["ok"]
+    view = probe.wait(lambda v: ended(v, 1) is not None, what="trial 1 ended")
+    assert ended(view, 1).outcome.value == "aborted" and view.arm_fault, ended(view, 1).reason
+    runner.recover_arm(inspected=True)
+    assert "gripper's RTDE IO link connected again" in " ".join(runner.view.messages)
+    probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready again",
+               timeout=READY_CEILING_S)
+    runner.start_trial()
+    view = probe.wait(lambda v: ended(v, 2) is not None, what="trial 2 ended")
+    second = ended(view, 2)
+    assert (second.interaction, second.outcome.value) == (1, "completed"), second.reason
+    assert runner.rig.alive  # completed: the gripper opened on the pull, through its new link
+
+
 def test_a_controller_that_stalls_mid_reach_ends_the_trial_and_the_rig_lives_through_the_stop(
         rehearsed):
     """The stand-in sends nothing for 3 s: the rig sees the silence, ends the trial and stops the arm,
