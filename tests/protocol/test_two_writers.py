@@ -98,15 +98,20 @@ def test_serve_holding_a_participant_refuses_run_session(tmp_path):
         wait_for(lambda: running(serve, log) and "dashboard token" in log.read_text(),
                  "serve to print its dashboard token (participant P10 open)",
                  seen=lambda: tail(log.read_text()))
+        # serve is held while the second writer tries: its own worker plans the first θ in the
+        # background after the token is printed, and that event is not the refused writer's
+        serve.send_signal(signal.SIGSTOP)
         events = event_count(study / "P10.sqlite")
         refused = subprocess.run([*HANDOVER, "run-session", "--study", str(study), "--participant",
                                   "P10", "--auto", "--resume", "--no-progress"],
                                  capture_output=True, text=True, timeout=120)
+        serve.send_signal(signal.SIGCONT)
         assert refused.returncode == 2
         assert f"open for writing by pid {serve.pid} on " in refused.stderr
         assert "serve --study" in refused.stderr
         assert event_count(study / "P10.sqlite") == events
     finally:
+        serve.send_signal(signal.SIGCONT)  # held above; a failed assertion may leave it stopped
         serve.send_signal(signal.SIGINT)
         code = serve.wait(CEILING_S)  # a ceiling for a hung shutdown; raises rather than read None
     assert code == 0, log.read_text()
