@@ -204,7 +204,7 @@ class URArm:
         elif self._state is ArmState.STREAMING:
             if self._worker is None or not self._worker.alive:
                 self._trip("the ur_rtde control process exited; call recover()")
-            elif not self._bits("getRobotStatus") >> PROGRAM_RUNNING_BIT & 1:
+            elif not self._program_running():
                 self._trip("the control script stopped on the controller (watchdog: no target for "
                            f"more than {1 / self.config.watchdog_hz:.2f} s, or stopped from the "
                            "teach pendant); call recover()")
@@ -258,14 +258,23 @@ class URArm:
             raise ArmFault(f"{what} {np.round(pose, 4).tolist()} is outside the workspace box "
                            f"[{self.limits.workspace_min}, {self.limits.workspace_max}]; not sent")
 
+    def _program_running(self) -> bool:
+        """The program-running bit as the arm's RTDE reader last saw it (``_check`` reads it)."""
+        return bool(self._bits("getRobotStatus") >> PROGRAM_RUNNING_BIT & 1)
+
     def _ensure_program(self) -> None:
-        """The control script must run before any motion command; re-upload it if it stopped."""
-        if self._bits("getRobotStatus") >> PROGRAM_RUNNING_BIT & 1:
-            return
-        log.info("control script not running: re-uploading it")
-        self._worker.call("reuploadScript")
+        """The control script must run before any motion command; re-upload it if it stopped.
+
+        The control interface's own view decides (ur_rtde refuses a command while the controller it
+        reads reports the program stopped), not the reader's: a reader behind by a moment (a loaded
+        host) still reported the script that a trial's stop had just ended, the script was not
+        re-uploaded, and the next moveL was refused. The wait ends when both see it running, as
+        ``_check`` reads the reader's bit while streaming."""
+        if not self._worker.call("isProgramRunning"):
+            log.info("control script not running: re-uploading it")
+            self._worker.call("reuploadScript")
         deadline = time.monotonic() + self.config.connect_timeout_s
-        while not self._bits("getRobotStatus") >> PROGRAM_RUNNING_BIT & 1:
+        while not (self._worker.call("isProgramRunning") and self._program_running()):
             if time.monotonic() > deadline:
                 raise ArmFault("the control script did not start after re-upload "
                                f"within {self.config.connect_timeout_s} s")
@@ -290,7 +299,9 @@ class URArm:
                     + cfg.move_speed / cfg.move_acceleration + 5.0)
         if not self._worker.call("moveL", [*target, *self.orientation], cfg.move_speed,
                                  cfg.move_acceleration, True):
-            raise ArmFault("the controller did not accept the moveL to the start pose")
+            raise ArmFault("the controller did not accept the moveL to the start pose (control "
+                           f"script running: {self._worker.call('isProgramRunning')}, safety "
+                           f"status bits {self._bits('getSafetyStatusBits'):#x})")
         while np.linalg.norm(target - self.read_pose()) > ARRIVED_M or self.is_moving:
             if stop is not None and stop.is_set():
                 self._worker.call("stopL", cfg.stop_deceleration, False, timeout=2.0)

@@ -22,7 +22,8 @@ from robot_io.clock import children_start_on_the_normal_policy, raise_priority
 from robot_io.errors import ArmFault
 
 #: Methods of RTDEControlInterface the arm backend may call through the worker.
-CALLS = frozenset({"moveL", "stopL", "servoStop", "stopScript", "setWatchdog", "reuploadScript"})
+CALLS = frozenset({"moveL", "stopL", "servoStop", "stopScript", "setWatchdog", "reuploadScript",
+                   "isProgramRunning"})
 
 
 def _serve(conn: Connection, host: str, flags: int, priority: int | None) -> None:

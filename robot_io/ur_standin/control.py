@@ -9,6 +9,8 @@ the longest gap between two cycles);
 data package: ``[t, command id, doubles]``, ``t`` in the stand-in's ``time.monotonic``);
 ``protective_stop``; ``emergency_stop``; ``release_emergency_stop``; ``drop_sockets`` (close every
 client connection on every port); ``stall`` with ``seconds`` (no cycles, no output packages);
+``lag_readers`` with ``seconds`` (the clients that only read, such as RTDEReceiveInterface, get
+every package that late: a loaded host);
 ``set_force`` with ``force`` (6 values, N and N·m); ``set_pose`` with ``pose`` (6 values);
 ``set_hand`` with ``position`` (3 values, or null) and ``configure_pull`` with ``direction``,
 ``pull_n``, ``grasp_delay_s``, ``tool_output``, ``open_level`` and optionally ``gripper``
@@ -66,6 +68,10 @@ def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int
         if op == "stall":
             controller.stalled_until = time.monotonic() + float(request["seconds"])
             controller.event(f"stalling for {request['seconds']} s")
+            return {"ok": True}
+        if op == "lag_readers":
+            controller.reader_lag_s = float(request["seconds"])
+            controller.event(f"readers' packages {request['seconds']} s late")
             return {"ok": True}
         if op == "set_force":
             controller.force = np.asarray(request["force"], dtype=float).reshape(6)

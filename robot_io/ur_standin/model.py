@@ -178,6 +178,8 @@ class Controller:
         self.events: list[str] = []
         self.last_script = ""
         self.stalled_until = 0.0
+        #: How late the clients that only read (no input recipe) get each output package [s]
+        self.reader_lag_s = 0.0
         #: The longest time between two cycles [s] (injected stalls aside): this machine's load on
         #: a stand-in, which a real controller's hardware does not have.
         self.longest_gap_s = 0.0

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import logging
 import socket
 import struct
 import threading
+import time
 
 from robot_io.ur_standin import rtde_protocol as rtde
 from robot_io.ur_standin.listener import read_exactly
@@ -35,6 +37,7 @@ class RTDEConnection:
         self.output_every = 1
         self.inputs: dict[int, Recipe] = {}
         self.started = False
+        self._late: collections.deque[tuple[float, bytes]] = collections.deque()
 
     def send(self, message_type: int, payload: bytes = b"") -> None:
         with self.send_lock:
@@ -98,7 +101,17 @@ class RTDEConnection:
         controller = self.server.controller
         with controller.lock:
             values = controller.output_values(recipe.names)
-        self.send(rtde.DATA_PACKAGE, b"\x01" + recipe.layout.pack(*rtde.flatten(values)))
+            lag = 0.0 if self.inputs else controller.reader_lag_s
+        package = b"\x01" + recipe.layout.pack(*rtde.flatten(values))
+        if lag <= 0.0 and not self._late:
+            self.send(rtde.DATA_PACKAGE, package)
+            return
+        # a client that only reads (RTDEReceiveInterface) gets each package ``lag`` late, in order:
+        # as a reader on a loaded host or a congested link sees the controller
+        now = time.monotonic()
+        self._late.append((now, package))
+        while self._late and self._late[0][0] <= now - lag:
+            self.send(rtde.DATA_PACKAGE, self._late.popleft()[1])
 
 
 class RTDEServer:

@@ -311,3 +311,25 @@ def test_check_devices_says_in_plain_words_when_no_controller_answers(capsys):
     out = capsys.readouterr().out
     assert code == 1
     assert "arm: NOT OK — cannot connect to the UR controller at 127.0.0.113" in out
+
+
+def test_a_move_to_the_start_right_after_a_stop_waits_for_the_script_a_late_reader_still_reports():
+    """Issue 38 item 3: after a trial's stop (servoStop, stopScript) the next prepare's moveL was
+    refused ("the controller did not accept the moveL") when the arm's RTDE reader still reported
+    the program running: the script was not re-uploaded, and ur_rtde refuses a command while the
+    controller's runtime state is stopped. A reader 0.5 s late (a loaded host) reproduces it every
+    time; the move now asks the control interface itself whether its script runs."""
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, _, arm):
+        arm.begin_stream()
+        start = arm.read_pose()
+        arm.command(start + STEP)
+        control("lag_readers", seconds=0.5)
+        arm.stop()  # as at the end of a trial: servoStop, then stopScript
+        wait_for(lambda: control("state")["program"] is None, "the stand-in's script to end",
+                 seen=lambda: control("state")["events"][-3:])
+        arm.move_to(start + 10 * STEP)
+        control("lag_readers", seconds=0.0)
+        moves = commands(control).count(MOVEL)
+        pose = control("state")["pose"]
+    assert moves == 1
+    assert np.linalg.norm(np.asarray(pose[:3]) - (start + 10 * STEP)) < 1e-3
