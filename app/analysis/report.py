@@ -177,7 +177,8 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
     html = out_dir / "report.html"
     html.write_text(render_page(analysis, figures, study_dir=Path(study_dir), unreadable=unreadable,
                                 generated=datetime.now(UTC).isoformat(timespec="seconds"),
-                                ratings_counted=counted.text()))
+                                ratings_counted=counted.text(),
+                                recording_cut_short=[] if recording is None else recording.cut_short))
     incomplete = analysis.status.loc[~analysis.status["complete"], "participant"].tolist()
     if incomplete:
         log.info("incomplete sessions (reported, left out of the tests): %s", incomplete)

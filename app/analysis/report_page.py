@@ -4,7 +4,7 @@ an XDF recording (``--xdf``) and Fig. 3."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -56,8 +56,10 @@ def unreadable_text(path: str, reason: str) -> str:
     return f"not read, left out: {reason if path in reason else f'{path}: {reason}'}"
 
 
-def problems(analysis: StudyAnalysis, unreadable: Mapping[str, str]) -> str:
+def problems(analysis: StudyAnalysis, unreadable: Mapping[str, str],
+             recording_cut_short: Sequence[str] = ()) -> str:
     lines = [unreadable_text(path, reason) for path, reason in unreadable.items()]
+    lines += [f"XDF recording: {why}; its figures stop where it does" for why in recording_cut_short]
     lines += [f"{row['participant']}: {_status_text(row)}; shown below, left out of the tests"
               for _, row in analysis.status.iterrows() if not row["complete"]]
     lines += [f"{code}: validation {text}: the dashboard showed the experimenter which trial of a "
@@ -145,9 +147,10 @@ def left_out(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], prefix
 
 
 def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, study_dir: Path,
-                unreadable: Mapping[str, str], generated: str, ratings_counted: str) -> str:
+                unreadable: Mapping[str, str], generated: str, ratings_counted: str,
+                recording_cut_short: Sequence[str] = ()) -> str:
     """The whole report as one HTML string (figures embedded); ``ratings_counted`` says whose
-    ratings it counts."""
+    ratings it counts, ``recording_cut_short`` which streams of the XDF recording end early."""
     counts = analysis.status["scenario"].value_counts()
     intro = html.paragraph(
         f"Study folder {study_dir}, {len(analysis.status)} participants ("
@@ -155,7 +158,8 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
     fig4 = figure_list(figures, "fig4-", "Fig. 4: human (red) and robot (blue) distance to the "
                        "handover point, normalised by the distance at the start, validation trials:")
     curves = figure_list(figures, "learning-", "θ over interactions and θ*'s posterior utility:")
-    parts = [intro, html.paragraph(ratings_counted), problems(analysis, unreadable),
+    parts = [intro, html.paragraph(ratings_counted),
+             problems(analysis, unreadable, recording_cut_short),
              sessions(analysis), validation_tables(analysis),
              statistics(analysis.tests), survey(analysis),
              html.section("Fig. 4: trajectories of the validation trials (Sect. VI-C)", *fig4,

@@ -82,6 +82,8 @@ def test_report_xdf_on_a_recording_cut_short_says_so_in_a_sentence(recorded_sess
     reported_cut = code == 0 and f"warning: {cut}: stream" in err and "ends early" in err
     if keep == 0.5:  # the first half of every stream is there: reported, and said to end early
         assert reported_cut, err
+        page = (tmp_path / "r" / "report.html").read_text()
+        assert "Data problems" in page and "XDF recording: stream" in page and "ends early" in page
     elif keep == 5000:  # the streams' headers and maybe their first samples: either, in words
         assert refused or reported_cut, err
     else:
