@@ -12,9 +12,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from app.protocol.vocabulary import QUESTION_BY_ID, Actor, Phase, Rater, ThetaOrigin
 from robot_io.theta import Theta
 from session_store.paths import check_participant_code
+from session_store.vocabulary import QUESTION_BY_ID, Actor, Phase, Rater, ThetaOrigin
 
 
 def utc_now() -> str:

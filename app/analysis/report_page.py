@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import pandas as pd
 
@@ -14,10 +13,8 @@ from app.analysis import html
 from app.analysis.figures import FigureFiles
 from app.analysis.provenance import not_blind
 from app.analysis.stats import MWU_METHOD, SIGN_TIE_RULE, StatTest
+from app.analysis.study_analysis import StudyAnalysis
 from app.analysis.tables import INDISTINCT_ARRIVAL_S, SCENARIOS
-
-if TYPE_CHECKING:
-    from app.analysis.report import StudyAnalysis
 
 TABLE_NUMBER = {"straightforward": "Table II", "perturbed": "Table III"}
 SCORE_RULE = (

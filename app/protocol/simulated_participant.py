@@ -13,8 +13,8 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from app.protocol.state import Marker
-from app.protocol.vocabulary import QUESTION_BY_ID
 from session_store.models import Trial
+from session_store.vocabulary import QUESTION_BY_ID
 
 
 class Taste(BaseModel):

@@ -21,10 +21,10 @@ from pydantic import BaseModel, Field
 from app.protocol import events as ev
 from app.protocol.errors import EventLogError
 from app.protocol.plan import Rating, Slot
-from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase, ThetaOrigin
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.models import Event, TrialOutcome
+from session_store.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase, ThetaOrigin
 
 
 class Step(StrEnum):

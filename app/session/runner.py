@@ -41,7 +41,6 @@ from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import PARTICIPANT_STEPS, SessionState, Step
 from app.protocol.stored import stored_session
 from app.protocol.study import StudyConfig
-from app.protocol.vocabulary import Actor, Rater
 from app.session import faults
 from app.session.access import TABLET_BROWSER_FILE, KnownBrowsers
 from app.session.config import LabConfig
@@ -78,6 +77,7 @@ from session_store.models import Trial
 from session_store.paths import refuse_case_twin
 from session_store.reading import reading
 from session_store.store import ParticipantStore, participant_codes, participant_path
+from session_store.vocabulary import Actor, Rater
 
 log = logging.getLogger(__name__)
 

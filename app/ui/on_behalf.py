@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import viser
 
 from app.protocol.state import Step
-from app.protocol.vocabulary import QUESTION_BY_ID, Rater
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.tablet import RATINGS, answer_options
+from session_store.vocabulary import QUESTION_BY_ID, Rater
 
 #: The "same as" choice that means: a position on the scale, not an earlier marker.
 NOT_EQUAL = "— (use the position)"

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, Field, model_validator
 
-from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS
+from session_store.vocabulary import QUESTION_BY_ID, QUESTIONS
 
 
 class Draft(BaseModel):

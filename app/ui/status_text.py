@@ -10,10 +10,10 @@ from __future__ import annotations
 from datetime import datetime
 
 from app.protocol.state import Step
-from app.protocol.vocabulary import Phase
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
 from robot_io.stages import Stage
+from session_store.vocabulary import Phase
 
 #: The handover cycle as the dashboard draws it.
 CYCLE = (Stage.PREPARE, Stage.LOADED, Stage.READY, Stage.GO, Stage.REACH, Stage.HOLD,

@@ -40,13 +40,13 @@ from pydantic import BaseModel, ConfigDict
 from app.protocol.errors import RefusedAction
 from app.protocol.plan import Rating
 from app.protocol.state import PARTICIPANT_STEPS, Marker, Step
-from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.deliberate import SETTLE_S, Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
 from robot_io.stages import Stage
+from session_store.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase
 
 log = logging.getLogger(__name__)
 

@@ -9,8 +9,8 @@ from support.engine import drive_until, study_config
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
-from app.protocol.vocabulary import QUESTION_BY_ID, Phase
 from robot_io.simulated_hand import Scenario
+from session_store.vocabulary import QUESTION_BY_ID, Phase
 
 
 @pytest.fixture(scope="module")

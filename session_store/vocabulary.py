@@ -1,7 +1,9 @@
-"""The protocol's vocabulary (Sect. V-C): its phases, where a θ comes from, who acts, and the
-questionnaire. The session store types its columns with these; it does not define them.
+"""The study's vocabulary (Sect. V-C): the protocol's phases, where a θ comes from, who acts, and the
+questionnaire. Every stored row is typed with these words, so they live at the bottom, with the
+store; the protocol (:mod:`app.protocol`), the tablet and the report speak them.
 
-This module imports nothing of the robot, the simulator or the learner, so that the store can use it.
+The questionnaire is :data:`QUESTIONS`, the one list of it: the tablet asks these questions in this
+order, the store accepts these answers, and the export and the report's Table IV and tests follow it.
 """
 
 from __future__ import annotations
