@@ -347,7 +347,7 @@ class SessionEngine:
         return row
 
     def answer(self, question: str, value: str, by: Rater = Rater.PARTICIPANT) -> Answer:
-        """An answer to Q1–Q3 (``by`` whom)."""
+        """An answer to a question of the questionnaire (``by`` whom)."""
         self._require(Step.ANSWER)
         row = Answer(question=question, value=str(value), actor=by)
         if question in self.state.answers:

@@ -13,7 +13,7 @@ from app.protocol.state import Step
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
 from robot_io.stages import Stage
-from session_store.vocabulary import Phase
+from session_store.vocabulary import Phase, questions
 
 #: The handover cycle as the dashboard draws it.
 CYCLE = (Stage.PREPARE, Stage.LOADED, Stage.READY, Stage.GO, Stage.REACH, Stage.HOLD,
@@ -89,8 +89,8 @@ def _status(view: RunnerView) -> str:
     if step is Step.RATE:
         return "**Waiting for the participant** to rate the pair on the tablet."
     if step is Step.ANSWER:
-        return (f"**Waiting for the participant's questionnaire** ({len(state.answers)} of 3 "
-                "answered).")
+        return (f"**Waiting for the participant's questionnaire** ({len(state.answers)} of "
+                f"{len(questions())} answered).")
     return "**Session complete** — press **End session**, then open the next participant."
 
 
@@ -107,7 +107,7 @@ def progress_markdown(view: RunnerView) -> str:
              f"{view.interactions} handovers completed"]
     slot = state.slot
     if state.step is Step.ANSWER:
-        lines.append(f"Questionnaire · {len(state.answers)} of 3 answered")
+        lines.append(f"Questionnaire · {len(state.answers)} of {len(questions())} answered")
     elif slot is not None:
         where = PHASE_WORDS[slot.phase]
         if slot.phase in (Phase.LEARNING, Phase.VALIDATION):
