@@ -70,7 +70,7 @@ from robot_io.rig.messages import (
     TrialDone,
 )
 from robot_io.simulated_hand import Scenario
-from robot_io.stages import Stage
+from robot_io.stages import AWAITS, Stage
 from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError
 from session_store.models import Trial
@@ -679,13 +679,9 @@ class SessionRunner:
         return self._rig
 
     def _waiting_for(self, stage: Stage | None) -> Waiting | None:
-        if self._auto or self.auto_experimenter:
+        if self._auto or self.auto_experimenter or stage is None:
             return None
-        if stage is Stage.PREPARE:
-            return "loaded"
-        if stage is Stage.READY:
-            return "go"
-        return None
+        return AWAITS.get(stage)
 
     def _device_status(self) -> dict:
         """The view's fields that do not come from the engine (read without its thread)."""

@@ -44,8 +44,8 @@ from app.session.runner import RunnerView, SessionRunner
 from app.ui.deliberate import SETTLE_S, Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
+from app.ui.stage_words import STAGE_WORDS
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
-from robot_io.stages import Stage
 from session_store.vocabulary import Phase, question, questions
 
 log = logging.getLogger(__name__)
@@ -56,11 +56,6 @@ RATINGS: tuple[tuple[str, str], ...] = (("Better", "better"), ("The same", "equa
 #: The first line of every screen's CSS block: the kiosk, the offline cover, the tablet's look,
 #: and the marker the offline cover looks for.
 PAGE_STYLE = style_block(KIOSK_CSS + OFFLINE_CSS + TABLET_CSS) + '<span class="hl-live"></span>'
-
-#: The stages of the handover cycle during which the tablet shows "Go!" (before it: please wait).
-GO_STAGES = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
-#: After the hold, until the trial ends and can be rated: the robot moves back.
-BACK_STAGES = frozenset({Stage.NOT_TAKEN, Stage.RETRACT, Stage.DONE})
 
 ScreenKind = Literal["wait", "pairs", "go", "back", "place", "rate", "question", "done",
                      "unused", "pair"]
@@ -106,10 +101,9 @@ def screen_for(view: RunnerView) -> Screen:
     if state is None:
         return Screen(kind="wait")
     step, slot = state.step, state.slot
-    if step is Step.RUNNING and state.stage in GO_STAGES:  # the cue: the robot starts with it
-        return Screen(kind="go", interaction=slot.interaction)
-    if step is Step.RUNNING and state.stage in BACK_STAGES:
-        return Screen(kind="back", interaction=slot.interaction)
+    shown = STAGE_WORDS[state.stage].tablet if step is Step.RUNNING and state.stage else "wait"
+    if shown != "wait":  # "go": the cue, the robot starts with it; "back": it moves back
+        return Screen(kind=shown, interaction=slot.interaction)
     if view.auto and step in PARTICIPANT_STEPS:
         # the simulated participant answers: the person holding the tablet is asked nothing
         return Screen(kind="wait")
