@@ -71,6 +71,6 @@ def test_a_fourth_question_reaches_the_tablet_the_store_the_export_and_the_repor
         "Q4 answers > 3 (Table IV)", "Q4: straightforward vs perturbed"]
     assert next(t for t in report.tests if t.name.startswith("Q4 answers")).n_total == 1
     page = report.html.read_text()
-    assert f"Q4: {fourth_question.paper_text} (1–5)" in page
+    assert "Q4: I would accept further handovers from the robot (1–5)." in page
     assert "<th>Q4</th>" in page
 

@@ -122,7 +122,8 @@ def survey(analysis: StudyAnalysis) -> str:
             rows = rows.assign(who=rows.apply(_participant_text, axis=1))
             parts.append(html.section(f"{scenario.capitalize()}", html.table(
                 rows, {"who": "Participant", **{q.id: q.id for q in questions()}}), level=3))
-    notes = [f"{q.id}: {q.paper_text} ({q.scale})" for q in questions()]
+    notes = [f"{q.id}: {q.paper_text.removesuffix('.')} ({q.scale})"
+             + ("." if q.paper_text.endswith(".") else "") for q in questions()]
     return html.section("Table IV: survey results (Sect. VI-B)", *parts, html.items(notes, "note"))
 
 
