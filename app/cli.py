@@ -16,7 +16,7 @@ from robot_io.errors import RobotIOError, explain
 from robot_io.lsl_log import quiet_liblsl
 from session_store import lock as writer_lock
 from session_store.errors import StoreError
-from session_store.paths import participant_path
+from session_store.paths import DEFAULT_STUDY, participant_path
 
 #: Modules that contribute subcommands: each has ``register(subparsers) -> None`` and sets
 #: ``func(args) -> int`` on its parsers.
@@ -29,8 +29,6 @@ _COMMAND_MODULES: tuple[str, ...] = (
 )
 
 
-#: The study folder of ``serve`` when ``--study`` is not given.
-DEFAULT_STUDY = Path("study")
 #: Commands that write a participant's database (``--participant``).
 WRITERS = ("run-session", "serve")
 

@@ -1,4 +1,4 @@
-"""The gain of a prior from earlier participants (app.learning.population), measured honestly.
+"""The gain of a prior from earlier participants (app.learning.pooled_prior), measured honestly.
 
 Populations of ``--group`` simulated participants share an optimum θ_0 ~ U[0, 1]³; each one's
 optimum is θ_0 + N(0, spread²·I), clipped (``--spread``; ``--spread none``: uniform optima, no
@@ -31,7 +31,7 @@ from app.learning.cluster import dask_client, run_tasks
 from app.learning.config import DEFAULT_RECOMMENDATION, LearnerSnapshot
 from app.learning.models import RecommendationName
 from app.learning.paper_population import PAPER_POPULATION
-from app.learning.population import population_prior
+from app.learning.pooled_prior import population_prior
 from app.learning.rng import derive_seed
 from app.learning.simulation import StudyCondition, participant_target, simulate_learner
 

@@ -1,9 +1,11 @@
 """The stages of one handover cycle (docs/controller.md), in order; each is reported and recorded when it
-begins. ``release`` and ``not_taken`` are the two ways a hold ends."""
+begins. ``release`` and ``not_taken`` are the two ways a hold ends. The tablet's and the dashboard's
+words for each stage are in ``app/ui/stage_words.py``."""
 
 from __future__ import annotations
 
 from enum import StrEnum
+from typing import Literal
 
 
 class Stage(StrEnum):
@@ -18,6 +20,9 @@ class Stage(StrEnum):
     RETRACT = "retract"  # bounded move back to R
     DONE = "done"  # back at R: the cycle is over
 
+
+#: The experimenter's confirmation the cycle waits for in a stage (:class:`robot_io.cycle.Gates`).
+AWAITS: dict[Stage, Literal["loaded", "go"]] = {Stage.PREPARE: "loaded", Stage.READY: "go"}
 
 #: The value of the ``stage`` sample column in each streamed stage.
 SAMPLE_CODE = {Stage.REACH: 1.0, Stage.HOLD: 2.0, Stage.RELEASE: 3.0}

@@ -81,7 +81,7 @@ ROW_MEANING = {
     "placements": "one placement on the relative scale",
     "comparisons": "one pairwise comparison winner ≻ loser implied by a placement (eq. 11)",
     "validation_ratings": "the second interaction of a validation pair rated against the first",
-    "answers": "one questionnaire answer (Q1–Q3)",
+    "answers": "one answer to a question of the questionnaire (Q1, Q2, …)",
     "learner_snapshots": "the learner after planning the next θ: θ*, fit status",
     "events": "one line of the append-only event log (payload as JSON)",
     "samples": "one control cycle of a trial (t, DMP state, hand, coupling, poses)",

@@ -12,9 +12,9 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from app.protocol.vocabulary import QUESTION_BY_ID, Actor, Phase, Rater, ThetaOrigin
 from robot_io.theta import Theta
 from session_store.paths import check_participant_code
+from session_store.vocabulary import Actor, Phase, Rater, ThetaOrigin, question, question_ids
 
 
 def utc_now() -> str:
@@ -148,20 +148,21 @@ class ValidationRating(_Row):
 
 # -- questionnaire ----------------------------------------------------------------------------------
 class Answer(_Row):
-    """An answer to Q1–Q3: 1–5 for Q1 and Q3, "Yes"/"No"/"Maybe" for Q2."""
+    """An answer to a question of the questionnaire (:data:`~session_store.vocabulary.QUESTIONS`;
+    the paper's: 1–5 for Q1 and Q3, "Yes"/"No"/"Maybe" for Q2)."""
 
-    question: str = Field(description="Q1, Q2 or Q3 (Sect. V-C)")
-    value: str = Field(description="1–5 for Q1 and Q3 (Not at all … Perfectly), Yes/No/Maybe "
-                                   "for Q2")
+    question: str = Field(description="Q1, Q2, Q3 … (Sect. V-C; session_store.vocabulary)")
+    value: str = Field(description="1–5 for a numeric question (Q1, Q3: Not at all … "
+                                   "Perfectly), else one of its answers (Q2: Yes/No/Maybe)")
     answered_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
     actor: Rater | None = Field(description=RATER_DESCRIPTION)
 
     @model_validator(mode="after")
     def _allowed(self) -> Answer:
-        question = QUESTION_BY_ID.get(self.question)
-        if question is None:
-            raise ValueError(f"question = {self.question!r} is not one of {sorted(QUESTION_BY_ID)}")
-        allowed = question.allowed()
+        asked = question(self.question)
+        if asked is None:
+            raise ValueError(f"question = {self.question!r} is not one of {question_ids()}")
+        allowed = asked.allowed()
         if self.value not in allowed:
             raise ValueError(f"answer to {self.question} = {self.value!r} is not one of {allowed}")
         return self

@@ -12,6 +12,8 @@ from pathlib import Path
 from session_store.errors import StoreError, UnsafeParticipantCode
 
 SUFFIX = ".sqlite"
+#: The study folder of ``handover serve`` when ``--study`` is not given.
+DEFAULT_STUDY = Path("study")
 #: The file formats of an export (session_store.export), one file per table.
 EXPORT_FORMATS = ("csv", "parquet")
 #: A participant code is pseudonymous and becomes a file name: letters, digits, '-' and '_' only.

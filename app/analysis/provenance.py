@@ -19,7 +19,7 @@ import json
 import pandas as pd
 from pydantic import BaseModel
 
-from app.protocol.vocabulary import Rater
+from session_store.vocabulary import Rater
 
 #: The report's tables whose rows are ratings with an origin.
 RATED_TABLES = ("validation_ratings", "answers")

@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import logging
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -21,18 +20,11 @@ import pandas as pd
 from pydantic import BaseModel
 
 from app.analysis import figures as fig
-from app.analysis.provenance import counted_ratings, not_blind, validation_blinding
+from app.analysis.provenance import counted_ratings, not_blind
 from app.analysis.report_page import render_page
-from app.analysis.stats import StatTest, paper_tests
-from app.analysis.tables import (
-    session_status,
-    study_configs,
-    survey_table,
-    theta_star,
-    validation_pairs,
-    validation_scores,
-)
-from app.analysis.trajectories import validation_distances
+from app.analysis.stats import StatTest
+from app.analysis.study_analysis import StudyAnalysis
+from app.analysis.tables import study_configs
 from app.analysis.xdf import Recording, around_go, load_recording
 from session_store.export import load_study
 
@@ -43,30 +35,6 @@ REPORT_TABLES = ("participants", "trials", "validation_ratings", "answers", "lea
                  "events", "samples")
 TABLE_FILES = {"straightforward": "table2_straightforward", "perturbed": "table3_perturbed"}
 LEARNING_PHASES = ("initial", "learning", "best")
-
-
-@dataclass(frozen=True)
-class StudyAnalysis:
-    """Everything the report shows, computed from a study's tidy tables."""
-
-    tables: dict[str, pd.DataFrame]
-    status: pd.DataFrame
-    pairs: pd.DataFrame
-    scores: pd.DataFrame
-    survey: pd.DataFrame
-    tests: list[StatTest]
-    distances: pd.DataFrame
-
-    @classmethod
-    def of(cls, tables: dict[str, pd.DataFrame]) -> StudyAnalysis:
-        status = session_status(tables["participants"], tables["events"])
-        blinding = validation_blinding(tables["trials"], tables["events"])
-        status["validation_blinding"] = status["participant"].map(blinding).fillna("not recorded")
-        pairs = validation_pairs(tables["trials"], tables["validation_ratings"])
-        scores = validation_scores(pairs, theta_star(tables["learner_snapshots"]), status)
-        survey = survey_table(tables["answers"], status)
-        distances = validation_distances(tables["participants"], tables["trials"], tables["samples"])
-        return cls(tables, status, pairs, scores, survey, paper_tests(scores, survey), distances)
 
 
 class Report(BaseModel):

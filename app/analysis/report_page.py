@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import pandas as pd
 
@@ -14,10 +13,9 @@ from app.analysis import html
 from app.analysis.figures import FigureFiles
 from app.analysis.provenance import not_blind
 from app.analysis.stats import MWU_METHOD, SIGN_TIE_RULE, StatTest
+from app.analysis.study_analysis import StudyAnalysis
 from app.analysis.tables import INDISTINCT_ARRIVAL_S, SCENARIOS
-
-if TYPE_CHECKING:
-    from app.analysis.report import StudyAnalysis
+from session_store.vocabulary import questions
 
 TABLE_NUMBER = {"straightforward": "Table II", "perturbed": "Table III"}
 SCORE_RULE = (
@@ -125,13 +123,10 @@ def survey(analysis: StudyAnalysis) -> str:
         if not rows.empty:
             rows = rows.assign(who=rows.apply(_participant_text, axis=1))
             parts.append(html.section(f"{scenario.capitalize()}", html.table(
-                rows, {"who": "Participant", "Q1": "Q1", "Q2": "Q2", "Q3": "Q3"}), level=3))
-    questions = ["Q1: It was easy to remember the interactions within the batch (1–5).",
-                 "Q2: Did you feel that the robot was constantly improving? (Yes / No / Maybe)",
-                 "Q3: Relative to the last set of parameters tried, how much did you perceive that "
-                 "the robot was coordinating with you? (1–5)"]
-    return html.section("Table IV: survey results (Sect. VI-B)", *parts,
-                        html.items(questions, "note"))
+                rows, {"who": "Participant", **{q.id: q.id for q in questions()}}), level=3))
+    notes = [f"{q.id}: {q.paper_text.removesuffix('.')} ({q.scale})"
+             + ("." if q.paper_text.endswith(".") else "") for q in questions()]
+    return html.section("Table IV: survey results (Sect. VI-B)", *parts, html.items(notes, "note"))
 
 
 def figure_list(figures: Mapping[str, FigureFiles], prefix: str, caption: str) -> list[str]:

@@ -23,6 +23,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from scipy import stats
 
 from app.analysis.tables import SCENARIOS
+from session_store.vocabulary import questions
 
 Alternative = Literal["greater", "less", "two-sided"]
 
@@ -100,7 +101,10 @@ def mann_whitney(x: Iterable[float], y: Iterable[float], name: str, labels: tupl
 
 
 def paper_tests(scores: pd.DataFrame, survey: pd.DataFrame) -> list[StatTest]:
-    """The four tests of Sect. VI over the participants whose session is complete.
+    """The tests of Sect. VI over the participants whose session is complete: the validation
+    score's sign test, then per question of the questionnaire a sign test where it states a
+    hypothesis (``above``: Q1 > 3) and, for a numeric question, Mann–Whitney U between the
+    scenarios (Q1, Q3) — the paper's four tests for its three questions.
 
     ``scores``: Tables II–III (``tables.validation_scores``), ``survey``: Table IV
     (``tables.survey_table``); both with ``scenario`` and ``complete`` columns. Incomplete sessions
@@ -113,9 +117,12 @@ def paper_tests(scores: pd.DataFrame, survey: pd.DataFrame) -> list[StatTest]:
     def by_scenario(question: str) -> tuple[pd.Series, pd.Series]:
         return tuple(survey.loc[survey["scenario"] == s, question].astype(float) for s in SCENARIOS)
 
-    return [
-        sign_test(scores["score_pct"], 50.0, "validation score > 50 % (Tables II–III)"),
-        sign_test(survey["Q1"].astype(float), 3.0, "Q1 answers > 3 (Table IV)"),
-        mann_whitney(*by_scenario("Q1"), "Q1: straightforward vs perturbed", (first, second)),
-        mann_whitney(*by_scenario("Q3"), "Q3: straightforward vs perturbed", (first, second)),
-    ]
+    tests = [sign_test(scores["score_pct"], 50.0, "validation score > 50 % (Tables II–III)")]
+    for q in questions():
+        if q.numeric and q.above is not None:
+            tests.append(sign_test(survey[q.id].astype(float), q.above,
+                                   f"{q.id} answers > {q.above:g} (Table IV)"))
+        if q.numeric:
+            tests.append(mann_whitney(*by_scenario(q.id), f"{q.id}: straightforward vs perturbed",
+                                      (first, second)))
+    return tests

@@ -28,6 +28,7 @@ from app.protocol.plan import protocol_slots
 from app.protocol.state import Step, replay
 from app.protocol.study import StudyConfig
 from session_store.models import Event
+from session_store.vocabulary import question_ids, questions
 
 #: Two validation trials whose robot arrivals differ by less than this are the same robot behaviour
 #: to a person (10 control cycles at 500 Hz; people do not resolve timing differences this small).
@@ -112,12 +113,14 @@ def validation_scores(pairs: pd.DataFrame, stars: pd.DataFrame, status: pd.DataF
 
 
 def survey_table(answers: pd.DataFrame, status: pd.DataFrame) -> pd.DataFrame:
-    """Table IV: Q1 and Q3 (1–5) as numbers and Q2 (Yes / No / Maybe) per participant."""
+    """Table IV: a column per question of the questionnaire, in its order, per participant; a
+    numeric question's answers as numbers (Q1, Q3: 1–5), the others as words (Q2: Yes / No /
+    Maybe)."""
     wide = answers.pivot(index="participant", columns="question", values="value")
-    wide = wide.reindex(columns=["Q1", "Q2", "Q3"])
+    wide = wide.reindex(columns=question_ids())
     table = status[["participant", "scenario", "complete"]].merge(
         wide.reset_index(), on="participant", how="left")
-    for question in ("Q1", "Q3"):
-        table[question] = pd.to_numeric(table[question]).astype("Int64")
-    table["Q2"] = table["Q2"].astype("string")
+    for question in questions():
+        table[question.id] = (pd.to_numeric(table[question.id]).astype("Int64") if question.numeric
+                              else table[question.id].astype("string"))
     return table

@@ -1,27 +1,15 @@
-"""Priors from earlier participants: build a :class:`~app.learning.prior.PopulationPrior` from their
-learner data and evaluate it as the GP prior mean of eq. (12) for a new participant.
-
-For a study folder, the session side collects the :class:`~app.learning.config.LearnerSnapshot` of
-each completed participant of the same scenario (the last ``state`` stored) and calls::
-
-    prior = population_prior({"P01": snapshot_1, "P02": snapshot_2, ...}, weight=1.0)
-    config = LearnerConfig(box=..., prior=prior, ...)   # recorded in every snapshot: prior.sources
-
-The earlier participants' models are rebuilt from their stored hyperparameters (zero prior mean, so
-priors never chain) and their posterior means pooled, see :mod:`app.learning.prior`.
+"""Priors from earlier participants as the GP prior mean of eq. (12) for a new participant: a
+:class:`~app.learning.prior.PopulationPrior` (built by :mod:`app.learning.pooled_prior`) evaluated,
+and the PairwiseGP that adds it to its prior mean.
 """
 
 from __future__ import annotations
-
-from collections.abc import Mapping
 
 import torch
 from botorch.models.pairwise_gp import PairwiseGP
 from gpytorch.means import Mean
 
-from app.learning.config import LearnerSnapshot
-from app.learning.errors import LearningError
-from app.learning.prior import PopulationPrior, PriorComponent
+from app.learning.prior import PopulationPrior
 
 #: Unit-cube distance beyond which two earlier participants' favourites count as different
 #: handovers for the initial batch (:meth:`PopulationMean.initial_design`): at the paper's noise a
@@ -106,41 +94,3 @@ class PopulationPairwiseGP(PairwiseGP):
 
     def _prior_mean(self, X: torch.Tensor) -> torch.Tensor:
         return super()._prior_mean(X) + self.population_mean(X)
-
-
-def component_of(source: str, model: PairwiseGP) -> PriorComponent:
-    """One participant's posterior mean k(x, X)·α as data (its model has a zero prior mean)."""
-    X = model.datapoints
-    alpha = torch.cholesky_solve(model.utility.detach().unsqueeze(-1), model.covar_chol.detach())
-    kernel = model.covar_module
-    return PriorComponent(
-        source=source, points=X.tolist(), coefficients=alpha.reshape(-1).tolist(),
-        lengthscale=kernel.base_kernel.lengthscale.detach().reshape(-1).tolist(),
-        outputscale=float(kernel.outputscale.detach()))
-
-
-def population_prior(snapshots: Mapping[str, LearnerSnapshot],
-                     weight: float = 1.0) -> PopulationPrior:
-    """The prior mean for a new participant from earlier participants' learner snapshots.
-
-    ``snapshots`` maps a participant id to its final snapshot; participants without a model (no
-    comparison) contribute nothing. Raises :class:`LearningError` when none has a model or the
-    boxes differ (priors only transfer within one parameter box, i.e. one scenario's study).
-    """
-    from app.learning.learner import PreferenceLearner  # the learner imports this module
-
-    boxes = {s.config.box for s in snapshots.values()}
-    if len(boxes) > 1:
-        raise LearningError(f"snapshots = {sorted(snapshots)} come from {len(boxes)} different "
-                            "parameter boxes; a prior needs participants of one box")
-    components = []
-    for source, snapshot in snapshots.items():
-        zero_mean = snapshot.model_copy(update={"config": snapshot.config.model_copy(
-            update={"prior": None})})
-        model = PreferenceLearner.restore(zero_mean).model.model
-        if model is not None:
-            components.append(component_of(source, model))
-    if not components:
-        raise LearningError(f"snapshots = {sorted(snapshots)}: none has a fitted preference "
-                            "model (no comparisons), so there is no prior to pool")
-    return PopulationPrior(weight=weight, components=components)

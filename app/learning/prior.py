@@ -1,7 +1,7 @@
 """Priors from earlier participants as plain data (torch-free, so configs can carry them).
 
 The zero mean of eq. (12) says nothing about where good handovers lie. After a few participants of
-the same scenario the lab knows more: :func:`app.learning.population.population_prior` turns their
+the same scenario the lab knows more: :func:`app.learning.pooled_prior.population_prior` turns their
 learner data into a :class:`PopulationPrior`, the pooled posterior mean of eq. (13) of the earlier
 participants, which becomes the GP's prior mean m(θ) for the next one,
 

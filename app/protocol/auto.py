@@ -7,8 +7,8 @@ from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
-from app.protocol.vocabulary import Phase, Rater
 from session_store.models import Trial
+from session_store.vocabulary import Phase, Rater
 
 
 def _trial(engine: SessionEngine, interaction: int) -> Trial:

@@ -3,7 +3,7 @@
 When a new participant's session is created with ``StudyConfig.population_prior``, the GP prior mean
 of eq. (12) becomes the pooled posterior mean of the *completed* participants (session done) of the
 same scenario and the same θ box in the study folder, each taken from its last stored learner
-snapshot (:func:`app.learning.population.population_prior`; weight ``prior_weight``). The prior is
+snapshot (:func:`app.learning.pooled_prior.population_prior`; weight ``prior_weight``). The prior is
 fixed at creation and stored in the session (``session_created``: its sources in the config's
 ``prior_sources``, the prior itself in the event), so a resumed session, an export and a replay see
 exactly the prior the participant had, whatever happens to the folder later.
@@ -57,7 +57,7 @@ def completed_snapshots(study_dir: Path, code: str, config: StudyConfig) -> dict
 
 
 def _pooled(snapshots: dict[str, LearnerSnapshot], weight: float) -> PopulationPrior:
-    from app.learning.population import population_prior  # torch: only in the spawned process
+    from app.learning.pooled_prior import population_prior  # torch: only in the spawned process
 
     return population_prior(snapshots, weight=weight)
 

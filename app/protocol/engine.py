@@ -37,7 +37,6 @@ from app.protocol.errors import RefusedAction
 from app.protocol.plan import Slot, protocol_slots
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
 from app.protocol.study import StudyConfig
-from app.protocol.vocabulary import Actor, Rater, ThetaOrigin
 from robot_io.config import ControllerConfig
 from robot_io.loop import Outcome, TrialRecord
 from robot_io.stages import Stage
@@ -54,6 +53,7 @@ from session_store.models import (
     utc_now,
 )
 from session_store.store import ParticipantStore
+from session_store.vocabulary import Actor, Rater, ThetaOrigin
 
 log = logging.getLogger(__name__)
 
@@ -347,7 +347,7 @@ class SessionEngine:
         return row
 
     def answer(self, question: str, value: str, by: Rater = Rater.PARTICIPANT) -> Answer:
-        """An answer to Q1–Q3 (``by`` whom)."""
+        """An answer to a question of the questionnaire (``by`` whom)."""
         self._require(Step.ANSWER)
         row = Answer(question=question, value=str(value), actor=by)
         if question in self.state.answers:

@@ -15,9 +15,9 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from app.protocol.errors import EventLogError
-from app.protocol.vocabulary import Actor, Rater, ThetaOrigin
 from robot_io.stages import Stage
 from session_store.models import Event, TrialOutcome, utc_now
+from session_store.vocabulary import Actor, Rater, ThetaOrigin
 
 #: The envelope's fields: stored as columns of the events table, not in the payload.
 ENVELOPE = frozenset({"seq", "at", "actor", "kind"})

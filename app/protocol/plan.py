@@ -18,7 +18,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 
 from app.protocol.study import StudyConfig
-from app.protocol.vocabulary import Phase, ThetaOrigin
+from session_store.vocabulary import Phase, ThetaOrigin
 
 
 class Rating(StrEnum):

@@ -13,8 +13,8 @@ import numpy as np
 from pydantic import BaseModel, Field
 
 from app.protocol.state import Marker
-from app.protocol.vocabulary import QUESTION_BY_ID
 from session_store.models import Trial
+from session_store.vocabulary import question
 
 
 class Taste(BaseModel):
@@ -64,13 +64,16 @@ class SimulatedParticipant:
             return "equal"
         return "better" if difference > 0 else "worse"
 
-    def answer(self, question: str, best: Trial | None) -> str:
-        """Q1 (memory, 1–5), Q2 (Yes/No/Maybe), Q3 (coordination of the last θ, 1–5)."""
-        rng = np.random.default_rng([self.seed, 0xA25, ord(question[-1])])
-        if question == "Q2":
-            return str(rng.choice(QUESTION_BY_ID["Q2"].answers))
-        if question == "Q3" and best is not None:
+    def answer(self, question_id: str, best: Trial | None) -> str:
+        """Q3 (coordination of the last θ, 1–5) from how good ``best`` was; any other question at
+        random: a word (Q2: Yes/No/Maybe) or 3–5 on a scale (Q1, memory)."""
+        asked = question(question_id)
+        rng = np.random.default_rng([self.seed, 0xA25, ord(question_id[-1])])
+        if not asked.numeric:
+            return str(rng.choice(asked.answers))
+        top = len(asked.answers)
+        if question_id == "Q3" and best is not None:
             miss = -self.utility(best)
             score = 5 if miss < 0.1 else 4 if miss < 0.25 else 3 if miss < 0.5 else 2
-            return str(int(np.clip(score + rng.integers(-1, 1, endpoint=True), 1, 5)))
-        return str(int(rng.integers(3, 5, endpoint=True)))
+            return str(int(np.clip(score + rng.integers(-1, 1, endpoint=True), 1, top)))
+        return str(int(rng.integers(min(3, top), top, endpoint=True)))

@@ -21,10 +21,10 @@ from pydantic import BaseModel, Field
 from app.protocol import events as ev
 from app.protocol.errors import EventLogError
 from app.protocol.plan import Rating, Slot
-from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase, ThetaOrigin
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.models import Event, TrialOutcome
+from session_store.vocabulary import Phase, ThetaOrigin, question, question_ids, questions
 
 
 class Step(StrEnum):
@@ -83,15 +83,15 @@ class SessionState(BaseModel):
 
     @property
     def questionnaire_due(self) -> bool:
-        """Q1–Q3 come after the learning and best phases, before validation."""
+        """The questionnaire comes after the learning and best phases, before validation."""
         slot = self.slot
         at_validation = slot is None or slot.phase is Phase.VALIDATION
-        return at_validation and len(self.answers) < len(QUESTIONS)
+        return at_validation and len(self.answers) < len(questions())
 
     @property
     def unanswered(self) -> tuple[str, ...]:
-        """The questions (Q1–Q3) not answered yet, in the order they are asked."""
-        return tuple(q.id for q in QUESTIONS if q.id not in self.answers)
+        """The questions not answered yet, in the order they are asked."""
+        return tuple(q for q in question_ids() if q not in self.answers)
 
     @property
     def step(self) -> Step:
@@ -236,12 +236,11 @@ def _validation_rated(state: SessionState, event: ev.ValidationRated) -> None:
 def _answer_given(state: SessionState, event: ev.AnswerGiven) -> None:
     _check(state.step is Step.ANSWER, f"an answer to {event.question} while "
                                       f"{_waiting_for(state)}")
-    question = QUESTION_BY_ID.get(event.question)
-    _check(question is not None, f"question = {event.question!r} is not one of "
-                                 f"{sorted(QUESTION_BY_ID)}")
+    asked = question(event.question)
+    _check(asked is not None, f"question = {event.question!r} is not one of {question_ids()}")
     _check(event.question not in state.answers, f"{event.question} is answered twice")
-    _check(event.value in question.allowed(), f"answer to {event.question} = {event.value!r} is "
-                                              f"not one of {question.allowed()}")
+    _check(event.value in asked.allowed(), f"answer to {event.question} = {event.value!r} is "
+                                           f"not one of {asked.allowed()}")
     state.answers[event.question] = event.value
 
 

@@ -41,7 +41,6 @@ from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import PARTICIPANT_STEPS, SessionState, Step
 from app.protocol.stored import stored_session
 from app.protocol.study import StudyConfig
-from app.protocol.vocabulary import Actor, Rater
 from app.session import faults
 from app.session.access import TABLET_BROWSER_FILE, KnownBrowsers
 from app.session.config import LabConfig
@@ -71,13 +70,14 @@ from robot_io.rig.messages import (
     TrialDone,
 )
 from robot_io.simulated_hand import Scenario
-from robot_io.stages import Stage
+from robot_io.stages import AWAITS, Stage
 from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError
 from session_store.models import Trial
 from session_store.paths import refuse_case_twin
 from session_store.reading import reading
 from session_store.store import ParticipantStore, participant_codes, participant_path
+from session_store.vocabulary import Actor, Rater
 
 log = logging.getLogger(__name__)
 
@@ -679,13 +679,9 @@ class SessionRunner:
         return self._rig
 
     def _waiting_for(self, stage: Stage | None) -> Waiting | None:
-        if self._auto or self.auto_experimenter:
+        if self._auto or self.auto_experimenter or stage is None:
             return None
-        if stage is Stage.PREPARE:
-            return "loaded"
-        if stage is Stage.READY:
-            return "go"
-        return None
+        return AWAITS.get(stage)
 
     def _device_status(self) -> dict:
         """The view's fields that do not come from the engine (read without its thread)."""

@@ -11,12 +11,12 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from app.cli import DEFAULT_STUDY
 from app.protocol.seeds import parse_seed
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
 from robot_io.cli import argument_type
 from robot_io.simulated_hand import Scenario
+from session_store.paths import DEFAULT_STUDY
 
 if TYPE_CHECKING:
     from app.session.runner import RunnerView

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import viser
 
 from app.protocol.state import Step
-from app.protocol.vocabulary import QUESTION_BY_ID, Rater
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.tablet import RATINGS, answer_options
+from session_store.vocabulary import Rater, question
 
 #: The "same as" choice that means: a position on the scale, not an earlier marker.
 NOT_EQUAL = "— (use the position)"
@@ -98,8 +98,8 @@ class OnBehalf:
             self.what.content = ("The participant compares the **second handover of the pair** "
                                  "with the first.")
         elif step is Step.ANSWER:
-            question = QUESTION_BY_ID[_question(view)]
-            self.what.content = f"**{question.id}**: {question.text}"
+            asked = question(_question(view))
+            self.what.content = f"**{asked.id}**: {asked.text}"
         else:
             self.what.content = "Nothing to enter now."
         labels = tuple(text for text, _ in answer_options(_question(view))) \

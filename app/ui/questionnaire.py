@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from pydantic import BaseModel, Field, model_validator
 
-from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS
+from session_store.vocabulary import question, question_ids
 
 
 class Draft(BaseModel):
@@ -24,9 +24,9 @@ class Draft(BaseModel):
 
     @model_validator(mode="after")
     def _known(self) -> Draft:
-        unknown = [q for q in self.questions if q not in QUESTION_BY_ID]
+        unknown = [q for q in self.questions if question(q) is None]
         if unknown:
-            raise ValueError(f"questions = {unknown} are not among {sorted(QUESTION_BY_ID)}")
+            raise ValueError(f"questions = {unknown} are not among {question_ids()}")
         if not 0 <= self.page < len(self.questions):
             raise ValueError(f"page = {self.page} must lie in [0, {len(self.questions) - 1}]")
         return self
@@ -38,7 +38,7 @@ class Draft(BaseModel):
     @property
     def number(self) -> int:
         """The question's 1-based number in the whole questionnaire ("2 of 3")."""
-        return [q.id for q in QUESTIONS].index(self.question) + 1
+        return question_ids().index(self.question) + 1
 
     @property
     def first(self) -> bool:

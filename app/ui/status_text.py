@@ -10,21 +10,12 @@ from __future__ import annotations
 from datetime import datetime
 
 from app.protocol.state import Step
-from app.protocol.vocabulary import Phase
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
+from app.ui.stage_words import CYCLE, INSTEAD_OF, STAGE_WORDS, stage_name
 from robot_io.stages import Stage
+from session_store.vocabulary import Phase, questions
 
-#: The handover cycle as the dashboard draws it.
-CYCLE = (Stage.PREPARE, Stage.LOADED, Stage.READY, Stage.GO, Stage.REACH, Stage.HOLD,
-         Stage.RELEASE, Stage.RETRACT, Stage.DONE)
-#: What a running trial does in each stage, in words.
-STAGE_WORDS = {Stage.PREPARE: "the robot moves to its start", Stage.LOADED: "the object is loaded",
-               Stage.READY: "the participant's hand is at the start",
-               Stage.GO: "Go given", Stage.REACH: "the robot reaches out",
-               Stage.HOLD: "the robot holds the object out", Stage.RELEASE: "the gripper opens",
-               Stage.NOT_TAKEN: "nobody took the object", Stage.RETRACT: "the robot moves back",
-               Stage.DONE: "the robot is back"}
 PHASE_WORDS = {Phase.INITIAL: "Initial handovers", Phase.LEARNING: "Learning batch",
                Phase.BEST: "Handover with the learned best", Phase.VALIDATION: "Validation pair"}
 
@@ -82,15 +73,15 @@ def _status(view: RunnerView) -> str:
         if view.waiting_for == "go":
             return "**The participant's hand is at the start** — press **Go**."
         stage = view.stage
-        return f"**Handover running** — {STAGE_WORDS[stage] if stage else 'starting'}."
+        return f"**Handover running** — {STAGE_WORDS[stage].dashboard if stage else 'starting'}."
     if step is Step.PLACE:
         return (f"**Waiting for the participant** to place handover {state.slot.position} on "
                 "the tablet.")
     if step is Step.RATE:
         return "**Waiting for the participant** to rate the pair on the tablet."
     if step is Step.ANSWER:
-        return (f"**Waiting for the participant's questionnaire** ({len(state.answers)} of 3 "
-                "answered).")
+        return (f"**Waiting for the participant's questionnaire** ({len(state.answers)} of "
+                f"{len(questions())} answered).")
     return "**Session complete** — press **End session**, then open the next participant."
 
 
@@ -107,7 +98,7 @@ def progress_markdown(view: RunnerView) -> str:
              f"{view.interactions} handovers completed"]
     slot = state.slot
     if state.step is Step.ANSWER:
-        lines.append(f"Questionnaire · {len(state.answers)} of 3 answered")
+        lines.append(f"Questionnaire · {len(state.answers)} of {len(questions())} answered")
     elif slot is not None:
         where = PHASE_WORDS[slot.phase]
         if slot.phase in (Phase.LEARNING, Phase.VALIDATION):
@@ -126,9 +117,9 @@ def progress_markdown(view: RunnerView) -> str:
 def cycle_markdown(view: RunnerView) -> str:
     """The running trial's stage within the cycle, the current one in bold."""
     stage = view.stage
-    shown = [f"**[{s.value}]**" if s is stage else s.value for s in CYCLE]
-    if stage is Stage.NOT_TAKEN:
-        shown[CYCLE.index(Stage.RELEASE)] = "**[not taken]**"
+    shown = [f"**[{stage_name(s)}]**" if s is stage else stage_name(s) for s in CYCLE]
+    if stage in INSTEAD_OF:
+        shown[CYCLE.index(INSTEAD_OF[stage])] = f"**[{stage_name(stage)}]**"
     line = "cycle: " + " → ".join(shown)
     if view.ready_wait and stage in (Stage.LOADED, Stage.PREPARE):
         line += f"  \nnot ready: {view.ready_wait}"

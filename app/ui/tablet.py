@@ -40,13 +40,13 @@ from pydantic import BaseModel, ConfigDict
 from app.protocol.errors import RefusedAction
 from app.protocol.plan import Rating
 from app.protocol.state import PARTICIPANT_STEPS, Marker, Step
-from app.protocol.vocabulary import QUESTION_BY_ID, QUESTIONS, Phase
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.deliberate import SETTLE_S, Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
+from app.ui.stage_words import STAGE_WORDS
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
-from robot_io.stages import Stage
+from session_store.vocabulary import Phase, question, questions
 
 log = logging.getLogger(__name__)
 
@@ -56,11 +56,6 @@ RATINGS: tuple[tuple[str, str], ...] = (("Better", "better"), ("The same", "equa
 #: The first line of every screen's CSS block: the kiosk, the offline cover, the tablet's look,
 #: and the marker the offline cover looks for.
 PAGE_STYLE = style_block(KIOSK_CSS + OFFLINE_CSS + TABLET_CSS) + '<span class="hl-live"></span>'
-
-#: The stages of the handover cycle during which the tablet shows "Go!" (before it: please wait).
-GO_STAGES = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
-#: After the hold, until the trial ends and can be rated: the robot moves back.
-BACK_STAGES = frozenset({Stage.NOT_TAKEN, Stage.RETRACT, Stage.DONE})
 
 ScreenKind = Literal["wait", "pairs", "go", "back", "place", "rate", "question", "done",
                      "unused", "pair"]
@@ -106,10 +101,9 @@ def screen_for(view: RunnerView) -> Screen:
     if state is None:
         return Screen(kind="wait")
     step, slot = state.step, state.slot
-    if step is Step.RUNNING and state.stage in GO_STAGES:  # the cue: the robot starts with it
-        return Screen(kind="go", interaction=slot.interaction)
-    if step is Step.RUNNING and state.stage in BACK_STAGES:
-        return Screen(kind="back", interaction=slot.interaction)
+    shown = STAGE_WORDS[state.stage].tablet if step is Step.RUNNING and state.stage else "wait"
+    if shown != "wait":  # "go": the cue, the robot starts with it; "back": it moves back
+        return Screen(kind=shown, interaction=slot.interaction)
     if view.auto and step in PARTICIPANT_STEPS:
         # the simulated participant answers: the person holding the tablet is asked nothing
         return Screen(kind="wait")
@@ -126,14 +120,21 @@ def screen_for(view: RunnerView) -> Screen:
     return _next_up(view)
 
 
-def answer_options(question: str) -> list[tuple[str, str]]:
+def answer_options(question_id: str) -> list[tuple[str, str]]:
     """(button text, stored value) of a question's answers: 1–5 with the paper's end labels, or
     the words themselves."""
-    q = QUESTION_BY_ID[question]
+    q = question(question_id)
     if not q.numeric:
         return [(answer, answer) for answer in q.answers]
     return [(f"{i} – {text}" if not text.isdigit() else text, str(i))
             for i, text in enumerate(q.answers, start=1)]
+
+
+def question_html(draft: Draft) -> str:
+    """The question screen's heading: "Question 2 of 3" and the question as the participant reads
+    it."""
+    return (f'<div class="hl-count">Question {draft.number} of {len(questions())}</div>'
+            + screen_text(question(draft.question).text, kind="hl-question"))
 
 
 class Choice:
@@ -281,8 +282,7 @@ class TabletClient:
         if not draft.first:
             gui.add_button("‹ Back", color="dark").on_click(
                 lambda _: self._input(lambda: self._turn(draft.back())))
-        gui.add_html(f'<div class="hl-count">Question {draft.number} of {len(QUESTIONS)}</div>'
-                     + screen_text(QUESTION_BY_ID[draft.question].text, kind="hl-question"))
+        gui.add_html(question_html(draft))
         choice = Choice(gui, answer_options(draft.question), draft.choice,
                         lambda value: self._input(lambda: self._choose(value)))
         self._next = gui.add_button("Done" if draft.last else "Next", color="green",
@@ -309,9 +309,9 @@ class TabletClient:
         if not draft.last:
             self._turn(draft.next())
             return
-        for question, value in draft.complete():
+        for question_id, value in draft.complete():
             try:
-                self.runner.answer(question, value)
+                self.runner.answer(question_id, value)
             except RefusedAction as exc:  # e.g. answered meanwhile by the simulated participant
                 log.warning("tablet answer refused: %s", exc)
 

@@ -22,7 +22,7 @@ from app.cli import main
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
-from app.protocol.vocabulary import Phase
+from session_store.vocabulary import Phase
 
 #: Markup a reader would see literally: reST ``x`` and roles, Markdown `x` and **x**.
 MARKUP = re.compile(r"`|:[a-z]+:|\*\*")

@@ -10,7 +10,8 @@ from app.learning.config import LearnerConfig
 from app.learning.errors import LearningError
 from app.learning.learner import PreferenceLearner
 from app.learning.models import Interaction, ParameterBox
-from app.learning.population import DISTINCT_FAVOURITES, PopulationMean, population_prior
+from app.learning.pooled_prior import population_prior
+from app.learning.population import DISTINCT_FAVOURITES, PopulationMean
 from app.learning.preference_model import posterior_at
 from app.learning.simulation import participant_target
 

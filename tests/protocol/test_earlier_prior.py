@@ -9,13 +9,13 @@ from support.engine import SHORT_PROTOCOL, drive_until, study_config
 from app.learning.config import LearnerSnapshot
 from app.learning.learner import PreferenceLearner
 from app.learning.models import RecommendationName
-from app.learning.population import population_prior
+from app.learning.pooled_prior import population_prior
 from app.protocol.engine import SessionEngine, learner_config
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
-from app.protocol.vocabulary import Phase
 from robot_io.simulated_hand import Scenario
 from session_store.store import ParticipantStore
+from session_store.vocabulary import Phase
 
 
 def config(seed: int, scenario: Scenario = Scenario.STRAIGHTFORWARD, **learner) -> StudyConfig:

@@ -31,9 +31,9 @@ from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
-from app.protocol.vocabulary import QUESTIONS, Actor
 from robot_io.trial import simulate_trial
 from session_store.errors import ParticipantLocked
+from session_store.vocabulary import QUESTIONS, Actor
 
 MAX_EXAMPLES = 20
 STEPS = 100

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from app.protocol import events as ev
 from app.protocol.markers import decode, encode, marker
-from app.protocol.vocabulary import Actor
+from session_store.vocabulary import Actor
 
 
 def test_a_validation_rating_is_marked_with_its_interaction_and_who_rated():

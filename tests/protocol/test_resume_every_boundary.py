@@ -32,9 +32,9 @@ from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
-from app.protocol.vocabulary import QUESTIONS, Phase
 from robot_io.simulated_hand import Scenario
 from robot_io.trial import simulate_trial
+from session_store.vocabulary import QUESTIONS, Phase
 
 CODE = "B01"
 

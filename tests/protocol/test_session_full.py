@@ -9,8 +9,8 @@ from support.engine import drive_until, study_config
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
-from app.protocol.vocabulary import QUESTION_BY_ID, Phase
 from robot_io.simulated_hand import Scenario
+from session_store.vocabulary import Phase, question
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +78,7 @@ def test_validation_ratings_and_questionnaire(session):
             assert rating.learned_preferred == ((rating.rating == "better") == learned_second)
     answers = {a.question: a.value for a in session.store.rows("answers")}
     assert set(answers) == {"Q1", "Q2", "Q3"}
-    assert answers["Q2"] in QUESTION_BY_ID["Q2"].answers
+    assert answers["Q2"] in question("Q2").answers
     assert 1 <= int(answers["Q1"]) <= 5 and 1 <= int(answers["Q3"]) <= 5
 
 

@@ -1,4 +1,5 @@
-"""The store knows the protocol's vocabulary, never the protocol, the simulator or the learner."""
+"""The store defines the study's vocabulary and knows nothing of the application (the protocol, the
+simulator, the learner)."""
 
 from __future__ import annotations
 
@@ -12,5 +13,4 @@ def test_session_store_imports_no_simulator_protocol_or_learner():
          "session_store.inspect, session_store.catalog, session_store.lock; "
          "print(' '.join(sorted(m for m in sys.modules if m.startswith(('app', 'robot_io')))))"],
         capture_output=True, text=True, check=True).stdout.split()
-    assert set(loaded) == {"app", "app.protocol", "app.protocol.vocabulary", "robot_io",
-                           "robot_io.errors", "robot_io.recorder", "robot_io.theta"}
+    assert set(loaded) == {"robot_io", "robot_io.errors", "robot_io.recorder", "robot_io.theta"}

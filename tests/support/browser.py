@@ -33,9 +33,9 @@ from playwright.sync_api import Browser, ConsoleMessage, Page, sync_playwright
 from playwright.sync_api import Error as PlaywrightError
 from viser import _messages
 
-from app.protocol.vocabulary import QUESTIONS
 from app.ui.deliberate import SETTLE_S
 from app.ui.style import DISCONNECTED
+from session_store.vocabulary import QUESTIONS
 from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
 from support.runner import READY_CEILING_S
 from support.waiting import CEILING_S, tail, wait_for

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-import ast
 from pathlib import Path
+
+from support.imports import statements
 
 import app.ui
 
@@ -17,20 +18,10 @@ FORBIDDEN_NAMES = {"SimulatedHand", "MockArm", "URArm", "ParticipantStore", "Ses
                    "RigClient", "Rehearsal"}
 
 
-def imports(path: Path) -> list[tuple[str, str]]:
-    """(module, name) of every import in a file."""
-    found = []
-    for node in ast.walk(ast.parse(path.read_text())):
-        if isinstance(node, ast.Import):
-            found += [(alias.name, alias.name) for alias in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            found += [(node.module or "", alias.name) for alias in node.names]
-    return found
-
-
 def test_no_ui_module_imports_a_device_the_rig_or_the_store():
     files = sorted(Path(app.ui.__file__).parent.glob("*.py"))
     assert len(files) >= 6
-    offending = [(path.name, module, name) for path in files for module, name in imports(path)
+    offending = [(path.name, module, name) for path in files
+                 for module, name, _, _ in statements(path)
                  if module.startswith(FORBIDDEN) or name in FORBIDDEN_NAMES]
     assert offending == []

@@ -43,11 +43,11 @@ from support.twin import uninterrupted_twin
 from app.protocol.doctor import examine
 from app.protocol.state import Step
 from app.protocol.stored import stored_session
-from app.protocol.vocabulary import QUESTIONS, Phase
 from session_store.lock import holder_of
 from session_store.models import TrialOutcome
 from session_store.reading import reading
 from session_store.store import participant_path
+from session_store.vocabulary import QUESTIONS, Phase
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from app.protocol.plan import protocol_slots
 from app.protocol.state import SessionState
-from app.protocol.vocabulary import Phase, ThetaOrigin
 from app.session.config import LabConfig
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
@@ -17,6 +16,7 @@ from app.ui.status_text import (
 )
 from robot_io.simulated_hand import Scenario
 from session_store.models import Trial
+from session_store.vocabulary import Phase, ThetaOrigin
 
 CONFIG = LabConfig().study_config(Scenario.PERTURBED, 0)  # the paper's protocol: 5 + 4×5 + 1 + 4×2
 SLOTS = protocol_slots(CONFIG)
