@@ -12,7 +12,7 @@ from typing import TypeVar
 import numpy as np
 
 from robot_io.errors import explain
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.theta import Theta
 
 #: Summary fields printed by --json, in order.
@@ -92,7 +92,7 @@ def load_config(path: Path | None):
 
 
 def run_calibrate_tracker(args: argparse.Namespace) -> int:
-    from robot_io.frame import fit_kabsch
+    from robot_io.hands.frame import fit_kabsch
 
     units = load_config(args.config).hand_source.units_to_m
     try:
@@ -134,9 +134,9 @@ def run_check_devices(args: argparse.Namespace) -> int:
 
 
 def _run_on_ur(config, args: argparse.Namespace):
+    from robot_io.arms.ur_arm import URArm
     from robot_io.devices import ur_trial
-    from robot_io.simulated_hand import SimulatedHand
-    from robot_io.ur_arm import URArm
+    from robot_io.hands.simulated_hand import SimulatedHand
 
     arm = URArm(config.ur, config.safety)
     try:
@@ -150,8 +150,8 @@ def _run_on_ur(config, args: argparse.Namespace):
 
 
 def run(args: argparse.Namespace) -> int:
+    from robot_io.control.trial import simulate_trial
     from robot_io.plot import plot_trial
-    from robot_io.trial import simulate_trial
 
     config = _with_host(load_config(args.config), args.ur_host, args.arm)
     if args.rate is not None:

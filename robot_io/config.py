@@ -111,7 +111,7 @@ class SceneConfig(_Frozen):
 
 
 class SafetyLimits(_Frozen):
-    """Limits applied to every target before it reaches the arm (see ``robot_io.safety``)."""
+    """Limits applied to every target before it reaches the arm (see ``robot_io.control.safety``)."""
 
     workspace_min: WorkspaceCorner = Field(
         (0.10, -0.60, 0.05), description="workspace box, lower corner [m], each within ±1 m")
@@ -161,7 +161,7 @@ class HandProfile(_Frozen):
         0.0, description="tracker noise, std per axis [m]")
     dropout_rate: float = Field(0.0, ge=0, lt=1, description="share of tracker samples lost")
     pull_n: float = Field(15.0, ge=0, le=100, description="pull on the object once grasped [N]; 0: "
-                                                         "never takes it (see robot_io.simulated_pull)")
+                                                         "never takes it (see robot_io.hands.simulated_pull)")
     grasp_delay_s: float = Field(0.5, ge=0, le=10, description="from touching the object to pulling "
                                                                "[s]; longer than [release] baseline_s")
 
@@ -203,7 +203,7 @@ class LoopConfig(_Frozen):
 
 
 class URConfig(_Frozen):
-    """The UR5 over RTDE (``robot_io.ur_arm``); see ``docs/hardware.md``."""
+    """The UR5 over RTDE (``robot_io.arms.ur_arm``); see ``docs/hardware.md``."""
 
     host: str | None = Field(
         None, description="controller address, required by [arm] kind = \"ur\"; never assumed "
@@ -336,7 +336,7 @@ ROBOTIQ_PORT = 63352
 
 class GripperConfig(_Frozen):
     """The gripper that holds the object: ``tool_output``, a tool digital output drives it;
-    ``robotiq_socket``, a Robotiq 2F-85 through its URCap's socket (``robot_io.robotiq``)."""
+    ``robotiq_socket``, a Robotiq 2F-85 through its URCap's socket (``robot_io.grippers.robotiq``)."""
 
     kind: Literal["none", "tool_output", "robotiq_socket"] = Field("none", description="gripper interface")
     tool_output: int = Field(0, ge=0, le=1, description="tool_output: the tool digital output that drives it")

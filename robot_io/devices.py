@@ -6,18 +6,18 @@ import time
 
 import numpy as np
 
+from robot_io.arms.ur_arm import URArm
 from robot_io.config import ControllerConfig
+from robot_io.control.loop import TrialRecord
+from robot_io.control.trial import make_clock, make_loop
 from robot_io.errors import RobotIOError
-from robot_io.frame import FrameTransform
-from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
-from robot_io.hand import HandSource
-from robot_io.loop import TrialRecord
-from robot_io.robotiq import ACTIVATED, RobotiqSocketGripper, probe
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.grippers.gripper import Gripper, NoGripper, ToolOutputGripper
+from robot_io.grippers.robotiq import ACTIVATED, RobotiqSocketGripper, probe
+from robot_io.hands.frame import FrameTransform
+from robot_io.hands.hand import HandSource
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.tracked_hand import PLAUSIBLE_RANGE_M, TrackedHand
 from robot_io.theta import Theta
-from robot_io.tracked_hand import PLAUSIBLE_RANGE_M, TrackedHand
-from robot_io.trial import make_clock, make_loop
-from robot_io.ur_arm import URArm
 
 
 def tracker_transform(config: ControllerConfig) -> FrameTransform:
@@ -30,19 +30,19 @@ def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: 
     """The configured hand source; the simulated one needs a scenario."""
     kind = config.hand_source.kind
     if kind == "lsl":
-        from robot_io.lsl_hand import LSLHand
+        from robot_io.hands.lsl_hand import LSLHand
 
         return LSLHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     if kind == "udp":
-        from robot_io.udp_hand import UDPHand
+        from robot_io.hands.udp_hand import UDPHand
 
         return UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     if kind == "natnet":
-        from robot_io.natnet_hand import NatNetHand
+        from robot_io.hands.natnet_hand import NatNetHand
 
         return NatNetHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     if kind == "vicon":
-        from robot_io.vicon_hand import ViconHand  # imports the SDK only when it connects
+        from robot_io.hands.vicon_hand import ViconHand  # imports the SDK only when it connects
 
         return ViconHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
     if scenario is None:

@@ -17,7 +17,7 @@ from app.session.cli import Interrupted, add_rig_arguments, interruptible, open_
 from app.session.config import load_lab_config
 from app.session.runner import RunnerView, SessionRunner, recorded_session
 from robot_io.cli import argument_type
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.paths import EXPORT_FORMATS
 from session_store.reading import reading

@@ -39,7 +39,7 @@ from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
 from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Actor, Rater, ThetaOrigin
 from robot_io.config import ControllerConfig
-from robot_io.loop import Outcome, TrialRecord
+from robot_io.control.loop import Outcome, TrialRecord
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.models import (

@@ -16,7 +16,7 @@ from app.protocol.seeds import parse_seed
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
 from robot_io.cli import argument_type
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 if TYPE_CHECKING:
     from app.session.runner import RunnerView

@@ -1,13 +1,13 @@
 """The rig's devices, opened once per rig process from the configuration, and the per-trial set the
 cycle runs on (docs/controller.md, the rig process).
 
-``[arm] kind``: ``mock`` (kinematic :class:`~robot_io.mock_arm.MockArm`, made anew each trial on
-the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.ur_arm.URArm`
+``[arm] kind``: ``mock`` (kinematic :class:`~robot_io.arms.mock_arm.MockArm`, made anew each trial on
+the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.arms.ur_arm.URArm`
 over ur_rtde, connected once). ``[hand_source] kind``: ``simulated`` (a seeded
-:class:`~robot_io.simulated_hand.SimulatedHand` per trial), ``lsl``, ``udp``, ``natnet`` or ``vicon``
+:class:`~robot_io.hands.simulated_hand.SimulatedHand` per trial), ``lsl``, ``udp``, ``natnet`` or ``vicon``
 (opened once).
 ``[gripper] kind``: ``tool_output`` (the UR's tool digital output), ``robotiq_socket`` (a Robotiq
-2F-85 on its URCap's socket, :mod:`robot_io.robotiq`) or ``none``.
+2F-85 on its URCap's socket, :mod:`robot_io.grippers.robotiq`) or ``none``.
 """
 
 from __future__ import annotations
@@ -17,18 +17,18 @@ import time
 
 import numpy as np
 
-from robot_io.arm import ArmState
-from robot_io.cycle import CycleDevices
+from robot_io.arms.arm import ArmState
+from robot_io.arms.mock_arm import MockArm
+from robot_io.arms.ur_arm import URArm
+from robot_io.control.cycle import CycleDevices
+from robot_io.control.trial import make_clock
 from robot_io.devices import open_gripper, open_hand
 from robot_io.errors import ArmFault, ConfigError, GripperFault
-from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
-from robot_io.hand import HandSource
-from robot_io.mock_arm import MockArm
+from robot_io.grippers.gripper import Gripper, NoGripper, ToolOutputGripper
+from robot_io.hands.hand import HandSource
+from robot_io.hands.simulated_hand import SimulatedHand
+from robot_io.hands.simulated_pull import SimulatedPull
 from robot_io.rig.messages import DeviceReport, RigSpec
-from robot_io.simulated_hand import SimulatedHand
-from robot_io.simulated_pull import SimulatedPull
-from robot_io.trial import make_clock
-from robot_io.ur_arm import URArm
 
 log = logging.getLogger(__name__)
 

@@ -20,8 +20,8 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from robot_io.config import ControllerConfig
-from robot_io.loop import TrialSummary
-from robot_io.simulated_hand import Scenario
+from robot_io.control.loop import TrialSummary
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 
@@ -190,7 +190,7 @@ class RigTiming(_Message):
 
 class HandLink(_Message):
     """What the tracked hand's link to its tracker went through, in one line
-    (:meth:`robot_io.tracked_hand.Link.notice`), sent each time it changes."""
+    (:meth:`robot_io.hands.tracked_hand.Link.notice`), sent each time it changes."""
 
     kind: Literal["hand_link"] = "hand_link"
     notice: str

@@ -14,7 +14,7 @@ from app.protocol.engine import SessionEngine, learner_config
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Phase
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.store import ParticipantStore
 
 

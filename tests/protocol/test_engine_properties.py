@@ -32,7 +32,7 @@ from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
 from app.protocol.vocabulary import QUESTIONS, Actor
-from robot_io.trial import simulate_trial
+from robot_io.control.trial import simulate_trial
 from session_store.errors import ParticipantLocked
 
 MAX_EXAMPLES = 20

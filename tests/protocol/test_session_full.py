@@ -10,7 +10,7 @@ from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
 from app.protocol.vocabulary import QUESTION_BY_ID, Phase
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 
 @pytest.fixture(scope="module")

@@ -19,8 +19,8 @@ from support.waiting import wait_for
 
 from robot_io.config import HandProfile, HandSourceConfig
 from robot_io.errors import HandSourceError
-from robot_io.frame import FrameTransform
-from robot_io.lsl_hand import LSLHand, xpath_literal
+from robot_io.hands.frame import FrameTransform
+from robot_io.hands.lsl_hand import LSLHand, xpath_literal
 
 pytestmark = pytest.mark.soak  # real processes and sockets on the clock: `make soak` repeats them
 

@@ -21,8 +21,9 @@ from support.waiting import wait_for
 
 from robot_io.config import HandProfile, LoopConfig
 from robot_io.errors import HandSourceError
-from robot_io.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
-from robot_io.natnet_standin import (
+from robot_io.hands.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
+from robot_io.hands.tracked_hand import TRACKER_JITTER_M
+from robot_io.standins.natnet import (
     NAT_FRAMEOFDATA,
     PROTOCOL_VERSION,
     FrameStamps,
@@ -32,7 +33,6 @@ from robot_io.natnet_standin import (
     hidden,
     pose_at,
 )
-from robot_io.tracked_hand import TRACKER_JITTER_M
 
 pytestmark = pytest.mark.soak  # real sockets and threads on the clock: `make soak` repeats them
 

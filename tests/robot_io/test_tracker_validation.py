@@ -21,9 +21,9 @@ from support.waiting import wait_for
 from app.cli import main
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
-from robot_io.hand import HandSample
-from robot_io.tracked_hand import TRACKER_JITTER_M
-from robot_io.udp_hand import UDPHand
+from robot_io.hands.hand import HandSample
+from robot_io.hands.tracked_hand import TRACKER_JITTER_M
+from robot_io.hands.udp_hand import UDPHand
 
 pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
 

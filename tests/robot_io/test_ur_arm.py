@@ -31,16 +31,16 @@ from support.ur import (
 )
 from support.waiting import wait_for
 
-from robot_io.arm import ArmState
+from robot_io.arms.arm import ArmState
+from robot_io.arms.ur_arm import EMERGENCY_STOPPED_BITS, URArm
 from robot_io.config import ControllerConfig
+from robot_io.control.loop import Outcome
 from robot_io.devices import tracker_transform, ur_trial
 from robot_io.errors import ArmFault
-from robot_io.loop import Outcome
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.udp_hand import UDPHand
+from robot_io.standins.ur.control import ControlClient
 from robot_io.theta import Theta
-from robot_io.udp_hand import UDPHand
-from robot_io.ur_arm import EMERGENCY_STOPPED_BITS, URArm
-from robot_io.ur_standin.control import ControlClient
 
 # real processes and sockets on the clock: `make soak` repeats them
 pytestmark = [pytest.mark.soak, pytest.mark.standin]

@@ -1,4 +1,4 @@
-"""A stand-in Motive per test (:mod:`robot_io.natnet_standin`) on 127.0.0.1, on a port of its own,
+"""A stand-in Motive per test (:mod:`robot_io.standins.natnet`) on 127.0.0.1, on a port of its own,
 and the ``[hand_source]`` that reads it with the real ``natnet`` client."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ from contextlib import contextmanager
 import numpy as np
 
 from robot_io.config import HandSourceConfig
-from robot_io.frame import FrameTransform
-from robot_io.natnet_standin import NatNetStandin, Poses, RigidBodySpec
+from robot_io.hands.frame import FrameTransform
+from robot_io.standins.natnet import NatNetStandin, Poses, RigidBodySpec
 from support.hand_replay import TRACKER
 
 #: The tests' tracker frame (turned and offset as :data:`support.hand_replay.TRACKER`), in metres as

@@ -15,7 +15,7 @@ from app.ui.status_text import (
     start_blocker,
     status_line,
 )
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.models import Trial
 
 CONFIG = LabConfig().study_config(Scenario.PERTURBED, 0)  # the paper's protocol: 5 + 4×5 + 1 + 4×2
