@@ -27,24 +27,11 @@ def tracker_transform(config: ControllerConfig) -> FrameTransform:
 
 
 def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: int = 0) -> HandSource:
-    """The configured hand source; the simulated one needs a scenario."""
-    kind = config.hand_source.kind
-    if kind == "lsl":
-        from robot_io.hands.lsl_hand import LSLHand
-
-        return LSLHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
-    if kind == "udp":
-        from robot_io.hands.udp_hand import UDPHand
-
-        return UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
-    if kind == "natnet":
-        from robot_io.hands.natnet_hand import NatNetHand
-
-        return NatNetHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
-    if kind == "vicon":
-        from robot_io.hands.vicon_hand import ViconHand  # imports the SDK only when it connects
-
-        return ViconHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
+    """The configured hand source: a tracker's, connected (``[hand_source] kind``, robot_io.hands.config),
+    or the simulated participant's, which needs a scenario."""
+    source = config.hand_source
+    if source.reader is not None:
+        return source.open(tracker_transform(config), config.hand.max_speed)
     if scenario is None:
         raise RobotIOError("hand_source.kind = 'simulated' needs a scenario")
     return SimulatedHand(scenario, config.scene, config.hand, seed)
@@ -123,8 +110,8 @@ def _check_arm(config: ControllerConfig, lines: list[str]) -> bool:
 
 def _check_hand(config: ControllerConfig, listen_s: float) -> list[str]:
     kind = config.hand_source.kind
-    if kind == "simulated":
-        return ["hand: simulated (no tracker configured)"]
+    if config.hand_source.reader is None:
+        return [f"hand: {kind} (no tracker configured)"]
     try:
         hand = open_hand(config)
     except (RobotIOError, OSError) as exc:

@@ -116,16 +116,16 @@ class Rehearsal:
             if line.strip() != f"ready {self.host}":
                 raise OSError(f"the stand-in controller did not start ({line.strip()!r})")
             stream = f"handover-rehearsal-{os.getpid()}-{self.host}"
-            source = lab.hand_source.model_copy(update={
-                "kind": hand, "lsl_stream_name": stream,
-                "resolve_timeout_s": max(lab.hand_source.resolve_timeout_s, PUBLISHED_RESOLVE_S)})
+            resolve = max(getattr(lab.hand_source, "resolve_timeout_s", 0.0), PUBLISHED_RESOLVE_S)
             if hand == "udp":
-                source = source.model_copy(update={"udp_host": "127.0.0.1",
-                                                   "udp_port": free_udp_port("127.0.0.1")})
-            if hand == "natnet":  # its command port is the stand-in's, known once it has bound it
-                source = source.model_copy(update={
-                    "natnet_server": "127.0.0.1", "natnet_local_address": None, "units_to_m": 1.0,
-                    "natnet_rigid_body": lab.hand_source.natnet_rigid_body or REHEARSAL_RIGID_BODY})
+                played = {"udp_host": "127.0.0.1", "udp_port": free_udp_port("127.0.0.1")}
+            elif hand == "natnet":  # its command port is the stand-in's, known once it has bound it
+                played = {"natnet_server": "127.0.0.1", "natnet_local_address": None, "units_to_m": 1.0,
+                          "resolve_timeout_s": resolve, "natnet_rigid_body": getattr(
+                              lab.hand_source, "natnet_rigid_body", None) or REHEARSAL_RIGID_BODY}
+            else:
+                played = {"lsl_stream_name": stream, "resolve_timeout_s": resolve}
+            source = lab.hand_source.as_kind(hand, **played)
             self.lab = lab.with_rig(
                 arm=lab.arm.model_copy(update={"kind": "ur"}),
                 ur=lab.ur.model_copy(update={"host": self.host}),

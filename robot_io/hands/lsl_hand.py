@@ -24,8 +24,8 @@ import pylsl
 from pylsl.util import LostError
 from pylsl.util import TimeoutError as LSLTimeoutError
 
-from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
+from robot_io.hands.config import LSLSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.tracked_hand import RECONNECT_TIMEOUT_S, TrackedHand
 
@@ -48,7 +48,7 @@ def xpath_literal(value: str) -> str:
     return "concat(" + ", \"'\", ".join(f"'{part}'" for part in parts) + ")"
 
 
-def stream_predicate(config: HandSourceConfig) -> str:
+def stream_predicate(config: LSLSource) -> str:
     """The XPath predicate a stream's description must satisfy: its type, and its name when set."""
     predicate = f"type={xpath_literal(config.lsl_stream_type)}"
     if config.lsl_stream_name is not None:
@@ -61,7 +61,7 @@ def describe_stream(info: pylsl.StreamInfo) -> str:
             f"{info.channel_count()} channels)")
 
 
-def resolve_one(config: HandSourceConfig, window: float = DISCOVERY_WINDOW_S) -> pylsl.StreamInfo:
+def resolve_one(config: LSLSource, window: float = DISCOVERY_WINDOW_S) -> pylsl.StreamInfo:
     """The one stream that satisfies ``config``'s type (and name); a :class:`HandSourceError` if none
     answers within ``resolve_timeout_s`` or more than one answers within ``window`` of the first."""
     predicate = stream_predicate(config)
@@ -85,8 +85,9 @@ class LSLHand(TrackedHand):
     """Resolves the one stream of the type (and name), then pulls samples in a thread."""
 
     HEALING = "reconnecting"
+    PROTOCOL = "LSL"
 
-    def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float) -> None:
+    def __init__(self, config: LSLSource, transform: FrameTransform, max_speed: float) -> None:
         super().__init__(transform, max_speed)
         self.config = config
         self.channels = list(config.lsl_channels)
@@ -94,7 +95,7 @@ class LSLHand(TrackedHand):
         self._lost = False  # the inlet raised LostError: a stream LSL cannot recover
         self.start()
 
-    def _open(self, config: HandSourceConfig) -> pylsl.StreamInlet:
+    def _open(self, config: LSLSource) -> pylsl.StreamInlet:
         """An inlet on the one stream ``config`` names, open (waiting at most resolve_timeout_s)."""
         info = resolve_one(config)
         if max(self.channels) >= info.channel_count():
@@ -106,6 +107,10 @@ class LSLHand(TrackedHand):
         inlet.open_stream(timeout=config.resolve_timeout_s)
         log.info("LSL hand source: stream %s at %g Hz", describe_stream(info), self.nominal_rate_hz)
         return inlet
+
+    def describe(self) -> str:
+        """The stream by its name and type."""
+        return f"stream {self.name!r} ({self.config.lsl_stream_type})"
 
     def reconnect(self) -> None:
         """A stream LSL cannot recover (no source_id) is resolved anew; one with a source_id LSL

@@ -43,8 +43,8 @@ from collections.abc import Callable
 import numpy as np
 from natnet import DataDescriptions, DataFrame, NatNetClient
 
-from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
+from robot_io.hands.config import NatNetSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.frame_clock import FrameClock
 from robot_io.hands.tracked_hand import RECONNECT_TIMEOUT_S, TrackedHand
@@ -150,9 +150,11 @@ class NatNetHand(TrackedHand):
     """Connects to Motive, resolves the rigid body's name to its id, then puts every frame's sample
     from the client's receiving thread; a watchdog thread connects again when the frames stop."""
 
+    PROTOCOL = "NatNet"
+
     HEALING = "reconnecting"
 
-    def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float) -> None:
+    def __init__(self, config: NatNetSource, transform: FrameTransform, max_speed: float) -> None:
         super().__init__(transform, max_speed)
         self.rigid_body = config.natnet_rigid_body
         self.server = (config.natnet_server, config.natnet_command_port)

@@ -126,6 +126,8 @@ class TrackedHand:
 
     #: What the source does while its link is down, in the words of :meth:`Link.notice`.
     HEALING = "waiting for it"
+    #: The tracker's protocol, as the devices' report names it ("NatNet", "LSL", …).
+    PROTOCOL = ""
 
     def __init__(self, transform: FrameTransform, max_speed: float) -> None:
         self.transform, self.max_speed = transform, max_speed
@@ -223,6 +225,10 @@ class TrackedHand:
         with self._lock:
             newest = self._newest_valid_at
         return None if newest is None else time.monotonic() - newest
+
+    def describe(self) -> str:
+        """Where the samples come from, in words (after :attr:`PROTOCOL` in the devices' report)."""
+        raise NotImplementedError
 
     def detail(self) -> str:
         """What ``handover check-devices`` adds about this source (subclasses that know more)."""

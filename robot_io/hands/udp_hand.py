@@ -15,7 +15,7 @@ import logging
 import socket
 import time
 
-from robot_io.config import HandSourceConfig
+from robot_io.hands.config import UDPSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.tracked_hand import TrackedHand
 
@@ -23,7 +23,11 @@ log = logging.getLogger(__name__)
 
 
 class UDPHand(TrackedHand):
-    def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float) -> None:
+    """JSON datagrams of the hand marker, on the address it listens on."""
+
+    PROTOCOL = "UDP"
+
+    def __init__(self, config: UDPSource, transform: FrameTransform, max_speed: float) -> None:
         super().__init__(transform, max_speed)
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.bind((config.udp_host, config.udp_port))
@@ -31,6 +35,10 @@ class UDPHand(TrackedHand):
         self.address = self.sock.getsockname()
         log.info("UDP hand source on %s:%d", *self.address)
         self.start()
+
+    def describe(self) -> str:
+        """The address it listens on."""
+        return "on {}:{}".format(*self.address)
 
     def receive_once(self) -> None:
         try:

@@ -45,8 +45,8 @@ from typing import Protocol
 
 import numpy as np
 
-from robot_io.config import HandSourceConfig
 from robot_io.errors import HandSourceError
+from robot_io.hands.config import ViconSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.frame_clock import FRAME_CLOCK_WINDOW_S, FrameClock
 from robot_io.hands.tracked_hand import RECONNECT_TIMEOUT_S, TrackedHand
@@ -219,9 +219,11 @@ class ViconHand(TrackedHand):
     """Connects, waits for a first frame, resolves the subject and segment by name, then polls the
     SDK for frames on the receiver thread and puts one sample per new frame."""
 
+    PROTOCOL = "Vicon"
+
     HEALING = "reconnecting"
 
-    def __init__(self, config: HandSourceConfig, transform: FrameTransform, max_speed: float,
+    def __init__(self, config: ViconSource, transform: FrameTransform, max_speed: float,
                  connect: Callable[[str, int], ViconClient] | None = None) -> None:
         super().__init__(transform, max_speed)
         self.subject, self.segment = config.vicon_subject, config.vicon_segment

@@ -106,7 +106,7 @@ class DeviceReport(_Message):
     arm_detail: str = Field(description="e.g. 'UR at 127.0.0.5, PolyScope 3.15.7, 125 Hz'")
     polyscope_version: str | None = None
     rate_hz: int
-    hand_source: str = Field(description="simulated, lsl, udp, natnet or vicon")
+    hand_source: str = Field(description="[hand_source] kind (robot_io.hands.config.HAND_SOURCES)")
     hand_detail: str
     gripper: str = Field(description="none, tool_output or robotiq_socket")
     gripper_detail: str

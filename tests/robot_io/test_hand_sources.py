@@ -45,8 +45,8 @@ def lsl_outlet(name: str, stream_type: str) -> pylsl.StreamOutlet:
                                                unique("source")))
 
 
-def source_config(config: ControllerConfig, **update):
-    source = config.hand_source.model_copy(update={
+def source_config(config: ControllerConfig, kind: str, **update):
+    source = config.hand_source.as_kind(kind, **{
         "rotation": tuple(map(tuple, TRACKER.rotation)), "translation": tuple(TRACKER.translation),
         "units_to_m": TRACKER.units_to_m, **update})
     return config.model_copy(update={"hand_source": source})

@@ -67,7 +67,7 @@ def sending(address: tuple[str, int], message: Callable[[int], dict],
 
 def _udp_hand() -> UDPHand:
     config = ControllerConfig()
-    source = config.hand_source.model_copy(update={"kind": "udp", "udp_host": HOST, "udp_port": 0})
+    source = config.hand_source.as_kind("udp", udp_host=HOST, udp_port=0)
     return UDPHand(source, tracker_transform(config), config.hand.max_speed)
 
 

@@ -234,8 +234,8 @@ def test_a_stale_hand_source_stops_the_arm():
     controller is told servoStop."""
     with standin() as ur, realtime_threads():  # as connected_arm's
         config = ur_config(ur.host)
-        source = config.hand_source.model_copy(update={
-            "kind": "udp", "udp_host": ur.host, "udp_port": 0, "units_to_m": TRACKER.units_to_m,
+        source = config.hand_source.as_kind("udp", **{
+            "udp_host": ur.host, "udp_port": 0, "units_to_m": TRACKER.units_to_m,
             "rotation": tuple(map(tuple, TRACKER.rotation)),
             "translation": tuple(TRACKER.translation)})
         config = config.model_copy(update={"hand_source": source})

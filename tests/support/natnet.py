@@ -8,7 +8,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from robot_io.config import HandSourceConfig
+from robot_io.hands.config import NatNetSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.standins.natnet import NatNetStandin, Poses, RigidBodySpec
 from support.hand_replay import TRACKER
@@ -36,9 +36,9 @@ def motive(poses: Poses, bodies: Sequence[RigidBodySpec] = (HAND, OBJECT),
         server.close()
 
 
-def natnet_source(server: NatNetStandin, rigid_body: str = HAND.name, **update) -> HandSourceConfig:
+def natnet_source(server: NatNetStandin, rigid_body: str = HAND.name, **update) -> NatNetSource:
     """``[hand_source]`` reading ``rigid_body`` from ``server``, calibrated as :data:`TRACKER_M`."""
-    return HandSourceConfig(kind="natnet", natnet_server=server.address[0],
+    return NatNetSource(kind="natnet", natnet_server=server.address[0],
                             natnet_command_port=server.address[1], natnet_rigid_body=rigid_body,
                             units_to_m=1.0, rotation=tuple(map(tuple, TRACKER_M.rotation)),
                             translation=tuple(TRACKER_M.translation), resolve_timeout_s=10.0, **update)
