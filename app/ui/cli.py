@@ -11,11 +11,11 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from app.arguments import argument_type
 from app.cli import DEFAULT_STUDY
 from app.protocol.seeds import parse_seed
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
-from robot_io.cli import argument_type
 from robot_io.hands.simulated_hand import Scenario
 
 if TYPE_CHECKING:

@@ -13,7 +13,7 @@ from support.hand_replay import TRACKER, to_tracker
 from support.ur import standin
 
 from app.cli import main
-from robot_io.cli import load_config
+from app.session.rig_cli import load_config
 from robot_io.standins.ur import rtde_protocol as rtde
 from robot_io.standins.ur.dashboard import reply
 from robot_io.standins.ur.model import Controller, Safety, Series

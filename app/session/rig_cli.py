@@ -1,17 +1,18 @@
-"""``handover simulate-trial`` (one handover of the simulated hand with the mock arm or a UR) and
-``handover check-devices``."""
+"""``handover simulate-trial`` (one handover of the simulated hand with the mock arm or a UR),
+``handover check-devices`` and ``handover calibrate-tracker``: the commands on the rig's devices. They
+live in the application, which reads the lab configuration (``app.session.config``); ``robot_io``
+below it never imports the application."""
 
 from __future__ import annotations
 
 import argparse
 import json
-from collections.abc import Callable
 from pathlib import Path
-from typing import TypeVar
 
 import numpy as np
 
-from robot_io.errors import explain
+from app.arguments import argument_type
+from app.session.config import load_lab_config
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.theta import Theta
 
@@ -21,22 +22,6 @@ JSON_FIELDS = (
     "max_tau", "deadline_misses", "cycles", "duration_s", "rate_hz", "realtime", "limited_cycles",
     "invalid_hand_samples", "compute_us_median", "compute_us_p99",
 )
-
-
-T = TypeVar("T")
-
-
-def argument_type(parse: Callable[[str], T]) -> Callable[[str], T]:
-    """Wrap a parser so that argparse shows its message (field, value, allowed range)."""
-
-    def wrapped(text: str) -> T:
-        try:
-            return parse(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(explain(exc)) from exc
-
-    wrapped.__name__ = parse.__name__
-    return wrapped
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -86,8 +71,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def load_config(path: Path | None):
     """The controller part of the lab configuration file (``--config lab.toml``, one file for every
     command: the whole file is validated, its [protocol] and [learner] tables included)."""
-    from app.session.config import load_lab_config  # the CLI is the composition root
-
     return load_lab_config(path).controller
 
 
