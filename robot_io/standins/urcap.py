@@ -1,4 +1,6 @@
-"""The stand-in's Robotiq URCap socket (port 63352) and the 2F-85 it drives.
+"""A stand-in Robotiq URCap: its gripper socket (port 63352, on the stand-in UR controller) and the
+2F-85 it drives. It knows nothing of the controller: the controller holds a :class:`RobotiqModel`,
+advances it each cycle and serves the socket under its own lock (:func:`serve`).
 
 ``SET VAR n [VAR n …]`` is answered ``ack``, ``GET VAR`` with ``VAR n`` (no newline, as the URCap
 answers), an unknown command or variable with ``?``. The model, advanced each controller cycle:
@@ -19,13 +21,10 @@ from __future__ import annotations
 
 import socket
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 from robot_io.standins.ur.listener import read_lines
-
-if TYPE_CHECKING:
-    from robot_io.standins.ur.model import Controller
 
 Event = Callable[[str], None]
 
@@ -133,10 +132,11 @@ class RobotiqModel:
             self.obj = AT_POSITION
 
 
-def serve(controller: Controller, sock: socket.socket) -> None:
-    """One client of the URCap socket; commands are answered under the controller's lock."""
+def serve(gripper: RobotiqModel, lock: AbstractContextManager, event: Event, sock: socket.socket) -> None:
+    """One client of the URCap socket; commands are answered under ``lock`` (the controller's, which
+    advances ``gripper`` each cycle), ``event`` logs what happened."""
     for line in read_lines(sock):
-        with controller.lock:
-            answer = controller.robotiq.reply(line.strip(), controller.event)
+        with lock:
+            answer = gripper.reply(line.strip(), event)
         if answer is not None:
             sock.sendall(answer.encode("ascii"))

@@ -17,7 +17,7 @@ from robot_io.grippers.robotiq import Obj, RobotiqSocketGripper, probe
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import RigSpec
-from robot_io.standins.ur.robotiq import DEFAULT_OBJECT_POSITION
+from robot_io.standins.urcap import DEFAULT_OBJECT_POSITION
 
 # the stand-in in real time, as the other stand-in tests: `make soak` repeats them
 pytestmark = [pytest.mark.soak, pytest.mark.standin]

@@ -7,7 +7,7 @@ force, set tool outputs and hit the watchdog. It interprets no URScript: it reco
 ``rtde_control`` program and runs a Python model of that program's register handshake. The arm is a
 bounded first-order follower of servo targets — a protocol-level model, not robot dynamics. It also
 answers a Robotiq URCap's gripper socket (port 63352) for a modelled 2F-85
-(:mod:`robot_io.standins.ur.robotiq`).
+(:mod:`robot_io.standins.urcap`).
 
 Run it in its own process (``python -m robot_io.standins.ur --host 127.0.0.5``): ``ur_rtde``'s
 constructors hold the GIL while they wait for the controller, so a stand-in in the same process

@@ -15,7 +15,7 @@ The joint angles ``actual_q`` follow it through the UR5's analytic inverse kinem
 :data:`READY_Q` at start), so they move continuously and FK(q) is the reported pose. A pose no UR5
 can take (out of reach, or not finite after ``set_pose``) has no joint angles: NaN.
 
-A Robotiq 2F-85 on its URCap's socket is modelled in :mod:`robot_io.standins.ur.robotiq`.
+A Robotiq 2F-85 on its URCap's socket is modelled in :mod:`robot_io.standins.urcap`.
 
 The measured force is what the test sets (``set_force``) — no contact model — unless a rehearsal
 configured the simulated participant's pull (``configure_pull``, :mod:`robot_io.hands.simulated_pull`):
@@ -35,8 +35,8 @@ import numpy as np
 
 from robot_io.arms.ur_kinematics import nearest_inverse
 from robot_io.hands.simulated_pull import SimulatedPull
-from robot_io.standins.ur.robotiq import RobotiqModel
 from robot_io.standins.ur.rtde_protocol import FORMATS, OUTPUT_TYPES
+from robot_io.standins.urcap import RobotiqModel
 
 log = logging.getLogger(__name__)
 

@@ -10,7 +10,8 @@ import time
 import numpy as np
 
 from robot_io.config import ROBOTIQ_PORT
-from robot_io.standins.ur import control, dashboard, robotiq, script_server
+from robot_io.standins import urcap
+from robot_io.standins.ur import control, dashboard, script_server
 from robot_io.standins.ur.listener import Listener
 from robot_io.standins.ur.model import Controller, Series
 from robot_io.standins.ur.rtde_server import RTDEServer
@@ -35,7 +36,8 @@ class StandinController:
             Listener(host, DASHBOARD_PORT, functools.partial(dashboard.serve, self.controller)),
             *(Listener(host, port, functools.partial(script_server.serve, self.controller))
               for port in script_server.PORTS),
-            Listener(host, ROBOTIQ_PORT, functools.partial(robotiq.serve, self.controller)),
+            Listener(host, ROBOTIQ_PORT, functools.partial(
+                urcap.serve, self.controller.robotiq, self.controller.lock, self.controller.event)),
         ]
         self.control = Listener(host, control_port, serve_control)
         self._running = True
