@@ -24,6 +24,7 @@ from robot_io.errors import HandSourceError
 from robot_io.hands.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
 from robot_io.hands.tracked_hand import TRACKER_JITTER_M
 from robot_io.standins.natnet import (
+    MOTIVE_OF,
     NAT_FRAMEOFDATA,
     PROTOCOL_VERSION,
     FrameStamps,
@@ -84,9 +85,11 @@ class StampRecordingHand(NatNetHand):
         super().put(measured_at, tracker_xyz)
 
 
-def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its_arrival():
+@pytest.mark.parametrize("protocol", MOTIVE_OF, ids=lambda protocol: "NatNet {}.{}".format(*protocol))
+def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its_arrival(protocol):
+    """At each protocol Motive streams: 3.1 (Motive 2.x), 4.0 (3.0) and 4.1 (3.1 and later)."""
     scene = Scene()
-    with motive(scene.poses) as server:
+    with motive(scene.poses, protocol=protocol) as server:
         hand = StampRecordingHand(natnet_source(server), TRACKER_M, MAX_SPEED)
         try:
             wait_for(lambda: hand.latency_s is not None, "the latency the frames report",
@@ -94,6 +97,7 @@ def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its
         finally:
             hand.close()
     assert hand.body_id == HAND.id
+    assert f"(NatNet {protocol[0]}.{protocol[1]}." in hand.server_detail
     # its data (float32 metres), not the object's, in the robot base frame
     assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
     # the latency each frame reports (mid-exposure to transmission, in host-clock ticks) is the

@@ -10,7 +10,7 @@ import numpy as np
 
 from robot_io.hands.config import NatNetSource
 from robot_io.hands.frame import FrameTransform
-from robot_io.standins.natnet import NatNetStandin, Poses, RigidBodySpec
+from robot_io.standins.natnet import PROTOCOL_VERSION, NatNetStandin, Poses, RigidBodySpec
 from support.hand_replay import TRACKER
 
 #: The tests' tracker frame (turned and offset as :data:`support.hand_replay.TRACKER`), in metres as
@@ -26,10 +26,12 @@ def to_tracker_m(base_xyz: np.ndarray) -> tuple[float, float, float]:
 
 @contextmanager
 def motive(poses: Poses, bodies: Sequence[RigidBodySpec] = (HAND, OBJECT),
-           rate_hz: float = 120.0, port: int = 0) -> Iterator[NatNetStandin]:
+           rate_hz: float = 120.0, port: int = 0,
+           protocol: tuple[int, int] = PROTOCOL_VERSION) -> Iterator[NatNetStandin]:
     """A stand-in Motive streaming ``poses`` on 127.0.0.1 (port 0: the kernel's free port; the
-    port of one that closed: that Motive restarted); closed when the block ends."""
-    server = NatNetStandin(bodies, poses, port=port, rate_hz=rate_hz).start()
+    port of one that closed: that Motive restarted) in NatNet ``protocol``; closed when the block
+    ends."""
+    server = NatNetStandin(bodies, poses, port=port, rate_hz=rate_hz, protocol=protocol).start()
     try:
         yield server
     finally:
