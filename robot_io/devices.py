@@ -11,8 +11,8 @@ from robot_io.config import ControllerConfig
 from robot_io.control.loop import TrialRecord
 from robot_io.control.trial import make_clock, make_loop
 from robot_io.errors import RobotIOError
-from robot_io.grippers.gripper import Gripper, NoGripper, ToolOutputGripper
-from robot_io.grippers.robotiq import ACTIVATED, RobotiqSocketGripper, probe
+from robot_io.grippers.gripper import Gripper
+from robot_io.grippers.kinds import GRIPPERS
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.hand import HandSource
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
@@ -39,12 +39,7 @@ def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: 
 
 def open_gripper(config: ControllerConfig) -> Gripper:
     """The configured gripper, connected (a Robotiq one also activated, if it was not)."""
-    kind = config.gripper.kind
-    if kind == "tool_output":
-        return ToolOutputGripper(config.ur.host, config.gripper)
-    if kind == "robotiq_socket":
-        return RobotiqSocketGripper(config.gripper_host, config.gripper)
-    return NoGripper()
+    return GRIPPERS[config.gripper.kind].open(config)
 
 
 def ur_trial(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: URArm) -> TrialRecord:
@@ -70,23 +65,10 @@ def check_devices(config: ControllerConfig, listen_s: float = 1.0) -> tuple[list
 def _check_gripper(config: ControllerConfig) -> str:
     """One line on the gripper: reachable, and a Robotiq's activation, position and fault code
     (read, never activated or moved)."""
-    gripper = config.gripper
     try:
-        if gripper.kind == "tool_output":
-            ToolOutputGripper(config.ur.host, gripper).disconnect()
-            return f"gripper: tool digital output {gripper.tool_output} reachable (not switched)"
-        if gripper.kind == "robotiq_socket":
-            status = probe(config.gripper_host, gripper)
-            where = f"Robotiq URCap on {config.gripper_host}:{gripper.port}, {status.describe()}"
-            if status.flt:
-                return f"gripper: NOT OK — {where}: clear the fault on the teach pendant"
-            if status.sta != ACTIVATED:
-                return (f"gripper: {where}; not moved: it activates when the rig opens it (the "
-                        "fingers open and close once)")
-            return f"gripper: {where} (not moved)"
+        return f"gripper: {GRIPPERS[config.gripper.kind].check(config)}"
     except RobotIOError as exc:
         return f"gripper: NOT OK — {str(exc).removeprefix('gripper: ')}"
-    return "gripper: none configured"
 
 
 def _check_arm(config: ControllerConfig, lines: list[str]) -> bool:

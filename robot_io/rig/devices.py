@@ -25,6 +25,7 @@ from robot_io.control.trial import make_clock
 from robot_io.devices import open_gripper, open_hand
 from robot_io.errors import ArmFault, ConfigError, GripperFault
 from robot_io.grippers.gripper import Gripper, NoGripper, ToolOutputGripper
+from robot_io.grippers.kinds import GRIPPERS
 from robot_io.hands.simulated_hand import SimulatedHand
 from robot_io.hands.simulated_pull import SimulatedPull
 from robot_io.hands.tracked_hand import TrackedHand
@@ -83,9 +84,7 @@ class RigDevices:
         source = config.hand_source
         hand_detail = (f"{tracked.PROTOCOL} {tracked.describe()}" if tracked is not None
                        else f"simulated hand ({self.spec.scenario.value})")
-        gripper_detail = {"tool_output": f"tool digital output {config.gripper.tool_output}",
-                          "robotiq_socket": f"Robotiq 2F-85 on {config.gripper_host}:"
-                                            f"{config.gripper.port}"}.get(config.gripper.kind, "no gripper")
+        gripper_detail = GRIPPERS[config.gripper.kind].describe(config)
         return DeviceReport(arm=config.arm.kind, arm_detail=arm_detail,
                             polyscope_version=None if ur is None else ur.polyscope_version,
                             rate_hz=config.loop.rate_hz, hand_source=source.kind,
