@@ -10,7 +10,6 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field
 
-Vec3 = tuple[float, float, float]
 Positive = Annotated[float, Field(gt=0)]
 
 #: A UR5's reach from the base axis [m] (Universal Robots' data sheet: 850 mm) ...

@@ -7,7 +7,9 @@ robot base frame.
 No value is infinite or NaN, and every limit that guards a person has a hard upper bound
 (``docs/hardware.md``, "Hard bounds of the configuration"): the box lies within a UR5's reach, the
 speed and acceleration caps stay at or below what the arm and the mock are strict about, and every
-time-out is finite. A value outside its bound is refused with its field, its value and the range.
+time-out is finite. A value outside its bound is refused with its field, its value and the range
+(the bounded field types: ``robot_io.bounds``). ``[hand_source]`` has one table per kind of hand
+source, each with its own keys and defaults (``robot_io.hands.config``).
 """
 
 from __future__ import annotations
