@@ -34,8 +34,9 @@ LATE_S = 1.0
 
 def udp_config() -> ControllerConfig:
     config = ControllerConfig()
+    # port 0: the kernel's free port (no lab configures it, so only a copy takes it)
     return config.model_copy(update={"hand_source": config.hand_source.as_kind(
-        "udp", udp_host=HOST, udp_port=0)})
+        "udp", udp_host=HOST).model_copy(update={"udp_port": 0})})
 
 
 def test_a_late_go_and_the_end_of_a_trial_move_the_hand_as_a_hand_moves():

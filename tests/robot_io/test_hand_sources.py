@@ -45,10 +45,14 @@ def lsl_outlet(name: str, stream_type: str) -> pylsl.StreamOutlet:
                                                unique("source")))
 
 
-def source_config(config: ControllerConfig, kind: str, **update):
+def source_config(config: ControllerConfig, kind: str, udp_port: int | None = None, **update):
+    """``config`` reading a ``kind`` source calibrated as TRACKER; ``udp_port`` 0 is the kernel's
+    free port, which no lab configures (so only a copy takes it)."""
     source = config.hand_source.as_kind(kind, **{
         "rotation": tuple(map(tuple, TRACKER.rotation)), "translation": tuple(TRACKER.translation),
         "units_to_m": TRACKER.units_to_m, **update})
+    if udp_port is not None:
+        source = source.model_copy(update={"udp_port": udp_port})
     return config.model_copy(update={"hand_source": source})
 
 

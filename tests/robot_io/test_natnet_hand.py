@@ -275,7 +275,7 @@ def test_check_devices_reports_the_rigid_body_rate_and_latency(tmp_path, capsys)
      '[hand_source] natnet_server is not set; kind = "natnet" needs the Motive PC\'s address'),
     ('kind = "natnet"\nnatnet_server = "192.168.1.20"\nunits_to_m = 1.0\n',
      "[hand_source] natnet_rigid_body is not set"),
-    ('kind = "natnet"\nnatnet_server = "192.168.1.20"\nnatnet_rigid_body = "hand"\n',
+    ('kind = "natnet"\nnatnet_server = "192.168.1.20"\nnatnet_rigid_body = "hand"\nunits_to_m = 0.001\n',
      "hand_source.units_to_m = 0.001 but NatNet streams metres: set units_to_m = 1.0"),
     ('kind = "natnet"\nnatnet_command_port = 70000\n', "natnet_command_port"),
 ])

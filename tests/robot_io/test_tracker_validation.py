@@ -67,7 +67,8 @@ def sending(address: tuple[str, int], message: Callable[[int], dict],
 
 def _udp_hand() -> UDPHand:
     config = ControllerConfig()
-    source = config.hand_source.as_kind("udp", udp_host=HOST, udp_port=0)
+    # port 0: the kernel's free port (no lab configures it, so only a copy takes it)
+    source = config.hand_source.as_kind("udp", udp_host=HOST).model_copy(update={"udp_port": 0})
     return UDPHand(source, tracker_transform(config), config.hand.max_speed)
 
 

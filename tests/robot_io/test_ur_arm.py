@@ -235,9 +235,9 @@ def test_a_stale_hand_source_stops_the_arm():
     with standin() as ur, realtime_threads():  # as connected_arm's
         config = ur_config(ur.host)
         source = config.hand_source.as_kind("udp", **{
-            "udp_host": ur.host, "udp_port": 0, "units_to_m": TRACKER.units_to_m,
+            "udp_host": ur.host, "units_to_m": TRACKER.units_to_m,
             "rotation": tuple(map(tuple, TRACKER.rotation)),
-            "translation": tuple(TRACKER.translation)})
+            "translation": tuple(TRACKER.translation)}).model_copy(update={"udp_port": 0})
         config = config.model_copy(update={"hand_source": source})
         arm = URArm(config.ur, config.safety)
         tracker = UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)

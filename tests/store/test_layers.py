@@ -13,4 +13,5 @@ def test_session_store_imports_no_simulator_protocol_or_learner():
          "print(' '.join(sorted(m for m in sys.modules if m.startswith(('app', 'robot_io')))))"],
         capture_output=True, text=True, check=True).stdout.split()
     assert set(loaded) == {"app", "app.protocol", "app.protocol.vocabulary", "robot_io",
-                           "robot_io.errors", "robot_io.control.recorder", "robot_io.theta"}
+                           "robot_io.errors", "robot_io.control", "robot_io.control.recorder",
+                           "robot_io.theta"}
