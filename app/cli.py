@@ -21,7 +21,7 @@ from session_store.paths import DEFAULT_STUDY, participant_path
 #: Modules that contribute subcommands: each has ``register(subparsers) -> None`` and sets
 #: ``func(args) -> int`` on its parsers.
 _COMMAND_MODULES: tuple[str, ...] = (
-    "robot_io.cli",
+    "app.session.rig_cli",
     "app.learning.cli",
     "app.protocol.cli",
     "app.analysis.cli",

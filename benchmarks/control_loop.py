@@ -18,11 +18,11 @@ import time
 import numpy as np
 
 from robot_io.config import ControllerConfig, LoopConfig
-from robot_io.coupling import HandCoupling
-from robot_io.dmp import DMP
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.control.coupling import HandCoupling
+from robot_io.control.dmp import DMP
+from robot_io.control.trial import simulate_trial
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
-from robot_io.trial import simulate_trial
 
 THETA = Theta(a=5.0, delta=-0.2, k=15.0)
 

@@ -46,14 +46,14 @@ from app.session.config import LabConfig
 from app.session.rehearsal import Rehearsal
 from app.session.runner import SessionRunner
 from app.ui.server import HandoverServers, ServeOptions
-from robot_io.cycle import Gates, run_cycle
-from robot_io.loop import Outcome
+from robot_io.control.cycle import Gates, run_cycle
+from robot_io.control.loop import Outcome
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import RigSpec
-from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
+from robot_io.standins.ur.control_script import SERVOL
 from robot_io.theta import Theta
-from robot_io.ur_standin.control_script import SERVOL
 
 PROTOCOL = {"initial_trials": 5, "batch_size": 5, "learning_batches": 1, "best_trials": 1,
             "validation_batches": 1}

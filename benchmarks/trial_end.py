@@ -28,9 +28,9 @@ import numpy as np
 
 from app.session.overview import StudyOverview, summarise, summary_of
 from robot_io.config import ControllerConfig
-from robot_io.simulated_hand import Scenario
+from robot_io.control.trial import simulate_trial
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.theta import Theta
-from robot_io.trial import simulate_trial
 from session_store.schema import sample_column_names
 from session_store.store import ParticipantStore, sample_matrix
 

@@ -19,12 +19,12 @@ import sys
 
 import numpy as np
 
+from robot_io.arms.ur_arm import URArm
 from robot_io.config import ControllerConfig
 from robot_io.devices import ur_trial
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.standins.ur.control import ControlClient
 from robot_io.theta import Theta
-from robot_io.ur_arm import URArm
-from robot_io.ur_standin.control import ControlClient
 
 THETA = Theta(a=5.0, delta=-0.2, k=15.0)
 SERVOL = 24
@@ -33,7 +33,7 @@ SERVOL = 24
 def figures(series: str, host: str, seconds: float) -> dict[str, float]:
     config = ControllerConfig()
     config = config.model_copy(update={"ur": config.ur.model_copy(update={"host": host})})
-    standin = subprocess.Popen([sys.executable, "-m", "robot_io.ur_standin", "--host", host,
+    standin = subprocess.Popen([sys.executable, "-m", "robot_io.standins.ur", "--host", host,
                                 "--series", series, "--exit-with-stdin"],
                                stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:

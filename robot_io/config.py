@@ -7,75 +7,34 @@ robot base frame.
 No value is infinite or NaN, and every limit that guards a person has a hard upper bound
 (``docs/hardware.md``, "Hard bounds of the configuration"): the box lies within a UR5's reach, the
 speed and acceleration caps stay at or below what the arm and the mock are strict about, and every
-time-out is finite. A value outside its bound is refused with its field, its value and the range.
+time-out is finite. A value outside its bound is refused with its field, its value and the range
+(the bounded field types: ``robot_io.bounds``). ``[hand_source]`` has one table per kind of hand
+source, each with its own keys and defaults (``robot_io.hands.config``).
 """
 
 from __future__ import annotations
 
-import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, model_validator
 
+from robot_io.bounds import (
+    MAX_ACCELERATION_BOUND,
+    MAX_SPEED_BOUND,
+    Frozen,
+    Positive,
+    ScenePoint,
+    WorkspaceCorner,
+    in_range,
+)
 from robot_io.clock import PrioritySetting
 from robot_io.errors import ConfigError
+from robot_io.hands.config import HandSourceConfig, SimulatedSource
 from robot_io.vector import written
 
-Vec3 = tuple[float, float, float]
-Positive = Annotated[float, Field(gt=0)]
 
-#: A UR5's reach from the base axis [m] (Universal Robots' data sheet: 850 mm) ...
-UR5_REACH_M = 0.85
-#: ... plus a gripper and the object it holds: no workspace coordinate is farther from the base.
-WORKSPACE_BOUND_M = 1.0
-#: TCP speed cap bound [m/s]: what the mock arm and the stand-in controller are strict about, above
-#: any handover reach (the DMP peaks well under 1 m/s) and far below the arm's own capability; near a
-#: person, ISO/TS 15066 asks for the lowest speed that does the task, not the most the arm can do.
-MAX_SPEED_BOUND = 1.5
-#: TCP acceleration cap bound [m/s²]: the mock's strict limit and the largest stop deceleration.
-MAX_ACCELERATION_BOUND = 10.0
-
-
-def in_range(low: float, high: float, unit: str = "", *, low_open: bool = True) -> Any:
-    """A finite float in (low, high] (``low_open``) or [low, high]. A value outside, ``inf`` or NaN
-    is refused with the range in the message (pydantic adds the field and the value)."""
-    bracket = "(" if low_open else "["
-    allowed = f"must be a finite number in {bracket}{low:g}, {high:g}]" + (f" {unit}" if unit else "")
-
-    def check(value: Any) -> Any:
-        try:
-            number = float(value)
-        except (TypeError, ValueError):
-            return value  # not a number at all: pydantic's own message says so
-        if not (math.isfinite(number) and (number > low if low_open else number >= low)
-                and number <= high):
-            raise ValueError(allowed)
-        return number
-
-    bound = Field(gt=low, le=high) if low_open else Field(ge=low, le=high)
-    return Annotated[float, BeforeValidator(check), bound]
-
-
-Coordinate = in_range(-WORKSPACE_BOUND_M, WORKSPACE_BOUND_M, "m", low_open=False)
-WorkspaceCorner = tuple[Coordinate, Coordinate, Coordinate]
-#: A point of the table-top scene (the participant's side reaches beyond the robot's) [m].
-SceneCoordinate = in_range(-3.0, 3.0, "m", low_open=False)
-ScenePoint = tuple[SceneCoordinate, SceneCoordinate, SceneCoordinate]
-#: One row of the tracker → robot rotation matrix (each entry of a rotation is within ±1).
-RotationEntry = in_range(-1.0, 1.0, low_open=False)
-RotationRow = tuple[RotationEntry, RotationEntry, RotationEntry]
-#: How far a configured rotation may be from orthonormal (largest entry of |RᵀR − I|):
-#: `handover calibrate-tracker` prints its entries to 6 decimals, a few 1e-6 off.
-ROTATION_TOLERANCE = 1e-3
-
-
-class _Frozen(BaseModel):
-    # allow_inf_nan=False: no configuration value is infinite or NaN, bounded or not.
-    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
-
-
-class DMPConstants(_Frozen):
+class DMPConstants(Frozen):
     """Fixed DMP and coupling constants (Table I, "Fixed")."""
 
     tau0: Positive = Field(1.0, description="τ0, uncoupled time constant [s] (Table I)")
@@ -97,7 +56,7 @@ class DMPConstants(_Frozen):
         return self.alpha_x / 4.0
 
 
-class SceneConfig(_Frozen):
+class SceneConfig(Frozen):
     """Table-top geometry of Fig. 1: robot start R, handover point H, hand start A, box B, place C."""
 
     robot_start: ScenePoint = Field((0.35, -0.35, 0.35), description="R: robot TCP start [m]")
@@ -110,8 +69,8 @@ class SceneConfig(_Frozen):
         return np.asarray(getattr(self, name), dtype=float)
 
 
-class SafetyLimits(_Frozen):
-    """Limits applied to every target before it reaches the arm (see ``robot_io.safety``)."""
+class SafetyLimits(Frozen):
+    """Limits applied to every target before it reaches the arm (see ``robot_io.control.safety``)."""
 
     workspace_min: WorkspaceCorner = Field(
         (0.10, -0.60, 0.05), description="workspace box, lower corner [m], each within ±1 m")
@@ -141,7 +100,7 @@ HAND_RANGE_BOUNDS = {"reaction_delay_s": 5.0, "mean_speed_mps": 3.0, "pause_s": 
 MINIMUM_JERK_PEAK_OVER_MEAN = 1.875
 
 
-class HandProfile(_Frozen):
+class HandProfile(Frozen):
     """The participant's hand: the fastest any hand moves, which tracked samples must respect, and
     how the simulated participant moves (each range drawn from uniformly per trial)."""
 
@@ -161,7 +120,7 @@ class HandProfile(_Frozen):
         0.0, description="tracker noise, std per axis [m]")
     dropout_rate: float = Field(0.0, ge=0, lt=1, description="share of tracker samples lost")
     pull_n: float = Field(15.0, ge=0, le=100, description="pull on the object once grasped [N]; 0: "
-                                                         "never takes it (see robot_io.simulated_pull)")
+                                                         "never takes it (see robot_io.hands.simulated_pull)")
     grasp_delay_s: float = Field(0.5, ge=0, le=10, description="from touching the object to pulling "
                                                                "[s]; longer than [release] baseline_s")
 
@@ -182,7 +141,7 @@ class HandProfile(_Frozen):
         return self
 
 
-class LoopConfig(_Frozen):
+class LoopConfig(Frozen):
     """The control loop: rate, end conditions, and when the tracker counts as lost."""
 
     rate_hz: Literal[125, 500] = Field(500, description="control rate: 125 (CB-series) or 500 Hz")
@@ -202,8 +161,8 @@ class LoopConfig(_Frozen):
                             "to start without it; false: never")
 
 
-class URConfig(_Frozen):
-    """The UR5 over RTDE (``robot_io.ur_arm``); see ``docs/hardware.md``."""
+class URConfig(Frozen):
+    """The UR5 over RTDE (``robot_io.arms.ur_arm``); see ``docs/hardware.md``."""
 
     host: str | None = Field(
         None, description="controller address, required by [arm] kind = \"ur\"; never assumed "
@@ -228,115 +187,15 @@ class URConfig(_Frozen):
         False, description="use RTDE registers 24–47 (when a fieldbus owns 0–23)")
 
 
-class HandSourceConfig(_Frozen):
-    """Where hand samples come from and the tracker → robot-base calibration (``docs/hardware.md``)."""
-
-    kind: Literal["simulated", "lsl", "udp", "natnet", "vicon"] = Field(
-        "simulated", description="hand source (natnet: OptiTrack Motive's NatNet stream, unicast; "
-                                 "vicon: Vicon's DataStream through its SDK, the optional extra [vicon])")
-    lsl_stream_type: str = Field("Mocap", description="LSL: type of the stream to resolve")
-    lsl_stream_name: str | None = Field(None, description="LSL: name of the stream (None: any)")
-    lsl_channels: tuple[int, int, int] = Field((0, 1, 2), description="LSL: channels of x, y, z")
-    udp_host: str = Field("0.0.0.0", description="UDP: address to listen on")
-    udp_port: int = Field(9870, ge=1, le=65535, description="UDP: port to listen on")
-    natnet_server: str | None = Field(
-        None, description="NatNet: the Motive PC's address, required by kind = \"natnet\"; never "
-                          "assumed (a stand-in: 127.0.0.1)")
-    natnet_local_address: str | None = Field(
-        None, description="NatNet: this machine's address to receive on (None: the one it reaches "
-                          "natnet_server from)")
-    natnet_command_port: int = Field(
-        1510, ge=1, le=65535, description="NatNet: Motive's command port (Motive's default 1510)")
-    natnet_rigid_body: str | None = Field(
-        None, description="NatNet: the name of the hand's rigid body in Motive, required by kind = "
-                          "\"natnet\" (never the first one streamed)")
-    vicon_server: str | None = Field(
-        None, description="Vicon: the address of the PC that runs Tracker, Nexus or Shogun (its "
-                          "DataStream server), required by kind = \"vicon\"; never assumed")
-    vicon_port: int = Field(
-        801, ge=1, le=65535, description="Vicon: the DataStream port (801, the one Vicon serves on)")
-    vicon_subject: str | None = Field(
-        None, description="Vicon: the name of the hand's subject (Tracker: its object), required by "
-                          "kind = \"vicon\" (never the first one streamed)")
-    vicon_segment: str | None = Field(
-        None, description="Vicon: the segment of that subject whose position is the hand, required "
-                          "by kind = \"vicon\" (Tracker: an object's one segment has its name)")
-    units_to_m: in_range(0, 1, "m per unit") = Field(
-        0.001, description="tracker units → metres (Vicon, OptiTrack over LSL: mm; NatNet streams "
-                           "metres: 1.0)")
-    rotation: tuple[RotationRow, RotationRow, RotationRow] = Field(
-        ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
-        description="tracker → robot base rotation (rows), from `handover calibrate-tracker`")
-    translation: ScenePoint = Field(
-        (0.0, 0.0, 0.0), description="tracker → robot base translation [m]")
-    resolve_timeout_s: in_range(0, 60, "s") = Field(
-        5.0, description="LSL, NatNet, Vicon: give up finding the stream (Vicon: its first frame) "
-                         "after [s]")
-
-    @field_validator("rotation")
-    @classmethod
-    def _proper_rotation(cls, rotation: tuple) -> tuple:
-        """A rotation, not any matrix: orthonormal within :data:`ROTATION_TOLERANCE` and det +1. A
-        singular matrix would squash the hand onto a plane, a reflection mirror it."""
-        matrix = np.array(rotation, dtype=float)
-        error, det = float(np.max(np.abs(matrix.T @ matrix - np.eye(3)))), float(np.linalg.det(matrix))
-        if error > ROTATION_TOLERANCE or det < 0:
-            # (no "rotation" in the words: robot_io.errors.explain then prefixes the field and value)
-            raise ValueError(f"must be orthonormal (|RᵀR − I| ≤ {ROTATION_TOLERANCE:g}, here {error:.3g}) "
-                             f"with determinant +1 (here {det:.3g}): it turns, never squashes or "
-                             "mirrors; paste the rows `handover calibrate-tracker` prints")
-        return rotation
-
-    @model_validator(mode="after")
-    def _tracker_complete(self) -> HandSourceConfig:
-        """NatNet and Vicon need their server's address (never assumed, as [ur] host), the names of
-        what they read (never "the first one streamed"), and the unit they stream: a units_to_m for
-        another unit would put the hand a thousand times too close or too far."""
-        if self.kind == "natnet":
-            self._require_tracker(
-                ("natnet_server", "the Motive PC's address", "192.168.1.20"),
-                {"natnet_rigid_body": "the name of the hand's rigid body as Motive streams it (e.g. "
-                                      'natnet_rigid_body = "hand")'},
-                ("1.0", "NatNet streams metres"))
-        elif self.kind == "vicon":
-            in_tracker = "in Tracker an object's one segment has the object's name"
-            self._require_tracker(
-                ("vicon_server", "the address of the PC running Vicon Tracker, Nexus or Shogun",
-                 "192.168.1.30"),
-                {"vicon_subject": "the hand's subject name as Vicon streams it (e.g. vicon_subject = "
-                                  f'"hand"; {in_tracker})',
-                 "vicon_segment": "the hand's segment name as Vicon streams it (e.g. vicon_segment = "
-                                  f'"hand"; {in_tracker})'},
-                ("0.001", "the Vicon DataStream reports millimetres"))
-        return self
-
-    def _require_tracker(self, server: tuple[str, str, str], names: dict[str, str],
-                         unit: tuple[str, str]) -> None:
-        """Refuse an unset ``server`` (its field, whose address it is, an example), an unset name
-        (field → what it needs), or a units_to_m other than ``unit`` (the value, why)."""
-        field, whose, example = server
-        if getattr(self, field) is None:
-            raise ConfigError(f'[hand_source] {field} is not set; kind = "{self.kind}" needs {whose}. '
-                              f'Set it (e.g. {field} = "{example}"): it has no default, so no tracker '
-                              "at an assumed address is ever read")
-        for field, needs in names.items():
-            if not getattr(self, field):
-                raise ConfigError(f'[hand_source] {field} is not set; kind = "{self.kind}" needs {needs}')
-        value, why = unit
-        if self.units_to_m != float(value):
-            raise ConfigError(f"hand_source.units_to_m = {self.units_to_m:g} but {why}: set units_to_m = "
-                              f'{value} with kind = "{self.kind}"')
-
-
 #: A Robotiq register value (position, speed, force): one byte.
 RobotiqByte = Annotated[int, Field(ge=0, le=255)]
 #: The Robotiq URCap's gripper socket on the controller (its manual, "Control over the socket").
 ROBOTIQ_PORT = 63352
 
 
-class GripperConfig(_Frozen):
+class GripperConfig(Frozen):
     """The gripper that holds the object: ``tool_output``, a tool digital output drives it;
-    ``robotiq_socket``, a Robotiq 2F-85 through its URCap's socket (``robot_io.robotiq``)."""
+    ``robotiq_socket``, a Robotiq 2F-85 through its URCap's socket (``robot_io.grippers.robotiq``)."""
 
     kind: Literal["none", "tool_output", "robotiq_socket"] = Field("none", description="gripper interface")
     tool_output: int = Field(0, ge=0, le=1, description="tool_output: the tool digital output that drives it")
@@ -369,7 +228,7 @@ class GripperConfig(_Frozen):
         return self
 
 
-class ReleaseConfig(_Frozen):
+class ReleaseConfig(Frozen):
     """Force-threshold release (docs/controller.md): baseline at grasp, filtered norm, threshold."""
 
     threshold_n: in_range(0, 50, "N") = Field(
@@ -384,14 +243,14 @@ class ReleaseConfig(_Frozen):
                           "not_taken and the robot retracts with the object [s]")
 
 
-class ArmConfig(_Frozen):
+class ArmConfig(Frozen):
     """Which arm the rig drives: the kinematic mock (no hardware) or a UR over RTDE (``[ur]``)."""
 
     kind: Literal["mock", "ur"] = Field("mock", description="mock: kinematic mock arm; ur: a UR5 "
                                                             "over RTDE at [ur] host (moves it!)")
 
 
-class CycleConfig(_Frozen):
+class CycleConfig(Frozen):
     """The whole handover cycle around the coupled reach (docs/controller.md): prepare → ready → go →
     reach → hold → release (or not taken) → retract."""
 
@@ -407,7 +266,7 @@ class CycleConfig(_Frozen):
                                        "the participant takes the object clear [s]")
 
 
-class ControllerConfig(_Frozen):
+class ControllerConfig(Frozen):
     """Everything the controller needs; the TOML file has one table per field."""
 
     arm: ArmConfig = ArmConfig()
@@ -418,7 +277,7 @@ class ControllerConfig(_Frozen):
     hand: HandProfile = HandProfile()
     loop: LoopConfig = LoopConfig()
     ur: URConfig = URConfig()
-    hand_source: HandSourceConfig = HandSourceConfig()
+    hand_source: HandSourceConfig = SimulatedSource()
     gripper: GripperConfig = GripperConfig()
     release: ReleaseConfig = ReleaseConfig()
 

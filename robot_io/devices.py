@@ -6,18 +6,18 @@ import time
 
 import numpy as np
 
+from robot_io.arms.ur_arm import URArm
 from robot_io.config import ControllerConfig
+from robot_io.control.loop import TrialRecord
+from robot_io.control.trial import make_clock, make_loop
 from robot_io.errors import RobotIOError
-from robot_io.frame import FrameTransform
-from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
-from robot_io.hand import HandSource
-from robot_io.loop import TrialRecord
-from robot_io.robotiq import ACTIVATED, RobotiqSocketGripper, probe
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.grippers.gripper import Gripper
+from robot_io.grippers.kinds import GRIPPERS
+from robot_io.hands.frame import FrameTransform
+from robot_io.hands.hand import HandSource
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.tracked_hand import PLAUSIBLE_RANGE_M, TrackedHand
 from robot_io.theta import Theta
-from robot_io.tracked_hand import PLAUSIBLE_RANGE_M, TrackedHand
-from robot_io.trial import make_clock, make_loop
-from robot_io.ur_arm import URArm
 
 
 def tracker_transform(config: ControllerConfig) -> FrameTransform:
@@ -27,24 +27,11 @@ def tracker_transform(config: ControllerConfig) -> FrameTransform:
 
 
 def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: int = 0) -> HandSource:
-    """The configured hand source; the simulated one needs a scenario."""
-    kind = config.hand_source.kind
-    if kind == "lsl":
-        from robot_io.lsl_hand import LSLHand
-
-        return LSLHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
-    if kind == "udp":
-        from robot_io.udp_hand import UDPHand
-
-        return UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
-    if kind == "natnet":
-        from robot_io.natnet_hand import NatNetHand
-
-        return NatNetHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
-    if kind == "vicon":
-        from robot_io.vicon_hand import ViconHand  # imports the SDK only when it connects
-
-        return ViconHand(config.hand_source, tracker_transform(config), config.hand.max_speed)
+    """The configured hand source: a tracker's, connected (``[hand_source] kind``, robot_io.hands.config),
+    or the simulated participant's, which needs a scenario."""
+    source = config.hand_source
+    if source.reader is not None:
+        return source.open(tracker_transform(config), config.hand.max_speed)
     if scenario is None:
         raise RobotIOError("hand_source.kind = 'simulated' needs a scenario")
     return SimulatedHand(scenario, config.scene, config.hand, seed)
@@ -52,12 +39,7 @@ def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: 
 
 def open_gripper(config: ControllerConfig) -> Gripper:
     """The configured gripper, connected (a Robotiq one also activated, if it was not)."""
-    kind = config.gripper.kind
-    if kind == "tool_output":
-        return ToolOutputGripper(config.ur.host, config.gripper)
-    if kind == "robotiq_socket":
-        return RobotiqSocketGripper(config.gripper_host, config.gripper)
-    return NoGripper()
+    return GRIPPERS[config.gripper.kind].open(config)
 
 
 def ur_trial(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: URArm) -> TrialRecord:
@@ -83,23 +65,10 @@ def check_devices(config: ControllerConfig, listen_s: float = 1.0) -> tuple[list
 def _check_gripper(config: ControllerConfig) -> str:
     """One line on the gripper: reachable, and a Robotiq's activation, position and fault code
     (read, never activated or moved)."""
-    gripper = config.gripper
     try:
-        if gripper.kind == "tool_output":
-            ToolOutputGripper(config.ur.host, gripper).disconnect()
-            return f"gripper: tool digital output {gripper.tool_output} reachable (not switched)"
-        if gripper.kind == "robotiq_socket":
-            status = probe(config.gripper_host, gripper)
-            where = f"Robotiq URCap on {config.gripper_host}:{gripper.port}, {status.describe()}"
-            if status.flt:
-                return f"gripper: NOT OK — {where}: clear the fault on the teach pendant"
-            if status.sta != ACTIVATED:
-                return (f"gripper: {where}; not moved: it activates when the rig opens it (the "
-                        "fingers open and close once)")
-            return f"gripper: {where} (not moved)"
+        return f"gripper: {GRIPPERS[config.gripper.kind].check(config)}"
     except RobotIOError as exc:
         return f"gripper: NOT OK — {str(exc).removeprefix('gripper: ')}"
-    return "gripper: none configured"
 
 
 def _check_arm(config: ControllerConfig, lines: list[str]) -> bool:
@@ -123,8 +92,8 @@ def _check_arm(config: ControllerConfig, lines: list[str]) -> bool:
 
 def _check_hand(config: ControllerConfig, listen_s: float) -> list[str]:
     kind = config.hand_source.kind
-    if kind == "simulated":
-        return ["hand: simulated (no tracker configured)"]
+    if config.hand_source.reader is None:
+        return [f"hand: {kind} (no tracker configured)"]
     try:
         hand = open_hand(config)
     except (RobotIOError, OSError) as exc:

@@ -21,7 +21,7 @@ class Stage(StrEnum):
     DONE = "done"  # back at R: the cycle is over
 
 
-#: The experimenter's confirmation the cycle waits for in a stage (:class:`robot_io.cycle.Gates`).
+#: The experimenter's confirmation the cycle waits for in a stage (:class:`robot_io.control.cycle.Gates`).
 AWAITS: dict[Stage, Literal["loaded", "go"]] = {Stage.PREPARE: "loaded", Stage.READY: "go"}
 
 #: The value of the ``stage`` sample column in each streamed stage.

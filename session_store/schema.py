@@ -16,7 +16,7 @@ from enum import Enum
 
 from pydantic import BaseModel
 
-from robot_io.recorder import COLUMNS as SAMPLE_COLUMNS
+from robot_io.control.recorder import COLUMNS as SAMPLE_COLUMNS
 from session_store.database import Database
 from session_store.models import (
     Answer,

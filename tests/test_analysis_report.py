@@ -21,7 +21,7 @@ from app.cli import main
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.export import load_study
 

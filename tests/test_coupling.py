@@ -13,7 +13,7 @@ from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
 from robot_io.config import DMPConstants
-from robot_io.coupling import DistanceFilter, HandCoupling, sigmoid
+from robot_io.control.coupling import DistanceFilter, HandCoupling, sigmoid
 from robot_io.errors import ConfigError, explain
 from robot_io.theta import Theta
 

@@ -7,7 +7,7 @@ import pytest
 
 from robot_io.config import HandProfile
 from robot_io.errors import ConfigError
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 
 
 def test_same_seed_same_trajectory_other_seed_other_timing(config):

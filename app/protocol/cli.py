@@ -11,13 +11,13 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from app.arguments import argument_type
 from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
 from app.session.cli import Interrupted, add_rig_arguments, interruptible, open_runner
 from app.session.config import load_lab_config
 from app.session.runner import RunnerView, SessionRunner, recorded_session
-from robot_io.cli import argument_type
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.paths import EXPORT_FORMATS
 from session_store.reading import reading

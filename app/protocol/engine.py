@@ -38,7 +38,8 @@ from app.protocol.plan import Slot, protocol_slots
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
 from app.protocol.study import StudyConfig
 from robot_io.config import ControllerConfig
-from robot_io.loop import Outcome, TrialRecord
+from robot_io.control.loop import Outcome, TrialRecord
+from robot_io.hands.config import own_keys
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.models import (
@@ -79,6 +80,8 @@ def rig_of(config: dict) -> dict:
            for table in RIG_TABLES}
     if (rig["arm"] or {}).get("kind") != "ur":
         rig["ur"] = None
+    if rig["hand_source"] is not None:  # recorded before each kind had a table of its own: every key
+        rig["hand_source"] = own_keys(rig["hand_source"])
     return rig
 
 

@@ -9,7 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from app.protocol.seeds import Seed
 from robot_io.config import ControllerConfig
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.theta import THETA_BOUNDS
 
 

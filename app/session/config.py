@@ -32,7 +32,7 @@ from pydantic.fields import FieldInfo
 from app.protocol.study import StudyConfig
 from robot_io.config import ControllerConfig
 from robot_io.errors import ConfigError
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 #: The fields of a participant's StudyConfig that a lab sets in [protocol] and [learner]; their
 #: types, bounds and documentation are StudyConfig's own.

@@ -30,7 +30,7 @@ from app.protocol.markers import MARKER_TYPE, ROBOT_TYPE, SOFTWARE, encode, mark
 from app.protocol.state import SessionState
 from app.session.config import RecordSettings
 from robot_io.clock import monotonic_of_utc
-from robot_io.recorder import SLICES
+from robot_io.control.recorder import SLICES
 from robot_io.rig.stream import SampleStream
 
 log = logging.getLogger(__name__)

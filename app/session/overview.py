@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict
 
 from app.protocol.state import Step
 from app.protocol.stored import stored_session
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.reading import reading
 from session_store.store import ParticipantStore, participant_codes, participant_path

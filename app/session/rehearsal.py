@@ -1,7 +1,7 @@
 """Rehearsal without hardware on the real code path (``serve --rehearse``, ``run-session --rehearse``).
 
-It starts the project's stand-in UR controller (:mod:`robot_io.ur_standin`) on a free loopback
-address and a hand publisher (:mod:`robot_io.hand_publisher`) that plays the simulated participant's
+It starts the project's stand-in UR controller (:mod:`robot_io.standins.ur`) on a free loopback
+address and a hand publisher (:mod:`robot_io.hands.hand_publisher`) that plays the simulated participant's
 hand on LSL (or UDP, or as a rigid body of a stand-in NatNet server) and makes the stand-in pull on
 the object once the hand holds it at H. The lab configuration is pointed at them — ``[arm] kind =
 "ur"`` at that address, ``[hand_source]`` the publisher's stream, ``[gripper]`` the UR's tool output,
@@ -27,11 +27,11 @@ import numpy as np
 
 from app.session.config import LabConfig
 from robot_io.config import ROBOTIQ_PORT, GripperConfig
-from robot_io.hand_publisher import HandPublisher, PublisherSpec
-from robot_io.simulated_hand import Scenario
-from robot_io.ur_standin.control import ControlClient
-from robot_io.ur_standin.control_script import MOVEL
-from robot_io.ur_standin.standin import RTDE_PORT
+from robot_io.hands.hand_publisher import HandPublisher, PublisherSpec
+from robot_io.hands.simulated_hand import Scenario
+from robot_io.standins.ur.control import ControlClient
+from robot_io.standins.ur.control_script import MOVEL
+from robot_io.standins.ur.standin import RTDE_PORT
 
 log = logging.getLogger(__name__)
 
@@ -107,7 +107,7 @@ class Rehearsal:
                  realtime_priority: bool = True) -> None:
         self.host = free_loopback_host()
         self.standin = subprocess.Popen(
-            [sys.executable, "-m", "robot_io.ur_standin", "--host", self.host, "--series", series,
+            [sys.executable, "-m", "robot_io.standins.ur", "--host", self.host, "--series", series,
              "--exit-with-stdin", *(["--realtime-priority"] if realtime_priority else [])],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.publisher: HandPublisher | None = None
@@ -116,16 +116,16 @@ class Rehearsal:
             if line.strip() != f"ready {self.host}":
                 raise OSError(f"the stand-in controller did not start ({line.strip()!r})")
             stream = f"handover-rehearsal-{os.getpid()}-{self.host}"
-            source = lab.hand_source.model_copy(update={
-                "kind": hand, "lsl_stream_name": stream,
-                "resolve_timeout_s": max(lab.hand_source.resolve_timeout_s, PUBLISHED_RESOLVE_S)})
+            resolve = max(getattr(lab.hand_source, "resolve_timeout_s", 0.0), PUBLISHED_RESOLVE_S)
             if hand == "udp":
-                source = source.model_copy(update={"udp_host": "127.0.0.1",
-                                                   "udp_port": free_udp_port("127.0.0.1")})
-            if hand == "natnet":  # its command port is the stand-in's, known once it has bound it
-                source = source.model_copy(update={
-                    "natnet_server": "127.0.0.1", "natnet_local_address": None, "units_to_m": 1.0,
-                    "natnet_rigid_body": lab.hand_source.natnet_rigid_body or REHEARSAL_RIGID_BODY})
+                played = {"udp_host": "127.0.0.1", "udp_port": free_udp_port("127.0.0.1")}
+            elif hand == "natnet":  # its command port is the stand-in's, known once it has bound it
+                played = {"natnet_server": "127.0.0.1", "natnet_local_address": None, "units_to_m": 1.0,
+                          "resolve_timeout_s": resolve, "natnet_rigid_body": getattr(
+                              lab.hand_source, "natnet_rigid_body", None) or REHEARSAL_RIGID_BODY}
+            else:
+                played = {"lsl_stream_name": stream, "resolve_timeout_s": resolve}
+            source = lab.hand_source.as_kind(hand, **played)
             self.lab = lab.with_rig(
                 arm=lab.arm.model_copy(update={"kind": "ur"}),
                 ur=lab.ur.model_copy(update={"host": self.host}),

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from robot_io.recorder import COLUMNS
+from robot_io.control.recorder import COLUMNS
 from session_store.schema import column_suffixes
 
 

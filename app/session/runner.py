@@ -53,9 +53,10 @@ from app.session.rehearsal import Rehearsal, rehearsal_rig
 from app.session.replay import stored_rows
 from robot_io.clock import utc_of_monotonic
 from robot_io.config import ControllerConfig, SceneConfig
-from robot_io.cycle import not_started
+from robot_io.control.cycle import not_started
+from robot_io.control.loop import Outcome, TrialRecord
 from robot_io.errors import RobotIOError, explain
-from robot_io.loop import Outcome, TrialRecord
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.client import RigClient
 from robot_io.rig.messages import (
     DeviceReport,
@@ -69,7 +70,6 @@ from robot_io.rig.messages import (
     StageReached,
     TrialDone,
 )
-from robot_io.simulated_hand import Scenario
 from robot_io.stages import AWAITS, Stage
 from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError

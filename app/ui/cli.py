@@ -11,11 +11,11 @@ import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from app.arguments import argument_type
 from app.protocol.seeds import parse_seed
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
-from robot_io.cli import argument_type
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.paths import DEFAULT_STUDY
 
 if TYPE_CHECKING:
@@ -137,8 +137,8 @@ def serve_command(args: argparse.Namespace) -> int:
         print(f"dashboard (experimenter): {dashboard}", flush=True)
         print(f"participant:              {participant_line(runner.view)}", flush=True)
         if args.unblind:
-            print("validation:               NOT blind (--unblind): the dashboard shows which trial "
-                  "is θ*", flush=True)
+            print("validation:               NOT blind (--unblind): the dashboard shows which "
+                  "trial is θ*", flush=True)
         print(f"dashboard token:          {servers.token}", flush=True)
         if runner.rehearsal is not None:
             print(f"rehearsal:                stand-in UR controller at {runner.rehearsal.host}",

@@ -56,7 +56,7 @@ from app.ui.status_text import (
 )
 from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, STOP_LABEL, style_block
 from robot_io.errors import RobotIOError
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
 from session_store.models import check_participant_code
 

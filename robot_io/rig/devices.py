@@ -1,13 +1,13 @@
 """The rig's devices, opened once per rig process from the configuration, and the per-trial set the
 cycle runs on (docs/controller.md, the rig process).
 
-``[arm] kind``: ``mock`` (kinematic :class:`~robot_io.mock_arm.MockArm`, made anew each trial on
-the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.ur_arm.URArm`
+``[arm] kind``: ``mock`` (kinematic :class:`~robot_io.arms.mock_arm.MockArm`, made anew each trial on
+the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.arms.ur_arm.URArm`
 over ur_rtde, connected once). ``[hand_source] kind``: ``simulated`` (a seeded
-:class:`~robot_io.simulated_hand.SimulatedHand` per trial), ``lsl``, ``udp``, ``natnet`` or ``vicon``
-(opened once).
+:class:`~robot_io.hands.simulated_hand.SimulatedHand` per trial) or a tracker's (opened once, by the
+reader its kind registers in :data:`robot_io.hands.config.HAND_SOURCES`).
 ``[gripper] kind``: ``tool_output`` (the UR's tool digital output), ``robotiq_socket`` (a Robotiq
-2F-85 on its URCap's socket, :mod:`robot_io.robotiq`) or ``none``.
+2F-85 on its URCap's socket, :mod:`robot_io.grippers.robotiq`) or ``none``.
 """
 
 from __future__ import annotations
@@ -17,18 +17,19 @@ import time
 
 import numpy as np
 
-from robot_io.arm import ArmState
-from robot_io.cycle import CycleDevices
+from robot_io.arms.arm import ArmState
+from robot_io.arms.mock_arm import MockArm
+from robot_io.arms.ur_arm import URArm
+from robot_io.control.cycle import CycleDevices
+from robot_io.control.trial import make_clock
 from robot_io.devices import open_gripper, open_hand
 from robot_io.errors import ArmFault, ConfigError, GripperFault
-from robot_io.gripper import Gripper, NoGripper, ToolOutputGripper
-from robot_io.hand import HandSource
-from robot_io.mock_arm import MockArm
+from robot_io.grippers.gripper import Gripper, NoGripper, ToolOutputGripper
+from robot_io.grippers.kinds import GRIPPERS
+from robot_io.hands.simulated_hand import SimulatedHand
+from robot_io.hands.simulated_pull import SimulatedPull
+from robot_io.hands.tracked_hand import TrackedHand
 from robot_io.rig.messages import DeviceReport, RigSpec
-from robot_io.simulated_hand import SimulatedHand
-from robot_io.simulated_pull import SimulatedPull
-from robot_io.trial import make_clock
-from robot_io.ur_arm import URArm
 
 log = logging.getLogger(__name__)
 
@@ -57,14 +58,14 @@ class RigDevices:
         self.spec = spec
         config = spec.config
         self.ur: URArm | None = None
-        self.tracked: HandSource | None = None
+        self.tracked: TrackedHand | None = None
         self.gripper: Gripper = NoGripper()
         self._mock_position = config.scene.point("robot_start")
         self._mock: MockArm | None = None
         try:
             if config.arm.kind == "ur":
                 self.ur = URArm(config.ur, config.safety)
-            if config.hand_source.kind != "simulated":
+            if config.hand_source.reader is not None:
                 self.tracked = open_hand(config)
             self.gripper = open_gripper(config)
         except BaseException:
@@ -81,19 +82,9 @@ class RigDevices:
         else:
             arm_detail = f"mock arm, {config.loop.rate_hz} Hz"
         source = config.hand_source
-        if source.kind == "lsl":
-            hand_detail = f"LSL stream {getattr(tracked, 'name', '?')!r} ({source.lsl_stream_type})"
-        elif source.kind == "natnet":
-            hand_detail = f"NatNet {tracked.describe()}"
-        elif source.kind == "vicon":
-            hand_detail = f"Vicon {tracked.describe()}"
-        elif source.kind == "udp":
-            hand_detail = "UDP on {}:{}".format(*getattr(tracked, "address", ("?", "?")))
-        else:
-            hand_detail = f"simulated hand ({self.spec.scenario.value})"
-        gripper_detail = {"tool_output": f"tool digital output {config.gripper.tool_output}",
-                          "robotiq_socket": f"Robotiq 2F-85 on {config.gripper_host}:"
-                                            f"{config.gripper.port}"}.get(config.gripper.kind, "no gripper")
+        hand_detail = (f"{tracked.PROTOCOL} {tracked.describe()}" if tracked is not None
+                       else f"simulated hand ({self.spec.scenario.value})")
+        gripper_detail = GRIPPERS[config.gripper.kind].describe(config)
         return DeviceReport(arm=config.arm.kind, arm_detail=arm_detail,
                             polyscope_version=None if ur is None else ur.polyscope_version,
                             rate_hz=config.loop.rate_hz, hand_source=source.kind,

@@ -20,8 +20,8 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from robot_io.config import ControllerConfig
-from robot_io.loop import TrialSummary
-from robot_io.simulated_hand import Scenario
+from robot_io.control.loop import TrialSummary
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 
@@ -106,7 +106,7 @@ class DeviceReport(_Message):
     arm_detail: str = Field(description="e.g. 'UR at 127.0.0.5, PolyScope 3.15.7, 125 Hz'")
     polyscope_version: str | None = None
     rate_hz: int
-    hand_source: str = Field(description="simulated, lsl, udp, natnet or vicon")
+    hand_source: str = Field(description="[hand_source] kind (robot_io.hands.config.HAND_SOURCES)")
     hand_detail: str
     gripper: str = Field(description="none, tool_output or robotiq_socket")
     gripper_detail: str
@@ -190,7 +190,7 @@ class RigTiming(_Message):
 
 class HandLink(_Message):
     """What the tracked hand's link to its tracker went through, in one line
-    (:meth:`robot_io.tracked_hand.Link.notice`), sent each time it changes."""
+    (:meth:`robot_io.hands.tracked_hand.Link.notice`), sent each time it changes."""
 
     kind: Literal["hand_link"] = "hand_link"
     notice: str

@@ -27,9 +27,10 @@ import time
 from multiprocessing.connection import Connection
 
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
-from robot_io.cycle import Gates, run_cycle
+from robot_io.control.cycle import Gates, run_cycle
+from robot_io.control.loop import StopRequest
 from robot_io.errors import RobotIOError, explain
-from robot_io.loop import StopRequest
+from robot_io.hands.tracked_hand import Link, TrackedHand
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import (
     APP_SILENCE_S,
@@ -54,7 +55,6 @@ from robot_io.rig.messages import (
 from robot_io.rig.stream import SampleStream, StreamRecorder
 from robot_io.rig.timing import TimingReporter, TimingWatch
 from robot_io.stages import Stage
-from robot_io.tracked_hand import Link, TrackedHand
 
 log = logging.getLogger(__name__)
 

@@ -2,7 +2,7 @@
 
 The application creates one block per rig process: a header row ``[rows written, trial index,
 finished]`` (finished: 1 once the loop has written its last row and stops the arm) and
-``capacity`` sample rows of :data:`robot_io.recorder.COLUMNS`. The rig's :class:`StreamRecorder`
+``capacity`` sample rows of :data:`robot_io.control.recorder.COLUMNS`. The rig's :class:`StreamRecorder`
 writes each row in place, then bumps the count, so a reader never sees a row before it is written and
 reads cost the loop nothing. If the rig process dies, what it wrote is still there.
 """
@@ -14,7 +14,7 @@ from multiprocessing import shared_memory
 import numpy as np
 
 from robot_io.config import ControllerConfig
-from robot_io.recorder import WIDTH, TrialRecorder
+from robot_io.control.recorder import WIDTH, TrialRecorder
 
 #: Extra seconds of rows beyond the longest possible trial.
 MARGIN_S = 2.0

@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from robot_io.config import LoopConfig
-from robot_io.recorder import SLICES
+from robot_io.control.recorder import SLICES
 from robot_io.rig.messages import RigTiming
 from robot_io.rig.stream import SampleStream
 

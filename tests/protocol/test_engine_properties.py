@@ -31,7 +31,7 @@ from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
-from robot_io.trial import simulate_trial
+from robot_io.control.trial import simulate_trial
 from session_store.errors import ParticipantLocked
 from session_store.vocabulary import QUESTIONS, Actor
 

@@ -13,7 +13,7 @@ from support.study import as_version_1, fingerprint
 
 from app.cli import main
 from app.protocol.state import Step
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 
 def resume(study: Path, *extra: str) -> list[str]:

@@ -32,8 +32,8 @@ from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
-from robot_io.simulated_hand import Scenario
-from robot_io.trial import simulate_trial
+from robot_io.control.trial import simulate_trial
+from robot_io.hands.simulated_hand import Scenario
 from session_store.vocabulary import QUESTIONS, Phase
 
 CODE = "B01"

@@ -15,7 +15,7 @@ from app.cli import main
 from app.protocol.errors import RefusedAction
 from app.protocol.seeds import SEED_MAX, choose_seed, seeds_in_use
 from app.session.config import LabConfig
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 
 @pytest.mark.parametrize("command", ["run-session", "serve"])

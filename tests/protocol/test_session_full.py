@@ -9,7 +9,7 @@ from support.engine import drive_until, study_config
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step, replay
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.vocabulary import Phase, question
 
 

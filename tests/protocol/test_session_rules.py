@@ -14,8 +14,8 @@ from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
-from robot_io.simulated_hand import Scenario
-from robot_io.trial import simulate_trial
+from robot_io.control.trial import simulate_trial
+from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import (
     CorruptStoreError,
     SchemaVersionError,

@@ -11,13 +11,13 @@ import pytest
 from support.ur import MOVEL, SERVOL, commands, settled_servo_targets, standin
 from support.waiting import wait_for
 
-from robot_io.arm import ArmState
+from robot_io.arms.arm import ArmState
+from robot_io.arms.mock_arm import MockArm
+from robot_io.arms.ur_arm import URArm
 from robot_io.clock import SimClock
 from robot_io.config import ControllerConfig, SafetyLimits
+from robot_io.control.safety import SafetyLimiter
 from robot_io.errors import ArmFault
-from robot_io.mock_arm import MockArm
-from robot_io.safety import SafetyLimiter
-from robot_io.ur_arm import URArm
 
 pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
 

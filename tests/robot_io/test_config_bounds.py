@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from app.cli import main
-from robot_io.config import HandSourceConfig
+from robot_io.hands.config import SimulatedSource
 
 CASES = [
     ("[safety]\nmax_speed = inf", "safety.max_speed = inf: must be a finite number in (0, 1.5] m/s"),
@@ -65,7 +65,7 @@ def test_every_rotation_to_six_decimals_is_a_proper_rotation(quaternion):
     pass the check; so do they with the third row negated and the first two swapped, and never
     with one row negated (a reflection)."""
     rows = Rotation.from_quat(quaternion).as_matrix().round(6)
-    HandSourceConfig(rotation=rows.tolist())
-    HandSourceConfig(rotation=rows[[1, 0, 2]] * [[1], [1], [-1]])
+    SimulatedSource(rotation=rows.tolist())
+    SimulatedSource(rotation=rows[[1, 0, 2]] * [[1], [1], [-1]])
     with pytest.raises(ValueError, match="determinant"):
-        HandSourceConfig(rotation=(rows * [[1], [1], [-1]]).tolist())
+        SimulatedSource(rotation=(rows * [[1], [1], [-1]]).tolist())

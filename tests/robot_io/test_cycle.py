@@ -1,5 +1,5 @@
-"""The whole handover cycle (robot_io.cycle) on the mock arm and the simulated hand, on simulated time:
-stages in order, the release fired by the participant's pull and armed only in the hold, a fresh
+"""The whole handover cycle (robot_io.control.cycle) on the mock arm and the simulated hand, on simulated
+time: stages in order, the release fired by the participant's pull and armed only in the hold, a fresh
 baseline each trial, the k_ext compliance while grasped, not_taken, stop, a gripper fault and the
 ready check."""
 
@@ -10,16 +10,16 @@ import threading
 import numpy as np
 import pytest
 
+from robot_io.arms.mock_arm import MockArm
 from robot_io.clock import SimClock
 from robot_io.config import ControllerConfig
-from robot_io.cycle import CycleDevices, Gates, run_cycle
+from robot_io.control.cycle import CycleDevices, Gates, run_cycle
+from robot_io.control.loop import Outcome, StopRequest
 from robot_io.errors import GripperFault
-from robot_io.gripper import NoGripper
-from robot_io.hand import HandSample
-from robot_io.loop import Outcome, StopRequest
-from robot_io.mock_arm import MockArm
-from robot_io.simulated_hand import Scenario, SimulatedHand
-from robot_io.simulated_pull import SimulatedPull
+from robot_io.grippers.gripper import NoGripper
+from robot_io.hands.hand import HandSample
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.simulated_pull import SimulatedPull
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 

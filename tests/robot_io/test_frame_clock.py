@@ -1,4 +1,4 @@
-"""robot_io.frame_clock: a tracker frame's camera time onto this machine's clock, by the least
+"""robot_io.hands.frame_clock: a tracker frame's camera time onto this machine's clock, by the least
 delay of a recent window (the Vicon and the NatNet hand sources stamp their frames with it)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from robot_io.frame_clock import FrameClock
+from robot_io.hands.frame_clock import FrameClock
 
 
 @given(rate=st.sampled_from([50.0, 100.0, 120.0, 250.0]), first=st.integers(0, 10**7),

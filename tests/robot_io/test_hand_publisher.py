@@ -19,10 +19,10 @@ from support.waiting import wait_for
 
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
-from robot_io.hand_publisher import HandPublisher, PublisherSpec
-from robot_io.simulated_hand import Scenario
-from robot_io.udp_hand import UDPHand
-from robot_io.ur_standin.control import DEFAULT_PORT
+from robot_io.hands.hand_publisher import HandPublisher, PublisherSpec
+from robot_io.hands.simulated_hand import Scenario
+from robot_io.hands.udp_hand import UDPHand
+from robot_io.standins.ur.control import DEFAULT_PORT
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak]  # a process that publishes on the wall clock
 
@@ -34,8 +34,9 @@ LATE_S = 1.0
 
 def udp_config() -> ControllerConfig:
     config = ControllerConfig()
-    return config.model_copy(update={"hand_source": config.hand_source.model_copy(
-        update={"kind": "udp", "udp_host": HOST, "udp_port": 0})})
+    # port 0: the kernel's free port (no lab configures it, so only a copy takes it)
+    return config.model_copy(update={"hand_source": config.hand_source.as_kind(
+        "udp", udp_host=HOST).model_copy(update={"udp_port": 0})})
 
 
 def test_a_late_go_and_the_end_of_a_trial_move_the_hand_as_a_hand_moves():

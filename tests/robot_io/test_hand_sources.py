@@ -20,17 +20,17 @@ from support.lsl_tracker import LSLTracker
 from support.priority import realtime_threads
 from support.waiting import wait_for
 
+from robot_io.arms.mock_arm import MockArm
 from robot_io.clock import RealClock
 from robot_io.config import ControllerConfig
+from robot_io.control.loop import Outcome, TrialRecord
+from robot_io.control.trial import make_loop
 from robot_io.errors import ConfigError, HandSourceError
-from robot_io.frame import fit_kabsch
-from robot_io.loop import Outcome, TrialRecord
-from robot_io.lsl_hand import LSLHand
-from robot_io.mock_arm import MockArm
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.frame import fit_kabsch
+from robot_io.hands.lsl_hand import LSLHand
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.udp_hand import UDPHand
 from robot_io.theta import Theta
-from robot_io.trial import make_loop
-from robot_io.udp_hand import UDPHand
 
 pytestmark = pytest.mark.soak  # real processes and sockets on the clock: `make soak` repeats them
 
@@ -45,10 +45,14 @@ def lsl_outlet(name: str, stream_type: str) -> pylsl.StreamOutlet:
                                                unique("source")))
 
 
-def source_config(config: ControllerConfig, **update):
-    source = config.hand_source.model_copy(update={
+def source_config(config: ControllerConfig, kind: str, udp_port: int | None = None, **update):
+    """``config`` reading a ``kind`` source calibrated as TRACKER; ``udp_port`` 0 is the kernel's
+    free port, which no lab configures (so only a copy takes it)."""
+    source = config.hand_source.as_kind(kind, **{
         "rotation": tuple(map(tuple, TRACKER.rotation)), "translation": tuple(TRACKER.translation),
         "units_to_m": TRACKER.units_to_m, **update})
+    if udp_port is not None:
+        source = source.model_copy(update={"udp_port": udp_port})
     return config.model_copy(update={"hand_source": source})
 
 

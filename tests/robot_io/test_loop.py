@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 from support.waiting import wait_for
 
-from robot_io.arm import ArmState
+from robot_io.arms.arm import ArmState
+from robot_io.arms.mock_arm import MockArm
 from robot_io.clock import CONTROL_PRIORITY, SUPPORT_PRIORITY, RealClock, SimClock
 from robot_io.config import ControllerConfig, LoopConfig
-from robot_io.coupling import sigmoid
-from robot_io.hand import HandSample
-from robot_io.loop import Outcome
-from robot_io.mock_arm import MockArm
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.control.coupling import sigmoid
+from robot_io.control.loop import Outcome
+from robot_io.control.trial import make_clock, make_loop, simulate_trial
+from robot_io.hands.hand import HandSample
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
-from robot_io.trial import make_clock, make_loop, simulate_trial
 
 REACTIVE = Theta(a=5.0, delta=-0.2, k=15.0)
 NON_REACTIVE = Theta(a=5.0, delta=-0.2, k=0.01)

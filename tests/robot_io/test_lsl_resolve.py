@@ -17,10 +17,11 @@ import pytest
 from support.hand_replay import TRACKER, to_tracker
 from support.waiting import wait_for
 
-from robot_io.config import HandProfile, HandSourceConfig
+from robot_io.config import HandProfile
 from robot_io.errors import HandSourceError
-from robot_io.frame import FrameTransform
-from robot_io.lsl_hand import LSLHand, xpath_literal
+from robot_io.hands.config import LSLSource
+from robot_io.hands.frame import FrameTransform
+from robot_io.hands.lsl_hand import LSLHand, xpath_literal
 
 pytestmark = pytest.mark.soak  # real processes and sockets on the clock: `make soak` repeats them
 
@@ -39,9 +40,8 @@ def transform() -> FrameTransform:
 MAX_SPEED = HandProfile().max_speed
 
 
-def source(stream_type: str, name: str | None = None) -> HandSourceConfig:
-    return HandSourceConfig(kind="lsl", lsl_stream_type=stream_type, lsl_stream_name=name,
-                            resolve_timeout_s=10.0)
+def source(stream_type: str, name: str | None = None) -> LSLSource:
+    return LSLSource(kind="lsl", lsl_stream_type=stream_type, lsl_stream_name=name, resolve_timeout_s=10.0)
 
 
 @contextmanager

@@ -21,8 +21,10 @@ from support.waiting import wait_for
 
 from robot_io.config import HandProfile, LoopConfig
 from robot_io.errors import HandSourceError
-from robot_io.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
-from robot_io.natnet_standin import (
+from robot_io.hands.natnet_hand import RATE_BASELINE_S, NatNetHand, TickRate, reported_latency
+from robot_io.hands.tracked_hand import TRACKER_JITTER_M
+from robot_io.standins.natnet import (
+    MOTIVE_OF,
     NAT_FRAMEOFDATA,
     PROTOCOL_VERSION,
     FrameStamps,
@@ -32,7 +34,6 @@ from robot_io.natnet_standin import (
     hidden,
     pose_at,
 )
-from robot_io.tracked_hand import TRACKER_JITTER_M
 
 pytestmark = pytest.mark.soak  # real sockets and threads on the clock: `make soak` repeats them
 
@@ -84,9 +85,11 @@ class StampRecordingHand(NatNetHand):
         super().put(measured_at, tracker_xyz)
 
 
-def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its_arrival():
+@pytest.mark.parametrize("protocol", MOTIVE_OF, ids=lambda protocol: "NatNet {}.{}".format(*protocol))
+def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its_arrival(protocol):
+    """At each protocol Motive streams: 3.1 (Motive 2.x), 4.0 (3.0) and 4.1 (3.1 and later)."""
     scene = Scene()
-    with motive(scene.poses) as server:
+    with motive(scene.poses, protocol=protocol) as server:
         hand = StampRecordingHand(natnet_source(server), TRACKER_M, MAX_SPEED)
         try:
             wait_for(lambda: hand.latency_s is not None, "the latency the frames report",
@@ -94,6 +97,7 @@ def test_the_named_rigid_body_arrives_in_the_robot_base_frame_stamped_before_its
         finally:
             hand.close()
     assert hand.body_id == HAND.id
+    assert f"(NatNet {protocol[0]}.{protocol[1]}." in hand.server_detail
     # its data (float32 metres), not the object's, in the robot base frame
     assert hand.latest(0.0).position == pytest.approx(WANTED, abs=1e-6)
     # the latency each frame reports (mid-exposure to transmission, in host-clock ticks) is the
@@ -271,7 +275,7 @@ def test_check_devices_reports_the_rigid_body_rate_and_latency(tmp_path, capsys)
      '[hand_source] natnet_server is not set; kind = "natnet" needs the Motive PC\'s address'),
     ('kind = "natnet"\nnatnet_server = "192.168.1.20"\nunits_to_m = 1.0\n',
      "[hand_source] natnet_rigid_body is not set"),
-    ('kind = "natnet"\nnatnet_server = "192.168.1.20"\nnatnet_rigid_body = "hand"\n',
+    ('kind = "natnet"\nnatnet_server = "192.168.1.20"\nnatnet_rigid_body = "hand"\nunits_to_m = 0.001\n',
      "hand_source.units_to_m = 0.001 but NatNet streams metres: set units_to_m = 1.0"),
     ('kind = "natnet"\nnatnet_command_port = 70000\n', "natnet_command_port"),
 ])

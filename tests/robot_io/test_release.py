@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robot_io.compliance import CompliantCoupling
 from robot_io.config import ControllerConfig, ReleaseConfig
-from robot_io.coupling import NoCoupling
-from robot_io.dmp import DMP
-from robot_io.release import ForceRelease, ReleasePhase
+from robot_io.control.compliance import CompliantCoupling
+from robot_io.control.coupling import NoCoupling
+from robot_io.control.dmp import DMP
+from robot_io.control.release import ForceRelease, ReleasePhase
 
 DT = 1 / 125
 

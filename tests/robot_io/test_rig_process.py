@@ -21,10 +21,10 @@ from support.between import Between
 from support.waiting import CEILING_S, tail, wait_for
 
 from robot_io.config import ControllerConfig
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.client import RigClient
 from robot_io.rig.messages import APP_SILENCE_S, RigDied, RigSpec, RunTrial, StageReached, TrialDone
 from robot_io.rig.process import STACKS_SIGNAL
-from robot_io.simulated_hand import Scenario
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from robot_io.config import LoopConfig
-from robot_io.recorder import SLICES
+from robot_io.control.recorder import SLICES
 from robot_io.rig.stream import SampleStream, StreamRecorder
 from robot_io.rig.timing import TimingWatch
 

@@ -1,5 +1,5 @@
-"""The Robotiq 2F-85 on its URCap socket (robot_io.robotiq) against the stand-in's socket over real TCP
-(one loopback address per test): activation, the close on the object and the open, what is sent, and
+"""The Robotiq 2F-85 on its URCap socket (robot_io.grippers.robotiq) against the stand-in's socket over
+real TCP (one loopback address per test): activation, the close on the object and the open, what is sent, and
 each fault — a URCap that stops answering, a fault code, the object lost, nothing listening."""
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from app.cli import main
 from app.session.rehearsal import free_loopback_host
 from robot_io.config import ControllerConfig
 from robot_io.errors import GripperFault
+from robot_io.grippers.robotiq import Obj, RobotiqSocketGripper, probe
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import RigSpec
-from robot_io.robotiq import Obj, RobotiqSocketGripper, probe
-from robot_io.simulated_hand import Scenario
-from robot_io.ur_standin.robotiq import DEFAULT_OBJECT_POSITION
+from robot_io.standins.urcap import DEFAULT_OBJECT_POSITION
 
 # the stand-in in real time, as the other stand-in tests: `make soak` repeats them
 pytestmark = [pytest.mark.soak, pytest.mark.standin]

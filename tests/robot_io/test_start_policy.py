@@ -19,8 +19,8 @@ from support.priority import realtime_threads
 from support.ur import standin
 from support.waiting import wait_for
 
+from robot_io.arms.ur_worker import ControlWorker
 from robot_io.clock import SUPPORT_PRIORITY, children_start_on_the_normal_policy
-from robot_io.ur_worker import ControlWorker
 
 pytestmark = [pytest.mark.soak, pytest.mark.standin]
 

@@ -14,12 +14,12 @@ from support.priority import realtime_threads
 from support.ur import standin
 from support.waiting import wait_for
 
-from robot_io.arm import ArmState
+from robot_io.arms.arm import ArmState
 from robot_io.config import ControllerConfig
 from robot_io.errors import ArmFault
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import RigSpec
-from robot_io.simulated_hand import Scenario
 
 pytestmark = [pytest.mark.slow, pytest.mark.standin]
 

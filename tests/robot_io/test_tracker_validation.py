@@ -21,9 +21,9 @@ from support.waiting import wait_for
 from app.cli import main
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
-from robot_io.hand import HandSample
-from robot_io.tracked_hand import TRACKER_JITTER_M
-from robot_io.udp_hand import UDPHand
+from robot_io.hands.hand import HandSample
+from robot_io.hands.tracked_hand import TRACKER_JITTER_M
+from robot_io.hands.udp_hand import UDPHand
 
 pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
 
@@ -67,7 +67,8 @@ def sending(address: tuple[str, int], message: Callable[[int], dict],
 
 def _udp_hand() -> UDPHand:
     config = ControllerConfig()
-    source = config.hand_source.model_copy(update={"kind": "udp", "udp_host": HOST, "udp_port": 0})
+    # port 0: the kernel's free port (no lab configures it, so only a copy takes it)
+    source = config.hand_source.as_kind("udp", udp_host=HOST).model_copy(update={"udp_port": 0})
     return UDPHand(source, tracker_transform(config), config.hand.max_speed)
 
 

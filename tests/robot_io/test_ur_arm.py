@@ -31,16 +31,16 @@ from support.ur import (
 )
 from support.waiting import wait_for
 
-from robot_io.arm import ArmState
+from robot_io.arms.arm import ArmState
+from robot_io.arms.ur_arm import EMERGENCY_STOPPED_BITS, URArm
 from robot_io.config import ControllerConfig
+from robot_io.control.loop import Outcome
 from robot_io.devices import tracker_transform, ur_trial
 from robot_io.errors import ArmFault
-from robot_io.loop import Outcome
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.udp_hand import UDPHand
+from robot_io.standins.ur.control import ControlClient
 from robot_io.theta import Theta
-from robot_io.udp_hand import UDPHand
-from robot_io.ur_arm import EMERGENCY_STOPPED_BITS, URArm
-from robot_io.ur_standin.control import ControlClient
 
 # real processes and sockets on the clock: `make soak` repeats them
 pytestmark = [pytest.mark.soak, pytest.mark.standin]
@@ -234,10 +234,10 @@ def test_a_stale_hand_source_stops_the_arm():
     controller is told servoStop."""
     with standin() as ur, realtime_threads():  # as connected_arm's
         config = ur_config(ur.host)
-        source = config.hand_source.model_copy(update={
-            "kind": "udp", "udp_host": ur.host, "udp_port": 0, "units_to_m": TRACKER.units_to_m,
+        source = config.hand_source.as_kind("udp", **{
+            "udp_host": ur.host, "units_to_m": TRACKER.units_to_m,
             "rotation": tuple(map(tuple, TRACKER.rotation)),
-            "translation": tuple(TRACKER.translation)})
+            "translation": tuple(TRACKER.translation)}).model_copy(update={"udp_port": 0})
         config = config.model_copy(update={"hand_source": source})
         arm = URArm(config.ur, config.safety)
         tracker = UDPHand(config.hand_source, tracker_transform(config), config.hand.max_speed)

@@ -11,10 +11,10 @@ import pytest
 from support.ur import standin
 from support.waiting import wait_for
 
-from robot_io.arm import ArmState
+from robot_io.arms.arm import ArmState
+from robot_io.arms.ur_arm import URArm
+from robot_io.arms.ur_kinematics import forward, pose_to_transform
 from robot_io.config import ControllerConfig
-from robot_io.ur_arm import URArm
-from robot_io.ur_kinematics import forward, pose_to_transform
 
 pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
 

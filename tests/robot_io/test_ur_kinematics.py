@@ -7,7 +7,7 @@ import numpy as np
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from robot_io.ur_kinematics import (
+from robot_io.arms.ur_kinematics import (
     A,
     D,
     forward,

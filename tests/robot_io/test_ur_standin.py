@@ -13,10 +13,10 @@ from support.hand_replay import TRACKER, to_tracker
 from support.ur import standin
 
 from app.cli import main
-from robot_io.cli import load_config
-from robot_io.ur_standin import rtde_protocol as rtde
-from robot_io.ur_standin.dashboard import reply
-from robot_io.ur_standin.model import Controller, Safety, Series
+from app.session.rig_cli import load_config
+from robot_io.standins.ur import rtde_protocol as rtde
+from robot_io.standins.ur.dashboard import reply
+from robot_io.standins.ur.model import Controller, Safety, Series
 
 pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
 

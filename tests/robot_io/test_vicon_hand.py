@@ -30,13 +30,13 @@ from support.vicon import (
 )
 from support.waiting import wait_for
 
-from robot_io import vicon_hand
 from robot_io.config import ControllerConfig, HandProfile, LoopConfig
 from robot_io.devices import open_hand
 from robot_io.errors import HandSourceError
+from robot_io.hands import vicon_hand
+from robot_io.hands.vicon_hand import INSTALL, CameraFrameClock, ViconHand, read_frame
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import RigSpec
-from robot_io.vicon_hand import INSTALL, CameraFrameClock, ViconHand, read_frame
 
 MAX_SPEED = HandProfile().max_speed
 #: The hand's translation in each new frame of RECORDED (None: lost), and the latency each reports.
@@ -163,7 +163,7 @@ def test_a_lost_connection_is_logged_once_and_the_source_closes(caplog):
     try:
         wait_for(lambda: hand.frames == len(HAND_MM), "every recorded frame read",
                  seen=lambda: hand.frames)
-        with caplog.at_level(logging.ERROR, logger="robot_io.vicon_hand"):
+        with caplog.at_level(logging.ERROR, logger="robot_io.hands.vicon_hand"):
             client.connected = False
             calls = client.calls
             wait_for(lambda: client.calls >= calls + 3, "three polls after the connection was lost",
@@ -176,7 +176,7 @@ def test_a_lost_connection_is_logged_once_and_the_source_closes(caplog):
 
 def test_the_camera_frame_clock_counts_frames_at_the_camera_rate_and_starts_anew_on_a_new_one():
     """Vicon's frames are numbers at a camera rate: camera time is number / rate (the least-delay
-    offset is robot_io.frame_clock's, tests/robot_io/test_frame_clock.py); a new rate or a number
+    offset is robot_io.hands.frame_clock's, tests/robot_io/test_frame_clock.py); a new rate or a number
     that goes back starts anew, and a frame without a rate is stamped when seen."""
     clock = CameraFrameClock(window_s=1.0)
     assert clock.stamp_frame(100, 100.0, 5.0) == 5.0

@@ -9,7 +9,7 @@ from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
 from app.session.faults import StagedFault
 from app.session.runner import SessionRunner
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 
 @pytest.mark.parametrize("fault", list(StagedFault))

@@ -11,7 +11,7 @@ from app.cli import main
 from app.protocol.engine import learner_config
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig, load_lab_config
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 
 def write(tmp_path, text: str):

@@ -25,7 +25,7 @@ from app.session.config import LabConfig
 from app.session.pairing import CODE_GUESSES, WRONG_CODE_ALERT_S, TabletPairing
 from app.session.runner import SessionRunner
 from app.ui.status_text import status_line
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 
 def test_a_page_is_the_tablet_only_once_the_code_is_typed_and_stays_it_across_a_reload():

@@ -16,7 +16,7 @@ from app.analysis.report import build_report
 from app.protocol.state import Step
 from app.session.config import LabConfig
 from app.session.runner import SessionRunner
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.export import export_study, read_table
 
 

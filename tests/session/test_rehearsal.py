@@ -21,9 +21,9 @@ from app.session.faults import StagedFault
 from app.session.rehearsal import Rehearsal
 from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
-from robot_io.simulated_hand import Scenario
+from robot_io.arms.ur_kinematics import forward
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.stages import SAMPLE_CODE, Stage
-from robot_io.ur_kinematics import forward
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak, pytest.mark.standin]

@@ -24,7 +24,7 @@ from app.session.config import LabConfig, load_lab_config
 from app.session.runner import SessionRunner
 from app.ui.status_text import devices_markdown
 from robot_io.clock import priority_refusal
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 LAB = LabConfig.model_validate({"loop": {"rate_hz": 125}, "protocol": SHORT_PROTOCOL})
 #: How long the test holds the rig off the CPU in the middle of a reach, as a busy machine does [s].

@@ -13,4 +13,5 @@ def test_session_store_imports_no_simulator_protocol_or_learner():
          "session_store.inspect, session_store.catalog, session_store.lock; "
          "print(' '.join(sorted(m for m in sys.modules if m.startswith(('app', 'robot_io')))))"],
         capture_output=True, text=True, check=True).stdout.split()
-    assert set(loaded) == {"robot_io", "robot_io.errors", "robot_io.recorder", "robot_io.theta"}
+    assert set(loaded) == {"robot_io", "robot_io.errors", "robot_io.control",
+                           "robot_io.control.recorder", "robot_io.theta"}

@@ -21,7 +21,7 @@ from support.study import as_version_1, checkpointed, fingerprint, read_only
 from app.analysis.report import build_report
 from app.cli import main
 from app.protocol.state import Step
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import MisnamedStoreError
 from session_store.export import DTYPES, LEFT_OUT_FILE, export_study, load_study, read_table
 from session_store.store import ParticipantStore

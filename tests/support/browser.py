@@ -53,7 +53,7 @@ PAGE_POLL_S = 0.1
 #: The short and the briefest protocol of tests/support/engine, as [protocol] tables of a lab config.
 SHORT_TOML = protocol_toml(SHORT_PROTOCOL)
 BRIEF_TOML = protocol_toml(BRIEF_PROTOCOL)
-#: Lab-config tables of a simulated participant who never takes the object (robot_io.simulated_pull:
+#: Lab-config tables of a simulated participant who never takes the object (robot_io.hands.simulated_pull:
 #: ``pull_n = 0``): once the arm holds the object out at H, the trial stays in its hold until the
 #: experimenter acts. Only [release] timeout_s (here its largest value, 60 s) of holding would end it
 #: (``not_taken``): as long as Playwright's ceiling for any one action (TIMEOUT_MS), so a stop that

@@ -11,8 +11,8 @@ from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
 from robot_io.config import ControllerConfig, LoopConfig
-from robot_io.simulated_hand import Scenario
-from robot_io.trial import simulate_trial
+from robot_io.control.trial import simulate_trial
+from robot_io.hands.simulated_hand import Scenario
 
 #: 3 initial + 1 learning batch of 3 + 1 best + 1 validation pair = 9 interactions
 SHORT_PROTOCOL = {"initial_trials": 3, "batch_size": 3, "learning_batches": 1, "best_trials": 1,

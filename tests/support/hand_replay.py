@@ -8,8 +8,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from robot_io.frame import FrameTransform
-from robot_io.simulated_hand import SimulatedHand
+from robot_io.hands.frame import FrameTransform
+from robot_io.hands.simulated_hand import SimulatedHand
 from support.waiting import CEILING_S, WaitTimeout
 
 #: A tracker frame as a lab might have it: turned 90° about z, offset, in millimetres.

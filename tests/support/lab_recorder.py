@@ -13,7 +13,7 @@ import threading
 from importlib.resources import files
 from pathlib import Path
 
-from robot_io.lsl_hand import xpath_literal
+from robot_io.hands.lsl_hand import xpath_literal
 from support.waiting import CEILING_S, tail, wait_for
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.config import ControllerConfig
-from robot_io.simulated_hand import Scenario, SimulatedHand
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from support.hand_replay import Replay
 from support.waiting import CEILING_S, WaitTimeout
 

@@ -1,4 +1,4 @@
-"""A stand-in Motive per test (:mod:`robot_io.natnet_standin`) on 127.0.0.1, on a port of its own,
+"""A stand-in Motive per test (:mod:`robot_io.standins.natnet`) on 127.0.0.1, on a port of its own,
 and the ``[hand_source]`` that reads it with the real ``natnet`` client."""
 
 from __future__ import annotations
@@ -8,9 +8,9 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from robot_io.config import HandSourceConfig
-from robot_io.frame import FrameTransform
-from robot_io.natnet_standin import NatNetStandin, Poses, RigidBodySpec
+from robot_io.hands.config import NatNetSource
+from robot_io.hands.frame import FrameTransform
+from robot_io.standins.natnet import PROTOCOL_VERSION, NatNetStandin, Poses, RigidBodySpec
 from support.hand_replay import TRACKER
 
 #: The tests' tracker frame (turned and offset as :data:`support.hand_replay.TRACKER`), in metres as
@@ -26,19 +26,21 @@ def to_tracker_m(base_xyz: np.ndarray) -> tuple[float, float, float]:
 
 @contextmanager
 def motive(poses: Poses, bodies: Sequence[RigidBodySpec] = (HAND, OBJECT),
-           rate_hz: float = 120.0, port: int = 0) -> Iterator[NatNetStandin]:
+           rate_hz: float = 120.0, port: int = 0,
+           protocol: tuple[int, int] = PROTOCOL_VERSION) -> Iterator[NatNetStandin]:
     """A stand-in Motive streaming ``poses`` on 127.0.0.1 (port 0: the kernel's free port; the
-    port of one that closed: that Motive restarted); closed when the block ends."""
-    server = NatNetStandin(bodies, poses, port=port, rate_hz=rate_hz).start()
+    port of one that closed: that Motive restarted) in NatNet ``protocol``; closed when the block
+    ends."""
+    server = NatNetStandin(bodies, poses, port=port, rate_hz=rate_hz, protocol=protocol).start()
     try:
         yield server
     finally:
         server.close()
 
 
-def natnet_source(server: NatNetStandin, rigid_body: str = HAND.name, **update) -> HandSourceConfig:
+def natnet_source(server: NatNetStandin, rigid_body: str = HAND.name, **update) -> NatNetSource:
     """``[hand_source]`` reading ``rigid_body`` from ``server``, calibrated as :data:`TRACKER_M`."""
-    return HandSourceConfig(kind="natnet", natnet_server=server.address[0],
+    return NatNetSource(kind="natnet", natnet_server=server.address[0],
                             natnet_command_port=server.address[1], natnet_rigid_body=rigid_body,
                             units_to_m=1.0, rotation=tuple(map(tuple, TRACKER_M.rotation)),
                             translation=tuple(TRACKER_M.translation), resolve_timeout_s=10.0, **update)

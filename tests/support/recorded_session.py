@@ -26,7 +26,7 @@ from app.session.config import LabConfig
 from app.session.lsl_outlets import ROBOT_COLUMNS
 from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.models import Event
 from session_store.store import ParticipantStore
 from support.clocks import utc_minus

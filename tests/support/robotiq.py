@@ -8,7 +8,7 @@ from collections.abc import Iterator
 
 from robot_io.config import GripperConfig
 from robot_io.errors import GripperFault
-from robot_io.robotiq import RobotiqSocketGripper
+from robot_io.grippers.robotiq import RobotiqSocketGripper
 from support.ur import Standin
 from support.waiting import wait_for
 

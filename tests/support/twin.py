@@ -20,8 +20,8 @@ from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
 from robot_io.config import ControllerConfig
-from robot_io.cycle import not_started
-from robot_io.loop import Outcome, TrialRecord, TrialSummary
+from robot_io.control.cycle import not_started
+from robot_io.control.loop import Outcome, TrialRecord, TrialSummary
 from session_store.models import Trial, TrialOutcome
 from session_store.reading import reading
 from session_store.store import participant_path

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from app.session.rehearsal import free_loopback_host
-from robot_io.ur_standin.control import ControlClient
+from robot_io.standins.ur.control import ControlClient
 from support.waiting import tail, wait_for
 
 #: Command ids of ur_rtde's control script (rtde.h, RobotCommand::Type).
@@ -36,7 +36,7 @@ class Standin:
 
 @contextlib.contextmanager
 def standin(series: str = "cb3") -> Iterator[Standin]:
-    """Start ``python -m robot_io.ur_standin`` on a free loopback address; yield it; always end it.
+    """Start ``python -m robot_io.standins.ur`` on a free loopback address; yield it; always end it.
 
     The child exits when its stdin closes, so it cannot outlive a test process that dies. It runs
     under SCHED_FIFO where the OS allows it, as a rehearsal's does: a UR controller has hardware of
@@ -45,7 +45,7 @@ def standin(series: str = "cb3") -> Iterator[Standin]:
         host = free_loopback_host()
         with tempfile.TemporaryFile("w+") as stderr:
             process = subprocess.Popen(
-                [sys.executable, "-m", "robot_io.ur_standin", "--host", host, "--series", series,
+                [sys.executable, "-m", "robot_io.standins.ur", "--host", host, "--series", series,
                  "--exit-with-stdin", "--realtime-priority"],
                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=stderr, text=True)
             try:

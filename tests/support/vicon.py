@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from robot_io.config import HandSourceConfig
+from robot_io.hands.config import ViconSource
 from support.hand_replay import TRACKER
 
 #: Frames of a stream with the subjects "object" (first) and "hand" (tests/robot_io/data/).
@@ -104,9 +104,9 @@ def to_tracker_mm(base_xyz) -> tuple[float, float, float]:
     return tuple(TRACKER.invert(np.asarray(base_xyz, dtype=float)).tolist())
 
 
-def vicon_source(**update) -> HandSourceConfig:
+def vicon_source(**update) -> ViconSource:
     """``[hand_source]`` reading the segment "hand" of the subject "hand", calibrated as TRACKER."""
-    return HandSourceConfig(**{
+    return ViconSource(**{
         "kind": "vicon", "vicon_server": SERVER, "vicon_subject": "hand", "vicon_segment": "hand",
         "rotation": tuple(map(tuple, TRACKER.rotation)), "translation": tuple(TRACKER.translation),
         "resolve_timeout_s": 1.0, **update})

@@ -21,7 +21,7 @@ from support.waiting import wait_for
 from app.analysis.report import build_report
 from app.protocol.engine import SessionEngine
 from app.protocol.state import Step
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]

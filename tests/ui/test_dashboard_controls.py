@@ -21,7 +21,7 @@ from app.protocol.state import SessionState
 from app.session.config import LabConfig
 from app.session.runner import RunnerView
 from app.ui.dashboard import Controls
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 SLOTS = protocol_slots(LabConfig().study_config(Scenario.PERTURBED, 0))
 

@@ -14,7 +14,7 @@ from support.browser import chromium, open_page, open_participant, serve, shot, 
 from support.natnet import HAND, OBJECT, motive, natnet_toml, to_tracker_m
 from support.waiting import wait_for
 
-from robot_io.natnet_standin import pose_at
+from robot_io.standins.natnet import pose_at
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 

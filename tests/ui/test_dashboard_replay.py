@@ -39,8 +39,8 @@ from app.session.rehearsal import Rehearsal
 from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from app.ui.server import HandoverServers, ServeOptions
-from robot_io.simulated_hand import Scenario
-from robot_io.ur_kinematics import link_points
+from robot_io.arms.ur_kinematics import link_points
+from robot_io.hands.simulated_hand import Scenario
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]

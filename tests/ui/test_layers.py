@@ -9,9 +9,10 @@ from support.imports import statements
 import app.ui
 
 #: What a screen may not import: devices, the rig, the store and its database, the engine.
-FORBIDDEN = ("robot_io.mock_arm", "robot_io.ur_arm", "robot_io.rig", "robot_io.devices",
-             "robot_io.gripper", "robot_io.lsl_hand", "robot_io.udp_hand", "robot_io.trial",
-             "robot_io.loop", "robot_io.cycle", "robot_io.hand_publisher", "robot_io.ur_standin",
+FORBIDDEN = ("robot_io.arms.mock_arm", "robot_io.arms.ur_arm", "robot_io.rig", "robot_io.devices",
+             "robot_io.grippers.gripper", "robot_io.hands.lsl_hand", "robot_io.hands.udp_hand",
+             "robot_io.control.trial", "robot_io.control.loop", "robot_io.control.cycle",
+             "robot_io.hands.hand_publisher", "robot_io.standins.ur",
              "session_store.store", "session_store.export", "sqlite3", "sqlite_utils",
              "app.protocol.engine", "app.session.rehearsal")
 FORBIDDEN_NAMES = {"SimulatedHand", "MockArm", "URArm", "ParticipantStore", "SessionEngine",

@@ -13,7 +13,7 @@ from app.session.runner import RunnerView
 from app.ui.stage_words import CYCLE, INSTEAD_OF, STAGE_WORDS, stage_name
 from app.ui.status_text import cycle_markdown, status_line
 from app.ui.tablet import screen_for
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.stages import AWAITS, Stage
 
 SLOTS = protocol_slots(LabConfig().study_config(Scenario.PERTURBED, 0))

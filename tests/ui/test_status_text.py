@@ -14,7 +14,7 @@ from app.ui.status_text import (
     start_blocker,
     status_line,
 )
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 from session_store.models import Trial
 from session_store.vocabulary import Phase, ThetaOrigin
 

@@ -31,7 +31,7 @@ from app.session.runner import SessionRunner
 from app.ui.deliberate import SETTLE_S
 from app.ui.guard import open_server
 from app.ui.tablet import Tablet
-from robot_io.simulated_hand import Scenario
+from robot_io.hands.simulated_hand import Scenario
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
