@@ -5,9 +5,7 @@ from __future__ import annotations
 import argparse
 import ipaddress
 import logging
-import signal
 import socket
-import threading
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,6 +13,7 @@ from app.arguments import argument_type
 from app.protocol.seeds import parse_seed
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import load_lab_config
+from app.session.signals import QuitSignal
 from robot_io.hands.simulated_hand import Scenario
 from session_store.paths import DEFAULT_STUDY
 
@@ -132,21 +131,19 @@ def serve_command(args: argparse.Namespace) -> int:
         servers = HandoverServers(runner, ServeOptions(host=args.host, tablet_port=args.tablet_port,
                                                        dashboard_port=args.dashboard_port,
                                                        token=args.token, blind=not args.unblind))
-        tablet, dashboard = servers.urls()
-        print(f"tablet (participant):     {tablet}", flush=True)
-        print(f"dashboard (experimenter): {dashboard}", flush=True)
-        print(f"participant:              {participant_line(runner.view)}", flush=True)
-        if args.unblind:
-            print("validation:               NOT blind (--unblind): the dashboard shows which "
-                  "trial is θ*", flush=True)
-        print(f"dashboard token:          {servers.token}", flush=True)
-        if runner.rehearsal is not None:
-            print(f"rehearsal:                stand-in UR controller at {runner.rehearsal.host}",
-                  flush=True)
-        quit_requested = threading.Event()
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, lambda *_: quit_requested.set())
-        quit_requested.wait()
+        with QuitSignal() as quit_signal:  # from here on, a Ctrl-C is never lost
+            tablet, dashboard = servers.urls()
+            print(f"tablet (participant):     {tablet}", flush=True)
+            print(f"dashboard (experimenter): {dashboard}", flush=True)
+            print(f"participant:              {participant_line(runner.view)}", flush=True)
+            if args.unblind:
+                print("validation:               NOT blind (--unblind): the dashboard shows which "
+                      "trial is θ*", flush=True)
+            print(f"dashboard token:          {servers.token}", flush=True)
+            if runner.rehearsal is not None:
+                print(f"rehearsal:                stand-in UR controller at {runner.rehearsal.host}",
+                      flush=True)
+            quit_signal.wait()
         print("stopping the arm and closing the session ...", flush=True)
         servers.close()
     print("closed", flush=True)
