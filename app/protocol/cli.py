@@ -5,17 +5,20 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import threading
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
+from app.protocol.recorded import recorded_session
 from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
-from app.session.cli import Interrupted, add_rig_arguments, interruptible, open_runner
+from app.session.cli import (
+    Interrupted,
+    add_rig_arguments,
+    interruptible,
+    open_runner,
+    wait_until_done,
+)
 from app.session.config import load_lab_config
-from app.session.runner import RunnerView, SessionRunner, recorded_session
 from robot_io.cli import argument_type
 from robot_io.simulated_hand import Scenario
 from session_store.errors import StoreError
@@ -154,24 +157,6 @@ def run_session(args: argparse.Namespace) -> int:
                   f"{observed['moves_to_R']} moves to R; the TCP ended "
                   f"{1e3 * observed['tcp_to_R_m']:.1f} mm from R")
     return 0
-
-
-def wait_until_done(runner: SessionRunner, progress: bool) -> RunnerView:
-    """Block until the session is done or the simulated experimenter gave up; a progress bar."""
-    done = threading.Event()
-    with tqdm(total=None, unit="handover", disable=not progress, file=sys.stderr) as bar:
-        def listen(view: RunnerView) -> None:
-            if view.state is not None:
-                bar.total = view.interactions
-                bar.n = view.state.completed
-                bar.refresh()
-            if view.step is Step.DONE or view.failed is not None:
-                done.set()
-
-        runner.subscribe(listen)
-        listen(runner.view)
-        done.wait()
-    return runner.view
 
 
 def export_command(args: argparse.Namespace) -> int:

@@ -25,7 +25,7 @@ from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Literal, NamedTuple, TypeVar
+from typing import Literal, TypeVar
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict
@@ -36,10 +36,10 @@ from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
 from app.protocol.engine import RIG_TABLES, SessionEngine, TrialPlan, rig_of
 from app.protocol.errors import RefusedAction
+from app.protocol.recorded import describe_change, recorded_session
 from app.protocol.seeds import choose_seed
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import PARTICIPANT_STEPS, SessionState, Step
-from app.protocol.stored import stored_session
 from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Actor, Rater
 from app.session import faults
@@ -76,7 +76,6 @@ from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError
 from session_store.models import Trial
 from session_store.paths import refuse_case_twin
-from session_store.reading import reading
 from session_store.store import ParticipantStore, participant_codes, participant_path
 
 log = logging.getLogger(__name__)
@@ -936,35 +935,3 @@ def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
         return "simulated time"
     return ("real-time priority (SCHED_FIFO)" if devices.realtime_priority else
             "no real-time priority (normal scheduling): trials may run late on a busy machine")
-
-
-class RecordedSession(NamedTuple):
-    """A stored session as it stands: its plan, the rig it last ran on, and its state."""
-
-    config: StudyConfig
-    rig: dict
-    state: SessionState
-
-
-def recorded_session(study: Path, code: str) -> RecordedSession:
-    """A stored session, read without writing anything (from a copy in memory: the file is neither
-    migrated nor touched)."""
-    with reading(study, code) as store:
-        config, events, state = stored_session(store)
-    rig = rig_of(config.controller.model_dump(mode="json"))
-    for event in reversed(events):
-        if event.kind == "devices_recorded":
-            rig = rig_of(event.payload.get("rig") or event.payload["config"])
-            break
-    return RecordedSession(config, rig, state)
-
-
-def describe_change(before: dict, after: dict) -> str:
-    """The rig tables that differ, in words: ``arm.kind 'mock' → 'ur'; ur.host …``."""
-    changes = []
-    for table in before:
-        old, new = before[table] or {}, after[table] or {}
-        for key in sorted(set(old) | set(new)):
-            if old.get(key) != new.get(key):
-                changes.append(f"{table}.{key} {old.get(key)!r} → {new.get(key)!r}")
-    return "; ".join(changes) or "no difference"
