@@ -25,13 +25,11 @@ from collections import deque
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Literal, TypeVar
+from typing import TypeVar
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict
 
 from app.learning.errors import LearningError
-from app.learning.models import PosteriorSlice
 from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
 from app.protocol.engine import RIG_TABLES, SessionEngine, TrialPlan, rig_of
@@ -39,7 +37,7 @@ from app.protocol.errors import RefusedAction
 from app.protocol.recorded import describe_change, recorded_session
 from app.protocol.seeds import choose_seed
 from app.protocol.simulated_participant import SimulatedParticipant
-from app.protocol.state import PARTICIPANT_STEPS, SessionState, Step
+from app.protocol.state import PARTICIPANT_STEPS, Step
 from app.protocol.study import StudyConfig
 from app.protocol.vocabulary import Actor, Rater
 from app.session import faults
@@ -49,9 +47,20 @@ from app.session.drawing import with_links
 from app.session.faults import StagedFault
 from app.session.lsl_outlets import StudyOutlets
 from app.session.overview import ParticipantSummary, StudyOverview
-from app.session.pairing import TabletPairing, TabletStatus
+from app.session.pairing import TabletPairing
 from app.session.rehearsal import Rehearsal, rehearsal_rig
 from app.session.replay import stored_rows
+from app.session.view import (
+    RigStatus,
+    RunnerView,
+    SessionFacts,
+    Status,
+    StopState,
+    ThetaStar,
+    Waiting,
+    build_view,
+    with_news,
+)
 from robot_io.clock import utc_of_monotonic
 from robot_io.config import ControllerConfig, SceneConfig
 from robot_io.cycle import not_started
@@ -97,64 +106,6 @@ REOPEN_REASON = "opened again by the experimenter"
 MESSAGES = 5
 #: The simulated experimenter gives up after this many trials in a row that did not complete.
 MAX_FAILED_TRIALS = 5
-
-Waiting = Literal["loaded", "go"]
-#: After STOP ARM: "stopping" until the arm has stopped (the running trial has ended), then
-#: "stopped" until the experimenter re-arms (the scene is safe); only "armed" lets a trial start.
-StopState = Literal["armed", "stopping", "stopped"]
-
-
-class ThetaStar(BaseModel):
-    after_interaction: int
-    a: float
-    delta: float
-    k: float
-
-
-class RunnerView(BaseModel):
-    """Everything a screen shows, copied at one moment. ``state`` is None before a session is open."""
-
-    model_config = ConfigDict(frozen=True)
-
-    version: int = 0
-    code: str | None = None
-    scenario: Scenario | None = None
-    seed: int | None = None
-    state: SessionState | None = None
-    interactions: int = 0
-    preparing: bool = False
-    auto: bool = False
-    rehearsal: bool = False
-    refusing_object: bool = False  # a rehearsal's simulated participant does not take the object
-    arm: str = "no rig open"
-    arm_fault: str | None = None
-    hand: str = ""
-    hand_link: str | None = None  # what the tracked hand's link went through (None: nothing)
-    gripper: str = ""
-    timing: str = ""  # the rig's scheduling: real-time priority or not
-    timing_warning: str | None = None  # the latest trial's cycles or hand samples ran late: how
-    waiting_for: Waiting | None = None  # the cycle waits for the experimenter's confirmation
-    ready_wait: str | None = None  # why the hand is not ready at the start A
-    learner: str = "idle"
-    learner_fault: str | None = None
-    failed: str | None = None  # the simulated experimenter gave up (headless), or storing failed: why
-    stop: StopState = "armed"
-    tablet: TabletStatus | None = None  # None: no tablet screen (headless)
-    tablet_required: bool = True  # exactly one paired tablet before a trial may start
-    overview: list[ParticipantSummary] = []  # every participant of the study folder
-    messages: list[str] = []  # the latest events, newest last
-    trials: list[Trial] = []
-    theta_star: list[ThetaStar] = []
-    posterior: list[PosteriorSlice] = []  # posterior utility through θ*, per parameter
-
-    @property
-    def step(self) -> Step | None:
-        return None if self.state is None else self.state.step
-
-    @property
-    def stage(self) -> Stage | None:
-        return None if self.state is None else self.state.stage
-
 
 Listener = Callable[[RunnerView], None]
 T = TypeVar("T")
@@ -677,54 +628,39 @@ class SessionRunner:
             raise RefusedAction(f"refused: the trial is not waiting for '{what}'")
         return self._rig
 
-    def _waiting_for(self, stage: Stage | None) -> Waiting | None:
-        if self._auto or self.auto_experimenter:
-            return None
-        if stage is Stage.PREPARE:
-            return "loaded"
-        if stage is Stage.READY:
-            return "go"
-        return None
-
-    def _device_status(self) -> dict:
+    def _status(self) -> Status:
         """The view's fields that do not come from the engine (read without its thread)."""
-        devices = self._devices
-        return {"arm": "no rig open" if devices is None else devices.arm_detail,
-                "hand": "" if devices is None else devices.hand_detail, "hand_link": self._hand_link,
-                "gripper": "" if devices is None else devices.gripper_detail,
-                "timing": timing_words(devices, self.realtime),
-                "timing_warning": None if self._timing is None else self._timing.describe(),
-                "arm_fault": self._rig_fault, "rehearsal": self.rehearsal is not None,
-                "refusing_object": self._refusing_object,
-                "learner": "fitting the next θ" if self._preparing else "idle",
-                "learner_fault": self._learner_fault, "failed": self._failed,
-                "ready_wait": self._ready_wait, "stop": self._stop,
-                "tablet": None if self._pairing is None else self._pairing.status(),
-                "tablet_required": self.tablet_required, "messages": list(self._messages),
-                "auto": self._auto}
+        rig = RigStatus(devices=self._devices, fault=self._rig_fault, timing=self._timing,
+                        hand_link=self._hand_link, ready_wait=self._ready_wait, stop=self._stop)
+        return Status(rig=rig, realtime=self.realtime, rehearsal=self.rehearsal is not None,
+                      refusing_object=self._refusing_object, preparing=self._preparing,
+                      learner_fault=self._learner_fault, failed=self._failed,
+                      tablet=None if self._pairing is None else self._pairing.status(),
+                      tablet_required=self.tablet_required, messages=list(self._messages),
+                      auto=self._auto)
 
     def _make_view(self) -> RunnerView:
-        engine, status = self._engine, self._device_status()
+        engine = self._engine
         if self._overview is None:
             self._overview = (self._study_overview.lines() if engine is None else
                               self._study_overview.lines(engine.store, engine.participant.code))
-        status["overview"] = self._overview
-        if engine is None:
-            return RunnerView(version=next(self._made), **status)
-        state = engine.state
-        if self._theta_star_key != len(state.planned):  # a new θ means a new learner snapshot
-            self._theta_star_key = len(state.planned)
-            self._theta_star = [
-                ThetaStar(after_interaction=r.after_interaction, a=r.theta_star_a,
-                          delta=r.theta_star_delta, k=r.theta_star_k)
-                for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
-        return RunnerView(
-            version=next(self._made), code=engine.participant.code,
-            scenario=engine.config.scenario, seed=engine.config.seed, state=state.model_copy(deep=True),
-            interactions=engine.config.interactions, preparing=self._preparing,
-            waiting_for=self._waiting_for(state.stage) if state.step is Step.RUNNING else None,
-            trials=engine.store.rows("trials", order_by="trial_index"),
-            theta_star=self._theta_star, posterior=engine.posterior_slices, **status)
+        session = None
+        if engine is not None:
+            state = engine.state
+            if self._theta_star_key != len(state.planned):  # a new θ means a new learner snapshot
+                self._theta_star_key = len(state.planned)
+                self._theta_star = [
+                    ThetaStar(after_interaction=r.after_interaction, a=r.theta_star_a,
+                              delta=r.theta_star_delta, k=r.theta_star_k)
+                    for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
+            session = SessionFacts(
+                code=engine.participant.code, scenario=engine.config.scenario,
+                seed=engine.config.seed, state=state.model_copy(deep=True),
+                interactions=engine.config.interactions,
+                trials=engine.store.rows("trials", order_by="trial_index"),
+                theta_star=self._theta_star, posterior=engine.posterior_slices)
+        return build_view(next(self._made), self._status(), self._overview, session,
+                          self.auto_experimenter)
 
     # -- internals: the rig's reports (on its reader thread) --------------------------------------
     def _on_report(self, report: Report | RigDied) -> None:
@@ -837,7 +773,7 @@ class SessionRunner:
             log.info("%s", message)
         if not self._closing:
             with self._showing:  # the shown view's engine state, with the devices' news
-                self._notify(self._view.model_copy(update=self._device_status()))
+                self._notify(with_news(self._view, self._status()))
         self._wake.set()
 
     def _publish(self) -> None:
@@ -846,7 +782,7 @@ class SessionRunner:
         view = self._call(self._make_view)
         with self._showing:
             if view.version > self._view.version:  # else a view made later is already shown
-                self._notify(view.model_copy(update=self._device_status()))
+                self._notify(with_news(view, self._status()))
 
     def _notify(self, view: RunnerView) -> None:
         self._view = view
@@ -925,13 +861,3 @@ class SessionRunner:
         finally:
             self._preparing = False
             self._changed(None)
-
-
-def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
-    """The rig's scheduling in words: under real-time priority or not (nothing without a rig)."""
-    if devices is None:
-        return ""
-    if not realtime:
-        return "simulated time"
-    return ("real-time priority (SCHED_FIFO)" if devices.realtime_priority else
-            "no real-time priority (normal scheduling): trials may run late on a busy machine")
