@@ -178,7 +178,12 @@ class SessionRunner:
         """Whether a trial needs the paired tablet: always with a tablet screen, except when the
         simulated participant rates on a simulated rig (mock arm or rehearsal)."""
         simulated_rig = self.rehearsal is not None or self.lab.arm.kind == "mock"
-        return self._pairing is not None and not (self._auto and simulated_rig)
+        return self._pairing is not None and not (self._auto_on() and simulated_rig)
+
+    def _auto_on(self) -> bool:
+        """Whether the simulated participant is on."""
+        with self._switches:
+            return self._auto
 
     # -- the experimenter's actions ---------------------------------------------------------------
     def open(self, code: str, scenario: Scenario | None = None, seed: int | None = None,
@@ -315,7 +320,7 @@ class SessionRunner:
     def simulated_turn(self, step: Step) -> None:
         """The simulated participant places, rates or answers, if it is on and the session still
         waits for ``step``."""
-        self._call(lambda: self._side.simulated_turn(step, self._auto))
+        self._call(lambda: self._side.simulated_turn(step, self._auto_on()))
         self._changed("the simulated participant rated")
 
     def note(self, message: str) -> None:
@@ -397,7 +402,7 @@ class SessionRunner:
         self._supervisor.ready_rig(trial_config(self.lab, engine.config), engine.config.scenario)
         plan = engine.start_trial()
         try:
-            self._supervisor.run(plan, self._auto or self.auto_experimenter)
+            self._supervisor.run(plan, self._auto_on() or self.auto_experimenter)
         except (RobotIOError, RefusedAction) as exc:
             engine.end_trial(plan.trial.trial_index, None, f"could not start: {exc}", Actor.SYSTEM)
             raise RefusedAction(f"the trial could not start: {exc}") from exc
