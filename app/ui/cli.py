@@ -22,6 +22,8 @@ if TYPE_CHECKING:
     from app.session.runner import RunnerView
 
 log = logging.getLogger(__name__)
+#: How often serve's main thread looks for Ctrl-C or SIGTERM while it serves [s].
+SIGNAL_POLL_S = 0.5
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -146,7 +148,11 @@ def serve_command(args: argparse.Namespace) -> int:
         quit_requested = threading.Event()
         for signum in (signal.SIGINT, signal.SIGTERM):
             signal.signal(signum, lambda *_: quit_requested.set())
-        quit_requested.wait()
+        # Python runs a signal's handler on the main thread when it next runs bytecode; a signal
+        # the kernel hands to another thread (it does when the main thread has one pending, e.g.
+        # a SIGTERM right after a SIGCONT) does not wake an untimed wait, which then waited for ever
+        while not quit_requested.wait(SIGNAL_POLL_S):
+            pass
         print("stopping the arm and closing the session ...", flush=True)
         servers.close()
     print("closed", flush=True)
