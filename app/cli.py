@@ -23,6 +23,7 @@ from session_store.paths import DEFAULT_STUDY, participant_path
 _COMMAND_MODULES: tuple[str, ...] = (
     "app.session.rig_cli",
     "app.learning.cli",
+    "app.session.run_session",
     "app.protocol.cli",
     "app.analysis.cli",
     "app.ui.cli",

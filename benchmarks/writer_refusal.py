@@ -59,7 +59,7 @@ def main() -> None:
                 assert done.returncode == 2 and f"pid {first.pid}" in done.stderr, done.stderr
                 refusals.append(seconds)
             bare = [_timed([sys.executable, "-c", "pass"])[0] for _ in range(args.runs)]
-            imports = [_timed([sys.executable, "-c", "import app.protocol.cli"])[0]
+            imports = [_timed([sys.executable, "-c", "import app.session.run_session"])[0]
                        for _ in range(args.runs)]
             still_running = first.poll() is None
         finally:

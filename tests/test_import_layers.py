@@ -27,15 +27,6 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("app.cli", "app"),
 )
 
-#: Upward imports that other work of issue 39 removes (the allowance goes when it is merged).
-KNOWN_UPWARD = {
-    # the runner helper (run-session's loop moves out of app/protocol/cli.py into app.session)
-    ("app.protocol.cli", "app.session.cli"),
-    ("app.protocol.cli", "app.session.config"),
-    ("app.protocol.cli", "app.session.runner"),
-}
-
-
 def part(module: str) -> str:
     """The part of the tree a module belongs to (the longest entry of :data:`LAYERS` it is in)."""
     parts = [p for layer in LAYERS for p in layer if module == p or module.startswith(p + ".")]
@@ -65,8 +56,7 @@ def test_every_module_is_in_a_layer():
 
 
 def test_no_module_imports_a_higher_layer():
-    found = [i for i in upward(project_imports(ROOT))
-             if (i.importer, i.target) not in KNOWN_UPWARD]
+    found = upward(project_imports(ROOT))
     assert found == [], "imports of a higher layer:\n" + report(found)
 
 

@@ -1,5 +1,6 @@
 """What ``serve`` and ``run-session`` share on their command lines: the rehearsal rig and the
-construction of the session runner (the composition root of both)."""
+construction of the session runner (the composition root of both); and, for ``run-session``, the
+wait for a headless session to finish."""
 
 from __future__ import annotations
 
@@ -7,12 +8,17 @@ import argparse
 import contextlib
 import logging
 import signal
+import sys
+import threading
 from collections.abc import Iterator
 from typing import get_args
 
+from tqdm import tqdm
+
+from app.protocol.state import Step
 from app.session.config import LabConfig
 from app.session.rehearsal import HandKind, Rehearsal
-from app.session.runner import SessionRunner
+from app.session.runner import RunnerView, SessionRunner
 from robot_io.clock import resolve_priority
 from robot_io.errors import ConfigError
 
@@ -110,3 +116,21 @@ def open_runner(args: argparse.Namespace, lab: LabConfig, *, realtime: bool,
         yield runner
     finally:
         runner.close()
+
+
+def wait_until_done(runner: SessionRunner, progress: bool) -> RunnerView:
+    """Block until the session is done or the simulated experimenter gave up; a progress bar."""
+    done = threading.Event()
+    with tqdm(total=None, unit="handover", disable=not progress, file=sys.stderr) as bar:
+        def listen(view: RunnerView) -> None:
+            if view.state is not None:
+                bar.total = view.interactions
+                bar.n = view.state.completed
+                bar.refresh()
+            if view.step is Step.DONE or view.failed is not None:
+                done.set()
+
+        runner.subscribe(listen)
+        listen(runner.view)
+        done.wait()
+    return runner.view

@@ -144,7 +144,7 @@ def test_a_gripper_fault_in_the_hold_ends_the_trial_stops_the_arm_and_nothing_re
 
 
 def test_a_gripper_that_fails_to_close_at_r_ends_the_trial_as_a_gripper_fault_before_go():
-    """The runner locks Start on a gripper fault as on an arm fault (app/session/runner.py), so the
+    """The runner locks Start on a gripper fault as on an arm fault (app/session/supervisor.py), so the
     cycle tells it apart from any other error, at R as in the hold."""
     config = ControllerConfig()
     gripper = FaultingGripper()

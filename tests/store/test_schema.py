@@ -18,9 +18,9 @@ import pytest
 from support.engine import new_engine
 
 from app.protocol.engine import SessionEngine, rig_of
+from app.protocol.recorded import recorded_session
 from app.protocol.state import Step
 from app.session.config import LabConfig
-from app.session.runner import recorded_session
 from session_store.schema import (
     SCHEMA_VERSION,
     TABLES,
