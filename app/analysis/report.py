@@ -21,6 +21,7 @@ import pandas as pd
 from pydantic import BaseModel
 
 from app.analysis import figures as fig
+from app.analysis.learning_stop import learning_table
 from app.analysis.provenance import counted_ratings, not_blind, validation_blinding
 from app.analysis.report_page import render_page
 from app.analysis.stats import StatTest, paper_tests
@@ -56,6 +57,7 @@ class StudyAnalysis:
     survey: pd.DataFrame
     tests: list[StatTest]
     distances: pd.DataFrame
+    learning: pd.DataFrame  # per participant: where learning ended and why, ties (issue 40)
 
     @classmethod
     def of(cls, tables: dict[str, pd.DataFrame]) -> StudyAnalysis:
@@ -66,7 +68,9 @@ class StudyAnalysis:
         scores = validation_scores(pairs, theta_star(tables["learner_snapshots"]), status)
         survey = survey_table(tables["answers"], status)
         distances = validation_distances(tables["participants"], tables["trials"], tables["samples"])
-        return cls(tables, status, pairs, scores, survey, paper_tests(scores, survey), distances)
+        learning = learning_table(tables["participants"], tables["trials"], tables["events"])
+        return cls(tables, status, pairs, scores, survey, paper_tests(scores, survey), distances,
+                   learning)
 
 
 class Report(BaseModel):
@@ -92,7 +96,8 @@ def write_tables(analysis: StudyAnalysis, directory: Path) -> dict[str, Path]:
     """The report's tables as CSV files under ``directory``."""
     directory.mkdir(parents=True, exist_ok=True)
     frames = {"sessions": analysis.status, "validation_pairs": analysis.pairs,
-              "table4_survey": analysis.survey, "statistics": tests_frame(analysis.tests)}
+              "table4_survey": analysis.survey, "statistics": tests_frame(analysis.tests),
+              "learning": analysis.learning}
     for scenario, name in TABLE_FILES.items():
         frames[name] = analysis.scores[analysis.scores["scenario"] == scenario]
     paths = {}
