@@ -42,11 +42,11 @@ from app.learning.settled import epsilon_for
 from app.learning.simulation import StudyCondition, TrialResult, run_trial, stop_point
 
 #: The default rule first (90 % sure that the best θ would be preferred to θ* at most 60 % of the
-#: time, after ≥ 2 batches), then others: the signal is recorded as every posterior draw's regret,
-#: so any (threshold, preference) is evaluated offline.
+#: time, after ≥ 2 batches), then looser ones down to one that stops at the first chance: the signal
+#: is recorded as every posterior draw's regret, so any (threshold, preference) is evaluated offline.
 RULES = tuple((pref, StoppingRule(threshold=p, min_batches=b, epsilon=epsilon_for(pref)))
-              for p, b, pref in ((0.9, 2, 0.6), (0.8, 2, 0.6), (0.9, 2, 0.65), (0.8, 2, 0.65),
-                                 (0.9, 2, 0.7), (0.8, 1, 0.7)))
+              for p, b, pref in ((0.9, 2, 0.6), (0.8, 2, 0.65), (0.8, 1, 0.7), (0.8, 2, 0.9),
+                                 (0.5, 1, 0.8)))
 
 
 def arms(noise: float, tie: float) -> dict[str, StudyCondition]:

@@ -199,14 +199,15 @@ class SessionEngine:
 
     # -- the protocol's actions -----------------------------------------------------------------
     def plan_next(self, timeout: float = 60.0) -> PlannedTheta:
-        """Make sure the current interaction has its θ (asking the learner if needed) and return it."""
+        """Make sure the current interaction has its θ (asking the learner if needed) and return it
+        (when learning stops early, the current interaction becomes the best one)."""
         slot = self._require(Step.PLAN, Step.READY)
         if self.state.step is Step.PLAN:
             if slot.learner_index is not None:
                 self._plan_from_learner(slot, timeout)
             else:
                 self._plan_after_learning(timeout)
-        return self.state.planned[slot.interaction]
+        return self.state.planned[self.state.slot.interaction]
 
     def start_trial(self) -> TrialPlan:
         """Record the start of the current interaction's trial (the experimenter's Start)."""
