@@ -54,9 +54,9 @@ def arms(noise: float, tie: float) -> dict[str, StudyCondition]:
     session = StudyCondition(noise=noise, q=PAPER_SESSION_SCHEDULE.q,
                              n_unique=PAPER_SESSION_SCHEDULE.n_unique,
                              n_initial=PAPER_SESSION_SCHEDULE.n_initial)
-    return {"sect4": StudyCondition(noise=noise),
-            "session-drop": session.with_ties(tie, TieHandling.DROP),
-            "session-model": session.with_ties(tie, TieHandling.MODEL)}
+    return {"session-drop": session.with_ties(tie, TieHandling.DROP),
+            "session-model": session.with_ties(tie, TieHandling.MODEL),
+            "sect4": StudyCondition(noise=noise)}
 
 
 def run_arm(condition: StudyCondition, *, participants: int, seed: int, client, out: Path,
