@@ -29,7 +29,8 @@ def learning_line(engine: SessionEngine) -> str | None:
     if signal is None:
         return None
     unchanged = unchanged_batches(engine)
-    choice = (f"the learner's choice has not changed in {unchanged} batch"
+    choice = ("the learner's first choice" if unchanged is None else
+              f"the learner's choice has not changed in {unchanged} batch"
               f"{'es' if unchanged != 1 else ''}" if unchanged else
               "the learner's choice moved in the last batch")
     rule = engine.config.stopping_rule()
@@ -41,9 +42,10 @@ def learning_line(engine: SessionEngine) -> str | None:
     return f"{choice}; {sure}; {stops}"
 
 
-def unchanged_batches(engine: SessionEngine) -> int:
+def unchanged_batches(engine: SessionEngine) -> int | None:
     """Learning batches in a row, up to now, after which θ* stayed within :data:`UNCHANGED` (in
-    the θ box scaled to [0, 1]) of where it was after the batch before."""
+    the θ box scaled to [0, 1]) of where it was after the batch before; None after the first
+    batch (nothing to compare with)."""
     ends = {s.interaction - 1 for s in engine.slots if s.phase is Phase.LEARNING
             and s.position == 1}
     bounds = engine.config.theta_bounds
@@ -54,6 +56,8 @@ def unchanged_batches(engine: SessionEngine) -> int:
     unit = [[(v - low) / (high - low) for v, (low, high) in zip(star, bounds.values(),
                                                                  strict=True)]
             for star in stars]
+    if len(unit) < 2:
+        return None
     count = 0
     for before, after in zip(reversed(unit[:-1]), reversed(unit[1:]), strict=True):
         if math.dist(before, after) > UNCHANGED:
