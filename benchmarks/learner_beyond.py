@@ -82,6 +82,45 @@ def run_arm(condition: StudyCondition, *, participants: int, seed: int, client, 
     return [done[t] for t in range(participants)]
 
 
+def stopped(condition: StudyCondition, results: list[TrialResult], rule: StoppingRule
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Per participant, the interactions learning used by ``rule`` and u(θ*) when it stopped."""
+    used = np.array([stop_point(r, condition.schedule, rule) for r in results])
+    return used, np.array([r.distances[n - 1] for r, n in zip(results, used, strict=True)])
+
+
+def draw_tradeoff(tasks: dict[str, tuple[StudyCondition, list[TrialResult]]], path: Path) -> Path:
+    """Mean interactions used against mean u(θ*) when learning stopped, one point per rule (the
+    fixed schedule: the rule that never stops), per task."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6.4, 4.0))
+    for task, (condition, results) in tasks.items():
+        points = [stopped(condition, results, rule) for _, rule in RULES]
+        fixed = np.mean([r.distances[-1] for r in results])
+        curve = sorted((u.mean(), d.mean()) for u, d in points)
+        line = axis.plot(*zip(*curve, strict=True), "o-", label=task)[0]
+        axis.plot([condition.schedule.n_interactions], [fixed], "s", color=line.get_color(),
+                  markersize=10, fillstyle="none")
+        for (preference, rule), (u, d) in zip(RULES, points, strict=True):
+            axis.annotate(f"{rule.threshold:.0%}/{preference:.0%}/{rule.min_batches}",
+                          (u.mean(), d.mean()), fontsize=7, xytext=(4, 4),
+                          textcoords="offset points")
+    axis.set_xlabel("learning interactions used (mean)")
+    axis.set_ylabel("u(θ*) when learning stopped (mean)")
+    axis.set_title("Stopping when settled: interactions against distance (□ fixed schedule)",
+                   fontsize=9)
+    axis.legend(fontsize=8)
+    figure.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    return path
+
+
 def stopping_lines(task: str, condition: StudyCondition, results: list[TrialResult],
                    seed: int) -> list[str]:
     """One line per stopping rule: interactions used and final distance against the fixed."""
@@ -89,10 +128,9 @@ def stopping_lines(task: str, condition: StudyCondition, results: list[TrialResu
     fixed = np.array([r.distances[-1] for r in results])
     lines = []
     for preference, rule in RULES:
-        used = np.array([stop_point(r, condition.schedule, rule) for r in results])
-        stopped = np.array([r.distances[n - 1] for r, n in zip(results, used, strict=True)])
+        used, stopped_at = stopped(condition, results, rule)
         saving, lo_s, hi_s = ratio_ci(used.astype(float), np.full(len(used), float(fixed_n)), seed)
-        ratio, lo, hi = ratio_ci(stopped, fixed, seed)
+        ratio, lo, hi = ratio_ci(stopped_at, fixed, seed)
         counts = ", ".join(f"{n}: {int((used == n).sum())}" for n in np.unique(used))
         goal = "met" if saving <= 0.7 and hi <= 1.05 else "not met"
         lines.append(
@@ -100,7 +138,7 @@ def stopping_lines(task: str, condition: StudyCondition, results: list[TrialResu
             f"≥{rule.min_batches} batches: "
             f"interactions median {np.median(used):g} of {fixed_n} (mean {used.mean():.1f}, "
             f"{1 - saving:.0%} fewer [{1 - hi_s:.0%}, {1 - lo_s:.0%}]; distribution {counts}); "
-            f"final u(θ*) {stopped.mean():.3f} vs fixed {fixed.mean():.3f}, ratio {ratio:.3f} "
+            f"final u(θ*) {stopped_at.mean():.3f} vs fixed {fixed.mean():.3f}, ratio {ratio:.3f} "
             f"[{lo:.3f}, {hi:.3f}]; goal (≥30 % fewer, ratio ≤ 1.05): {goal}")
     return lines
 
@@ -127,6 +165,8 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
     parser.add_argument("--out", type=Path, default=Path("out/learner-beyond"))
+    parser.add_argument("--figure", type=Path, default=None,
+                        help="PNG of interactions against distance per rule (default OUT/stopping.png)")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args()
 
@@ -148,6 +188,10 @@ def main() -> None:
         print(line)
     print(ties_line(results["session-drop"], results["session-model"], args.seed,
                     PAPER_SESSION_SCHEDULE.n_interactions))
+    figure = draw_tradeoff({"sect4": (conditions["sect4"], results["sect4"]),
+                            "session": (conditions["session-drop"], results["session-drop"])},
+                           args.figure or args.out / "stopping.png")
+    print(f"figure written to {figure}")
     print("baseline (the paper's fixed schedule, ties dropped): " + json.dumps(
         {name: round(float(np.mean([r.distances[-1] for r in rs])), 4)
          for name, rs in results.items()}))
