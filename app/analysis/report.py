@@ -60,7 +60,8 @@ def write_tables(analysis: StudyAnalysis, directory: Path) -> dict[str, Path]:
     """The report's tables as CSV files under ``directory``."""
     directory.mkdir(parents=True, exist_ok=True)
     frames = {"sessions": analysis.status, "validation_pairs": analysis.pairs,
-              "table4_survey": analysis.survey, "statistics": tests_frame(analysis.tests)}
+              "table4_survey": analysis.survey, "statistics": tests_frame(analysis.tests),
+              "learning": analysis.learning}
     for scenario, name in TABLE_FILES.items():
         frames[name] = analysis.scores[analysis.scores["scenario"] == scenario]
     paths = {}

@@ -77,6 +77,15 @@ def sessions(analysis: StudyAnalysis) -> str:
                 "validation_blinding": "Validation shown to the experimenter"}))
 
 
+def learning(analysis: StudyAnalysis) -> str:
+    """Per participant: the interactions learning used, where and why it ended, the ties."""
+    return html.section("Learning: interactions used, why it ended, ties", html.table(
+        analysis.learning, {"participant": "Participant", "learning_interactions": "Interactions "
+                            "learned from", "schedule_interactions": "of the schedule",
+                            "learning_ended": "Learning ended", "why": "Why",
+                            "ties_placed": "\"equal\" placements", "ties": "Ties"}))
+
+
 def validation_tables(analysis: StudyAnalysis) -> str:
     parts = []
     for scenario in SCENARIOS:
@@ -155,7 +164,7 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
     curves = figure_list(figures, "learning-", "θ over interactions and θ*'s posterior utility:")
     parts = [intro, html.paragraph(ratings_counted),
              problems(analysis, unreadable, recording_cut_short),
-             sessions(analysis), validation_tables(analysis),
+             sessions(analysis), learning(analysis), validation_tables(analysis),
              statistics(analysis.tests), survey(analysis),
              html.section("Fig. 4: trajectories of the validation trials (Sect. VI-C)", *fig4,
                           *left_out(analysis, figures, "fig4-", "no completed validation trial")),

@@ -1,6 +1,7 @@
 """What ``handover report`` computes from a study's tidy tables before it writes anything: the
 sessions' status, the validation pairs and scores (Tables II–III), the survey (Table IV), the tests
-of Sect. VI and the validation trajectories' distances (Fig. 4)."""
+of Sect. VI, the validation trajectories' distances (Fig. 4) and where each session's learning
+ended."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from app.analysis.learning_stop import learning_table
 from app.analysis.provenance import validation_blinding
 from app.analysis.stats import StatTest, paper_tests
 from app.analysis.tables import (
@@ -31,6 +33,7 @@ class StudyAnalysis:
     survey: pd.DataFrame
     tests: list[StatTest]
     distances: pd.DataFrame
+    learning: pd.DataFrame  # per participant: where learning ended and why, ties (issue 40)
 
     @classmethod
     def of(cls, tables: dict[str, pd.DataFrame]) -> StudyAnalysis:
@@ -41,4 +44,6 @@ class StudyAnalysis:
         scores = validation_scores(pairs, theta_star(tables["learner_snapshots"]), status)
         survey = survey_table(tables["answers"], status)
         distances = validation_distances(tables["participants"], tables["trials"], tables["samples"])
-        return cls(tables, status, pairs, scores, survey, paper_tests(scores, survey), distances)
+        learning = learning_table(tables["participants"], tables["trials"], tables["events"])
+        return cls(tables, status, pairs, scores, survey, paper_tests(scores, survey), distances,
+                   learning)

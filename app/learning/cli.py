@@ -9,8 +9,8 @@ import sys
 from collections.abc import Callable
 from pathlib import Path
 
-from app.learning.config import DEFAULT_RECOMMENDATION, AcquisitionName
-from app.learning.models import RecommendationName
+from app.learning.config import DEFAULT_RECOMMENDATION, AcquisitionName, StoppingRule
+from app.learning.models import RecommendationName, TieHandling
 
 #: The six conditions of Sect. IV (qNEI q = 2, qNEI q = 5, EUBO; σ = 0 and 0.05) plus the Sobol
 #: baseline. EUBO compares one new point with θ*, i.e. batches of q = 2.
@@ -80,6 +80,12 @@ def add_shared_options(parser: argparse.ArgumentParser, *, noise: float, out: st
     parser.add_argument("--batch-position-noise", action="store_true",
                         help="the learner weighs each comparison by the noise of eq. (16) at the "
                         "batch positions it compares (default: every comparison equally)")
+    parser.add_argument("--tie", type=_bounded(float, 0.0, 1.0), default=0.0,
+                        help="the simulated participant says 'equal' when two impressions of a "
+                        "batch differ by less than this (default 0: never)")
+    parser.add_argument("--ties", choices=[t.value for t in TieHandling], default="drop",
+                        help="what the learner does with 'equal': drop (the paper's rule, default) "
+                        "or model (a tie in the likelihood, docs/learning.md)")
     add_cluster_options(parser)
     parser.add_argument("--out", type=Path, default=Path(out),
                         help=f"output folder, resumed from (default {out})")
@@ -130,6 +136,11 @@ def register_pilot(subparsers: argparse._SubParsersAction) -> None:
                         help="spread of the participants' optima around a scenario's shared one "
                         "(unit-cube sd, 0 to 1), or 'paper': optima resampled from the θ* of "
                         "Tables II–III; default: uniform optima, no shared structure")
+    parser.add_argument("--stop-when-settled", type=_bounded(float, 0.5, 1.0), default=None,
+                        metavar="THRESHOLD", help="end learning after a batch (at least 2) once "
+                        "the learner is this sure that the best θ would be preferred to θ* at "
+                        "most 60 %% of the time, as [protocol] stop_when_settled does (default: "
+                        "the fixed schedule)")
     add_shared_options(parser, noise=0.05, out="out/pilot",
                        figure="PNG of scores and power (default OUT/pilot.png)")
     parser.set_defaults(func=run_pilot_command)
@@ -149,7 +160,10 @@ def run_pilot_command(args: argparse.Namespace) -> int:
                          schedule=schedule,
                          acquisition=AcquisitionName(args.acq),
                          recommendation=RecommendationName(args.recommendation), seed=args.seed,
-                         batch_position_noise=args.batch_position_noise)
+                         batch_position_noise=args.batch_position_noise, tie=args.tie,
+                         ties=TieHandling(args.ties),
+                         stopping=None if args.stop_when_settled is None else
+                         StoppingRule(threshold=args.stop_when_settled))
     with dask_client(args.scheduler, args.workers) as client:
         report = run_pilot(config, client=client, out=args.out, progress=not args.no_progress)
     figure = draw_pilot(report, args.figure or args.out / "pilot.png")
@@ -163,6 +177,8 @@ def run_pilot_command(args: argparse.Namespace) -> int:
         print("validation scores: " + ", ".join(f"{k} {v:.2f}"
                                                 for k, v in report.score_distribution.items())
               + f" (mean {report.mean_score:.2f})")
+        print(f"learning used a median of {report.median_learning_interactions:g} interactions "
+              f"of {schedule.n_interactions}; mean u(θ*) {report.mean_final_distance:.3f}")
         for p in report.power:
             print(f"sign test power at α = {p.alpha:g}: {p.power:.2f} [{p.ci_low:.2f}, "
                   f"{p.ci_high:.2f}] ({p.significant} of {p.studies} studies)")
@@ -186,7 +202,9 @@ def run(args: argparse.Namespace) -> int:
             condition = StudyCondition(acquisition=acq, q=q, noise=noise, n_unique=args.queries,
                                        n_initial=args.initial,
                                        recommendation=RecommendationName(args.recommendation)
-                                       ).with_batch_position_noise(args.batch_position_noise)
+                                       ).with_batch_position_noise(args.batch_position_noise
+                                                                   ).with_ties(args.tie,
+                                                                               TieHandling(args.ties))
             results.append(run_condition(condition, trials=args.trials, seed=args.seed,
                                          client=client, out=args.out,
                                          progress=not args.no_progress))

@@ -8,12 +8,25 @@ from enum import StrEnum
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from app.learning.models import Comparison, FitReport, Interaction, ParameterBox, RecommendationName
+from app.learning.models import (
+    Comparison,
+    FitReport,
+    Interaction,
+    ParameterBox,
+    RecommendationName,
+    Settledness,
+    TieHandling,
+)
 from app.learning.planner import BatchSchedule
 from app.learning.prior import PopulationPrior
 
 #: Serialisable kernel hyperparameters: raw parameter name → values (the warm start, the snapshot).
 Hyperparameters = dict[str, list[float]]
+
+
+#: ε of the stopping signal: √2·Φ⁻¹(0.6), the regret at which the best θ would be preferred to θ*
+#: 60 % of the time under the probit of eq. (13) (app.learning.settled.epsilon_for, torch-free here).
+DEFAULT_SETTLED_EPSILON = 0.3583
 
 
 class AcquisitionName(StrEnum):
@@ -81,10 +94,33 @@ class ModelConfig(BaseModel):
         "batch positions i and j is √((i² + j²)/2) times as noisy as one between two first "
         "positions (app.learning.comparison_noise); off: every comparison equally reliable, as "
         "BoTorch's probit likelihood has it")
+    ties: TieHandling = Field(
+        TieHandling.DROP, description="an \"equal\" placement: dropped (the paper's rule) or, "
+        "\"model\", in the likelihood as two half-weighted opposite comparisons (Davidson's tie "
+        "model in probit form, app.learning.ties)")
     refit_growth: float = Field(
         0.0, ge=0.0, description="refit the hyperparameters only once the number of comparisons "
         "has grown by this fraction since the last fit (0: whenever new comparisons arrived); "
         "in between, the posterior is recomputed with the current hyperparameters")
+
+
+class StoppingRule(BaseModel):
+    """When learning stops early (``[protocol] stop_when_settled``): after a learning batch, once at
+    least ``min_batches`` learning batches are done and the stopping signal
+    (:class:`~app.learning.models.Settledness`) has reached ``threshold``."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    threshold: float = Field(0.9, ge=0.5, le=1.0, description="the signal's probability that "
+                             "stops learning")
+    min_batches: int = Field(2, ge=1, le=50, description="learning batches run before any stop")
+    epsilon: float = Field(DEFAULT_SETTLED_EPSILON, gt=0.0, le=5.0,
+                           description="ε of the signal: θ*'s regret in latent utility")
+
+    def stops(self, batches_done: int, signal: Settledness | None) -> bool:
+        """Whether learning stops after ``batches_done`` learning batches at this signal."""
+        return (batches_done >= self.min_batches and signal is not None
+                and signal.probability_within(self.epsilon) >= self.threshold)
 
 
 class LearnerConfig(BaseModel):
@@ -102,6 +138,10 @@ class LearnerConfig(BaseModel):
         "recommendation study); the batch-opening θ* is the in-sample incumbent whatever this is")
     lcb_beta: float = Field(1.0, ge=0.0, le=10.0,
                             description="β of the in-sample lower confidence bound mean − β·std")
+    settled_epsilon: float = Field(
+        DEFAULT_SETTLED_EPSILON, gt=0.0, le=5.0, description="ε of the stopping signal: θ* is "
+        "settled when its regret (latent utility) is at most ε; the default 0.358 means the best "
+        "θ would be preferred to θ* at most 60 % of the time (app.learning.settled)")
     prior: PopulationPrior | None = Field(
         None, description="prior mean from earlier participants (app.learning.population); "
         "None: the zero mean of eq. (12)")

@@ -5,6 +5,9 @@ Interactions map to point indices: an interaction that shows a θ already seen (
 reuses that point's index. ``PairwiseGP`` would silently merge points closer than 1e-4 and turn a
 comparison with such a near-twin into an uninformative self-pair, so points are merged here first,
 with a larger tolerance, and comparisons that end up between one point and itself are dropped.
+
+Ties ("equal" placements, ``Comparison.tie``) are dropped (the paper's rule) or, with
+``TieHandling.MODEL``, enter as two weighted rows (:mod:`app.learning.ties`).
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ import torch
 
 from app.learning.comparison_noise import relative_noise
 from app.learning.errors import UnknownInteractionError
-from app.learning.models import Comparison, InteractionId
+from app.learning.models import Comparison, InteractionId, TieHandling
+from app.learning.ties import tie_rows
 
 logger = logging.getLogger(__name__)
 
@@ -26,13 +30,19 @@ MERGE_TOLERANCE = 1e-3
 class PreferenceData:
     """Unique points, the interactions that showed them, and index comparisons."""
 
-    def __init__(self, dim: int, merge_tolerance: float = MERGE_TOLERANCE) -> None:
+    def __init__(self, dim: int, merge_tolerance: float = MERGE_TOLERANCE,
+                 ties: TieHandling = TieHandling.DROP) -> None:
         self.dim = dim
         self.merge_tolerance = merge_tolerance
+        self.ties = ties
         self.points: list[list[float]] = []
         self.comparisons: list[tuple[int, int]] = []
         #: each comparison's relative noise √((i² + j²)/2) from its batch positions (eq. (16))
         self.comparison_noise: list[float] = []
+        #: each comparison's weight in the likelihood: 1, or ½ for each half of a tie
+        self.comparison_weight: list[float] = []
+        #: ties that entered the likelihood (two rows each)
+        self.n_ties = 0
         self._index: dict[InteractionId, int] = {}
         self._position: dict[InteractionId, int] = {}
 
@@ -81,15 +91,21 @@ class PreferenceData:
         return index
 
     def add_comparison(self, comparison: Comparison) -> bool:
-        """Add θ_winner ≻ θ_loser; returns False (and adds nothing) when both are the same point."""
+        """Add θ_winner ≻ θ_loser (a tie: both orders, half weight each, or nothing when ties
+        are dropped); returns False (and adds nothing) when both are the same point."""
         pair = (self.index_of(comparison.winner), self.index_of(comparison.loser))
-        if pair[0] == pair[1]:
-            logger.debug("dropped self-comparison %s ≻ %s (point %d)", comparison.winner,
-                         comparison.loser, pair[0])
+        if pair[0] == pair[1] or (comparison.tie and self.ties is TieHandling.DROP):
+            logger.debug("dropped %s %s ~ %s (points %d, %d)",
+                         "tie" if comparison.tie else "self-comparison", comparison.winner,
+                         comparison.loser, *pair)
             return False
-        self.comparisons.append(pair)
-        self.comparison_noise.append(relative_noise(self._position[comparison.winner],
-                                                    self._position[comparison.loser]))
+        rows = tie_rows(*pair) if comparison.tie else [(pair, 1.0)]
+        noise = relative_noise(self._position[comparison.winner], self._position[comparison.loser])
+        for row, weight in rows:
+            self.comparisons.append(row)
+            self.comparison_noise.append(noise)
+            self.comparison_weight.append(weight)
+        self.n_ties += comparison.tie
         return True
 
     def tensors(self) -> tuple[torch.Tensor, torch.Tensor]:

@@ -15,6 +15,7 @@ Every step is deterministic given ``LearnerConfig.seed`` and the observations.
 
 from __future__ import annotations
 
+import bisect
 import logging
 from collections.abc import Sequence
 
@@ -31,6 +32,7 @@ from app.learning.models import (
     Interaction,
     PosteriorSlice,
     RecommendationName,
+    Settledness,
     Slot,
     SlotKind,
     Suggestion,
@@ -39,6 +41,7 @@ from app.learning.population import PopulationMean
 from app.learning.preference_model import PreferenceModel, kernel_evaluation, posterior_at
 from app.learning.recommendation import Recommendation, recommend
 from app.learning.rng import derive_seed, seeded
+from app.learning.settled import regrets
 
 logger = logging.getLogger(__name__)
 
@@ -49,7 +52,7 @@ class PreferenceLearner:
     def __init__(self, config: LearnerConfig,
                  hyperparameters: Hyperparameters | None = None) -> None:
         self.config = config
-        self.data = PreferenceData(config.box.dim)
+        self.data = PreferenceData(config.box.dim, ties=config.model.ties)
         prior_mean = PopulationMean(config.prior) if config.prior is not None else None
         self.model = PreferenceModel(config.model, hyperparameters, prior_mean)
         self.last_fit = FitReport()
@@ -145,6 +148,21 @@ class PreferenceLearner:
                 found[strategy] = recommend(strategy, model, self.data, self.config.optimizer,
                                             seed, self.config.lcb_beta)
         return found[strategy]
+
+    def settledness(self) -> Settledness | None:
+        """The stopping signal (:mod:`app.learning.settled`): how sure the posterior is that θ*'s
+        regret is at most ``LearnerConfig.settled_epsilon``; None before a model exists."""
+        best = self.best()
+        if best is None or best.strategy is None or self.model.model is None:
+            return None
+        seed = derive_seed(self.config.seed, len(self.data.points), len(self.data.comparisons), 4)
+        with kernel_evaluation(self.config.model):
+            drawn = regrets(self.model.model, self.data, self.config.box.to_unit(best.theta),
+                            seed)
+        epsilon = self.config.settled_epsilon
+        share = bisect.bisect_right(drawn, epsilon) / len(drawn)
+        return Settledness(probability=share, epsilon=epsilon, regrets=tuple(drawn),
+                           theta=best.theta)
 
     def incumbent(self) -> dict[str, float] | None:
         """The batch-opening θ*: the observed point with the largest posterior mean, a handover

@@ -6,6 +6,7 @@ Interaction ids are strings (the labels of the markers on the scale, "1", "2", �
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Mapping, Sequence
 from enum import StrEnum
@@ -119,10 +120,13 @@ class Placement(_Frozen):
 
 
 class Comparison(_Frozen):
-    """θ_winner ≻ θ_loser, one element of the data set 𝒟 of eq. (11), between interactions."""
+    """θ_winner ≻ θ_loser, one element of the data set 𝒟 of eq. (11), between interactions; with
+    ``tie`` the two were placed "equal" (θ_winner ~ θ_loser, their order immaterial), which the
+    learner uses only with ``ModelConfig.ties = "model"`` (:mod:`app.learning.ties`)."""
 
     winner: InteractionId
     loser: InteractionId
+    tie: bool = False
 
     @model_validator(mode="after")
     def _distinct(self) -> Self:
@@ -136,6 +140,29 @@ class Interaction(_Frozen):
 
     interaction_id: InteractionId = Field(min_length=1)
     theta: dict[str, float]
+
+
+class TieHandling(StrEnum):
+    """What the learner does with an "equal" placement (``[learner] ties``)."""
+
+    DROP = "drop"  #: no comparison: the paper's rule (Sect. III-C)
+    MODEL = "model"  #: a tie in the likelihood (:mod:`app.learning.ties`)
+
+
+class Settledness(_Frozen):
+    """How settled θ* is after a batch: the posterior probability that the recommended θ* is
+    within ``epsilon`` of the best θ in utility (its regret is at most ε), estimated from joint
+    posterior draws (:mod:`app.learning.settled`). ``regrets``: each draw's regret of θ*, sorted
+    (so any ε can be asked)."""
+
+    probability: float = Field(ge=0.0, le=1.0, description="P(regret of θ* ≤ epsilon)")
+    epsilon: float = Field(gt=0.0)
+    regrets: tuple[float, ...] = Field(min_length=1)
+    theta: dict[str, float] = Field(description="the θ* it is about")
+
+    def probability_within(self, epsilon: float) -> float:
+        """The share of draws in which θ*'s regret is at most ``epsilon``."""
+        return bisect.bisect_right(self.regrets, epsilon) / len(self.regrets)
 
 
 class SlotKind(StrEnum):

@@ -9,7 +9,9 @@ utility u = ‖θ_t − θ‖ (15), each interaction observed as y = u + j·N(0,
 position in the batch (in a validation pair j = 1, 2), and of two handovers the one with the
 smaller y preferred. A participant's validation score is the share of pairs won by θ* (Tables
 II–III); the study's test is the paper's sign test of the scores against 50 % (ties dropped,
-one-sided), significant at α when p < α.
+one-sided), significant at α when p < α. Options beyond the paper: a participant who says "equal"
+(``tie``) and a learner that models ties (``ties``); learning that ends once settled
+(``stopping``, as ``[protocol] stop_when_settled``), validating the θ* of the batch it stopped at.
 
 Over M studies: the distribution of validation scores, and the power (share of studies
 significant) at α = 0.05 and 0.001 with Clopper–Pearson 95 % CIs, also for fewer participants per
@@ -31,17 +33,22 @@ from pydantic import BaseModel, ConfigDict, Field
 from scipy import stats
 
 from app.learning.cluster import run_tasks
-from app.learning.config import DEFAULT_RECOMMENDATION, AcquisitionName
+from app.learning.config import DEFAULT_RECOMMENDATION, AcquisitionName, StoppingRule
 from app.learning.errors import StudyError
-from app.learning.models import RecommendationName
+from app.learning.models import RecommendationName, TieHandling
 from app.learning.paper_population import PaperPopulation
 from app.learning.planner import PAPER_SESSION_SCHEDULE, BatchSchedule
 from app.learning.rng import derive_seed
-from app.learning.simulation import StudyCondition, participant_target, simulate_learner
+from app.learning.simulation import (
+    StudyCondition,
+    participant_target,
+    simulate_learner,
+    stop_point,
+)
 from app.learning.study import append_durably
 
 PARTICIPANT_COLUMNS = ("study", "scenario", "participant", "wins", "pairs", "score",
-                       "final_distance")
+                       "final_distance", "learning_interactions", "ties")
 ALPHAS = (0.05, 0.001)
 
 
@@ -66,13 +73,19 @@ class PilotConfig(BaseModel):
     dim: int = Field(3, ge=1, le=10)
     batch_position_noise: bool = Field(False, description="the learner weighs comparisons by the "
                                        "noise of eq. (16) (app.learning.comparison_noise)")
+    tie: float = Field(0.0, ge=0.0, le=1.0, description="the participant says \"equal\" below "
+                       "this difference of impressions (0: never)")
+    ties: TieHandling = Field(TieHandling.DROP, description="the learner drops or models ties")
+    stopping: StoppingRule | None = Field(None, description="end learning once settled "
+                                          "(app.learning.settled); None: the fixed schedule")
 
     @property
     def condition(self) -> StudyCondition:
         return StudyCondition(acquisition=self.acquisition, q=self.schedule.q, noise=self.noise,
                               n_unique=self.schedule.n_unique, n_initial=self.schedule.n_initial,
                               dim=self.dim, recommendation=self.recommendation
-                              ).with_batch_position_noise(self.batch_position_noise)
+                              ).with_batch_position_noise(self.batch_position_noise
+                                                          ).with_ties(self.tie, self.ties)
 
 
 class ParticipantResult(BaseModel):
@@ -86,6 +99,9 @@ class ParticipantResult(BaseModel):
     wins: int
     pairs: int
     final_distance: float = Field(description="u(θ*) at the end of learning")
+    learning_interactions: int = Field(0, description="interactions learning used (0: not "
+                                       "recorded, a pilot from before it was)")
+    ties: int = Field(0, description="ties the learner used")
 
     @property
     def score(self) -> float:
@@ -99,9 +115,12 @@ def simulate_participant(config: PilotConfig, study: int, scenario: int,
                                 participant, config.spread)
     key = (config.seed, study, scenario, participant)
     trial, learner = simulate_learner(config.condition, target, derive_seed(*key, 1),
-                                      derive_seed(*key, 2))
-    best = learner.best()
-    theta_star = np.array([best.theta[n] for n in learner.config.box.names])  # type: ignore[union-attr]
+                                      derive_seed(*key, 2), settle=config.stopping is not None)
+    used = (len(trial.distances) if config.stopping is None
+            else stop_point(trial, config.schedule, config.stopping))
+    signal = trial.settled[used - 1] if config.stopping is not None else None
+    best = learner.best().theta if signal is None else signal.theta  # type: ignore[union-attr]
+    theta_star = np.array([best[n] for n in learner.config.box.names])
     rng = np.random.default_rng(derive_seed(*key, 3))
     wins = 0
     for _ in range(config.validation_pairs):
@@ -113,7 +132,9 @@ def simulate_participant(config: PilotConfig, study: int, scenario: int,
         y_ref = u_ref + j_ref * rng.normal(0.0, config.noise)
         wins += y_star < y_ref
     return ParticipantResult(study=study, scenario=scenario, participant=participant, wins=wins,
-                             pairs=config.validation_pairs, final_distance=trial.distances[-1])
+                             pairs=config.validation_pairs,
+                             final_distance=trial.distances[used - 1],
+                             learning_interactions=used, ties=trial.ties)
 
 
 def sign_test_p(scores: list[float]) -> float:
@@ -148,6 +169,7 @@ class PilotReport(BaseModel):
     score_distribution: dict[str, float] = Field(description="share of participants per score")
     mean_score: float
     mean_final_distance: float
+    median_learning_interactions: float = Field(description="interactions learning used")
     power: list[PowerEstimate] = Field(description="at the configured N, each α")
     power_curve: list[PowerEstimate] = Field(description="first n participants per scenario")
     out_dir: str
@@ -178,6 +200,8 @@ def report(config: PilotConfig, results: list[ParticipantResult], out: Path) -> 
         config=config, score_distribution=distribution,
         mean_score=float(np.mean([r.score for r in results])),
         mean_final_distance=float(np.mean([r.final_distance for r in results])),
+        median_learning_interactions=float(np.median([r.learning_interactions
+                                                      for r in results])),
         power=[p for p in curve if p.participants_per_scenario == config.participants],
         power_curve=curve, out_dir=str(out))
 
@@ -203,7 +227,9 @@ class PilotStore:
         results = [ParticipantResult(study=int(r["study"]), scenario=int(r["scenario"]),
                                      participant=int(r["participant"]), wins=int(r["wins"]),
                                      pairs=int(r["pairs"]),
-                                     final_distance=float(r["final_distance"])) for r in rows]
+                                     final_distance=float(r["final_distance"]),
+                                     learning_interactions=int(r.get("learning_interactions") or 0),
+                                     ties=int(r.get("ties") or 0)) for r in rows]
         return {(r.study, r.scenario, r.participant): r for r in results}
 
     def append(self, result: ParticipantResult) -> None:
@@ -218,7 +244,7 @@ class PilotStore:
 
 def _row(r: ParticipantResult) -> str:
     return (f"{r.study},{r.scenario},{r.participant},{r.wins},{r.pairs},{r.score!r},"
-            f"{r.final_distance!r}\n")
+            f"{r.final_distance!r},{r.learning_interactions},{r.ties}\n")
 
 
 def run_pilot(config: PilotConfig, *, client: Client, out: Path,

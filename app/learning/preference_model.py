@@ -87,8 +87,7 @@ def fit_model(data: PreferenceData, config: ModelConfig,
     """
     X, C = data.tensors()
     covar = _covar_module_at(data.dim, config, hyperparameters)
-    likelihood = (BatchPositionProbit(torch.tensor(data.comparison_noise, dtype=torch.float64))
-                  if config.batch_position_noise else PairwiseProbitLikelihood())
+    likelihood = _likelihood(data, config)
     with kernel_evaluation(config), expected_warnings(NumericalWarning, context="PairwiseGP"):
         if prior_mean is None:
             model = PairwiseGP(X, C, likelihood=likelihood, covar_module=covar)
@@ -104,6 +103,16 @@ def fit_model(data: PreferenceData, config: ModelConfig,
             fit_gpytorch_mll(mll, max_attempts=config.fit_max_attempts,
                              optimizer_kwargs={"options": options})
     return model.eval()
+
+
+def _likelihood(data: PreferenceData, config: ModelConfig) -> PairwiseProbitLikelihood:
+    """BoTorch's probit; with noise by batch position (eq. (16)) or weighted ties, the probit with
+    one relative noise and one weight per comparison (:mod:`app.learning.comparison_noise`)."""
+    if not config.batch_position_noise and data.n_ties == 0:
+        return PairwiseProbitLikelihood()
+    noise = data.comparison_noise if config.batch_position_noise else [1.0] * len(data.comparisons)
+    return BatchPositionProbit(torch.tensor(noise, dtype=torch.float64),
+                               torch.tensor(data.comparison_weight, dtype=torch.float64))
 
 
 def kernel_evaluation(config: ModelConfig) -> AbstractContextManager[None]:

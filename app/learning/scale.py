@@ -39,18 +39,22 @@ def _resolve(placements: Sequence[Placement]) -> tuple[dict[InteractionId, float
     return position, group
 
 
-def comparisons_for_newest(placements: Sequence[Placement]) -> list[Comparison]:
+def comparisons_for_newest(placements: Sequence[Placement], *,
+                           ties: bool = False) -> list[Comparison]:
     """Comparisons of the newest (last) placement against every earlier placement of the batch.
 
     Parameters
     ----------
     placements
         The batch's placements in the order the interactions happened; the last one is new.
+    ties
+        Also return a ``tie=True`` comparison (newest first) per earlier interaction tied with it.
 
     Returns
     -------
     list of Comparison
-        One per earlier interaction that is not tied with the newest, in the order of the batch.
+        One per earlier interaction that is not tied with the newest (with ``ties``: one per
+        earlier interaction), in the order of the batch.
         Ties are placements on the same marker (``equal_to``, transitively); markers that happen to
         share a position without being placed on each other are also treated as ties, since the
         scale then carries no order between them.
@@ -69,8 +73,9 @@ def comparisons_for_newest(placements: Sequence[Placement]) -> list[Comparison]:
     for earlier in placements[:-1]:
         eid = earlier.interaction_id
         if group[eid] == group[newest] or position[eid] == position[newest]:
-            continue
-        if position[newest] > position[eid]:
+            if ties:
+                comparisons.append(Comparison(winner=newest, loser=eid, tie=True))
+        elif position[newest] > position[eid]:
             comparisons.append(Comparison(winner=newest, loser=eid))
         else:
             comparisons.append(Comparison(winner=eid, loser=newest))

@@ -6,8 +6,11 @@ y(θ) = u(θ) + j·N(0, σ²) (16), j = 1 … q its index within the batch, so l
 batch are remembered less reliably. The participant places each interaction on the relative
 scale at a position that decreases with y (so θ_r ≻ θ_c exactly when y(θ_r) < y(θ_c)), and the
 comparisons come from the same scale rule as in the human study (:mod:`app.learning.scale`): the
-newest interaction against every earlier one of its batch. The schedule is the paper's: 5 Sobol
-points, then batches of θ* + q − 1 queries until 25 unique points have been shown.
+newest interaction against every earlier one of its batch. With a tie threshold (``tie``) the
+participant places an interaction "equal" to the earlier one of its batch whose y is closest, when
+closer than ``tie`` (as the session's simulated participant does within its ``tie_s``). The
+schedule is the paper's: 5 Sobol points, then batches of θ* + q − 1 queries until 25 unique points
+have been shown.
 
 Reported per interaction, after the model has been updated with that interaction's comparisons:
 the *inference* distance u(θ*) of the recommended θ* to the target under every recommendation
@@ -36,6 +39,7 @@ from app.learning.config import (
     LearnerConfig,
     ModelConfig,
     OptimizerConfig,
+    StoppingRule,
 )
 from app.learning.learner import PreferenceLearner
 from app.learning.models import (
@@ -44,7 +48,9 @@ from app.learning.models import (
     ParameterBox,
     Placement,
     RecommendationName,
+    Settledness,
     SlotKind,
+    TieHandling,
 )
 from app.learning.paper_population import PAPER_POPULATION, PaperPopulation, paper_optimum
 from app.learning.planner import BatchSchedule
@@ -83,12 +89,23 @@ class StudyCondition(BaseModel):
     recommendation: RecommendationName = Field(
         DEFAULT_RECOMMENDATION, description="the strategy of the ``distance`` column (all "
         "strategies are recorded)")
+    tie: float = Field(0.0, ge=0.0, le=1.0, description="the participant places an interaction "
+                       "\"equal\" to an earlier one of its batch whose y is closer than this "
+                       "(0: never)")
 
     @property
     def name(self) -> str:
-        """Short label, e.g. ``qnei-q5-s0.05`` (``-bpn``: comparisons weighed by batch position)."""
+        """Short label, e.g. ``qnei-q5-s0.05`` (``-bpn``: comparisons weighed by batch position;
+        ``-tie0.05-model``: ties within 0.05, in the likelihood)."""
         return (f"{self.acquisition.value}-q{self.q}-s{self.noise:g}"
-                + ("-bpn" if self.model.batch_position_noise else ""))
+                + ("-bpn" if self.model.batch_position_noise else "")
+                + (f"-tie{self.tie:g}-{self.model.ties.value}" if self.tie else ""))
+
+    def with_ties(self, tie: float, handling: TieHandling) -> StudyCondition:
+        """The same condition with a participant who says "equal" within ``tie``, its ties
+        dropped or modelled by the learner (:mod:`app.learning.ties`)."""
+        model = self.model.model_copy(update={"ties": handling})
+        return self.model_copy(update={"tie": tie, "model": model})
 
     def with_batch_position_noise(self, on: bool) -> StudyCondition:
         """The same condition with the likelihood of :mod:`app.learning.comparison_noise` on/off."""
@@ -103,7 +120,7 @@ class StudyCondition(BaseModel):
 class TrialResult(BaseModel):
     """Per-interaction distances of one trial; ``distances[i]`` is u(θ*) after interaction i."""
 
-    model_config = ConfigDict(frozen=True, extra="forbid")
+    model_config = ConfigDict(frozen=True, extra="forbid", ser_json_inf_nan="constants")
 
     trial: int
     distances: list[float] = Field(description="inference curve of the condition's strategy")
@@ -113,6 +130,10 @@ class TrialResult(BaseModel):
         "NaN where it was not computed (only the final value of untracked strategies is)")
     fit_failures: int
     seconds: float
+    settled: list[Settledness | None] = Field(
+        default_factory=list, description="the stopping signal (app.learning.settled) after each "
+        "interaction that ends a batch, None after the others; empty unless asked for")
+    ties: int = Field(0, description="ties that entered the likelihood")
 
     @property
     def oracle_distances(self) -> list[float]:
@@ -138,21 +159,34 @@ def scale_position(y: float) -> float:
     return 0.5 - math.atan(y) / math.pi
 
 
-def run_trial(condition: StudyCondition, seed: int, trial: int) -> TrialResult:
-    """Run trial ``trial`` of a study seeded with ``seed``.
+def run_trial(condition: StudyCondition, seed: int, trial: int,
+              settle: bool = False) -> TrialResult:
+    """Run trial ``trial`` of a study seeded with ``seed`` (``settle``: record the stopping signal).
 
     Target and noise depend only on ``(seed, trial)``, so every condition sees the same targets and
     results do not depend on how trials are spread over processes.
     """
     target = np.random.default_rng(derive_seed(seed, trial, 0)).uniform(size=condition.dim)
     return simulate_learner(condition, target, derive_seed(seed, trial, 1),
-                            derive_seed(seed, trial, 2), trial=trial)[0]
+                            derive_seed(seed, trial, 2), trial=trial, settle=settle)[0]
+
+
+def stop_point(result: TrialResult, schedule: BatchSchedule, rule: StoppingRule) -> int:
+    """The interactions a trial would have used had learning stopped by ``rule``: the end of the
+    first learning batch at which the rule stops (``result.settled``), else the whole schedule.
+    The stopped session is a prefix of the full one, so θ* when it stops is
+    ``result.distances[stop − 1]``: the same participant, the same noise (paired by construction)."""
+    for index, signal in enumerate(result.settled[:-1]):
+        slot = schedule.slot(index)
+        if slot.kind is not SlotKind.INITIAL and rule.stops(slot.batch, signal):
+            return index + 1
+    return len(result.distances)
 
 
 def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: int,
                      learner_seed: int, *, trial: int = 0,
                      prior: PopulationPrior | None = None,
-                     strategies: Sequence[RecommendationName] = ()
+                     strategies: Sequence[RecommendationName] = (), settle: bool = False
                      ) -> tuple[TrialResult, PreferenceLearner]:
     """One simulated participant with optimum ``target`` through the schedule of ``condition``,
     with ``prior`` as the GP's prior mean; returns the trial and the final learner (whose
@@ -160,7 +194,8 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
 
     The inference curve of the condition's strategy is recorded at every interaction, those of
     ``strategies`` too (each costs a recommendation per interaction, a box search for
-    ``posterior_mean``); every other strategy only at the final interaction (NaN before)."""
+    ``posterior_mean``); every other strategy only at the final interaction (NaN before). With
+    ``settle`` the stopping signal is recorded after every interaction that ends a batch."""
     start = time.monotonic()
     noise_rng = np.random.default_rng(noise_seed)
     box = ParameterBox.unit_cube(condition.dim)
@@ -173,7 +208,9 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         return float(np.linalg.norm(target - np.array([theta[n] for n in box.names])))
 
     placements: list[Placement] = []
+    felt: dict[str, float] = {}  # y of each interaction of the current batch
     shown: list[float] = []
+    settled: list[Settledness | None] = []
     fits: list[FitReport] = []  # every fit the learner ran, once: in observe or before a query
 
     def count(report: FitReport) -> None:
@@ -186,14 +223,17 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         count(suggestion.fit)  # the study preset (lazy_fit) fits before a query
         slot = suggestion.slot
         if slot.position == 1:
-            placements = []  # the scale is cleared after every batch
+            placements, felt = [], {}  # the scale is cleared after every batch
         u = distance(suggestion.theta)
         y = u + slot.position * noise_rng.normal(0.0, condition.noise)  # eq. (16)
         iid = str(slot.index + 1)
-        placements.append(Placement(interaction_id=iid, position=scale_position(y)))
+        placements.append(_placement(iid, y, felt, condition.tie))
+        felt[iid] = y
         count(learner.observe(Interaction(interaction_id=iid, theta=suggestion.theta),
-                              comparisons_for_newest(placements)))
+                              comparisons_for_newest(placements, ties=True)))
         final = learner.next_slot().kind is SlotKind.DONE
+        ends_batch = final or learner.next_slot().kind is SlotKind.BEST
+        settled.append(learner.settledness() if settle and ends_batch else None)
         for strategy, curve in curves.items():
             curve.append(distance(learner.best(strategy).theta)  # type: ignore[union-attr]
                          if final or strategy in tracked else math.nan)
@@ -201,5 +241,15 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
     result = TrialResult(trial=trial, distances=curves[condition.recommendation],
                          shown_distances=shown, strategy_distances=curves,
                          fit_failures=sum(f.fit_failed for f in fits),
-                         seconds=time.monotonic() - start)
+                         seconds=time.monotonic() - start, settled=settled if settle else [],
+                         ties=learner.data.n_ties)
     return result, learner
+
+
+def _placement(iid: str, y: float, felt: dict[str, float], tie: float) -> Placement:
+    """The scale placement of an interaction felt as ``y``: "equal" to the earlier interaction of
+    the batch felt closest, if closer than ``tie``; else at :func:`scale_position`."""
+    closest = min(felt, key=lambda earlier: abs(felt[earlier] - y), default=None)
+    if closest is not None and abs(felt[closest] - y) < tie:
+        return Placement(interaction_id=iid, equal_to=closest)
+    return Placement(interaction_id=iid, position=scale_position(y))

@@ -17,6 +17,7 @@ fraction of a second instead of importing them afresh (about 3 s of CPU each). T
     client.best                            # the recommended θ* from the latest reply
     client.incumbent                       # the batch-opening θ* (an observed point)
     client.state                           # the worker's exact LearnerSnapshot, for storage
+    client.settledness                     # the stopping signal, after a batch (else None)
     client.close()
 
 Fallback: when ``get`` times out, the caller receives a Sobol point of the box (or the last known
@@ -45,6 +46,7 @@ from app.learning.models import (
     Comparison,
     Interaction,
     PosteriorSlice,
+    Settledness,
     SlotKind,
     Suggestion,
 )
@@ -86,6 +88,8 @@ class WorkerReply(BaseModel):
     incumbent: dict[str, float] | None = None
     state: LearnerSnapshot | None = None
     slices: list[PosteriorSlice] = []
+    #: the stopping signal (app.learning.settled) when the next slot opens a batch or ends learning
+    settledness: Settledness | None = None
     error: str | None = None
 
 
@@ -121,10 +125,13 @@ def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, A
         request = ObserveRequest.model_validate(message)
         try:
             learner.observe_many(request.interactions, request.comparisons)
-            reply = WorkerReply(request_id=request.request_id, suggestion=learner.suggest(),
+            suggestion = learner.suggest()
+            batch_done = suggestion.slot.kind in (SlotKind.BEST, SlotKind.DONE)
+            reply = WorkerReply(request_id=request.request_id, suggestion=suggestion,
                                 best=learner.best(), incumbent=learner.incumbent(),
                                 state=learner.snapshot(),
-                                slices=learner.posterior_slices())
+                                slices=learner.posterior_slices(),
+                                settledness=learner.settledness() if batch_done else None)
         except LearningError as exc:
             reply = WorkerReply(request_id=request.request_id, error=str(exc))
         replies.put(reply.model_dump(mode="json"))
@@ -169,6 +176,8 @@ class LearnerClient:
         self.state: LearnerSnapshot | None = snapshot
         #: the posterior utility along each parameter through θ*, from the latest reply
         self.slices: list[PosteriorSlice] = []
+        #: the stopping signal of the latest reply (None unless it ended a batch)
+        self.settledness: Settledness | None = None
         self._snapshot = snapshot
         self._context = mp.get_context(start_method)
         if start_method == "forkserver":  # effective until this process's server has started
@@ -276,6 +285,7 @@ class LearnerClient:
         if reply.state is not None:
             self.state = reply.state
             self.slices = reply.slices
+            self.settledness = reply.settledness
         if self._pending is None or reply.request_id != self._pending.request_id:
             logger.debug("dropped late reply to request %d", reply.request_id)
             return

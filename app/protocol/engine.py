@@ -17,14 +17,15 @@ import numpy as np
 from pydantic import BaseModel
 
 from app.learning.config import LearnerConfig, LearnerSnapshot, ModelConfig
-from app.learning.models import Comparison as LearnerComparison
 from app.learning.models import (
     Interaction,
     ParameterBox,
     PosteriorSlice,
     RecommendationName,
+    Settledness,
     SlotKind,
     Suggestion,
+    TieHandling,
 )
 from app.learning.models import Placement as ScalePlacement
 from app.learning.planner import BatchSchedule
@@ -54,7 +55,7 @@ from session_store.models import (
     utc_now,
 )
 from session_store.store import ParticipantStore
-from session_store.vocabulary import Actor, Rater, ThetaOrigin
+from session_store.vocabulary import Actor, Phase, Rater, ThetaOrigin
 
 log = logging.getLogger(__name__)
 
@@ -92,7 +93,9 @@ def learner_config(config: StudyConfig, prior: PopulationPrior | None = None) ->
     return LearnerConfig(box=ParameterBox.from_bounds(config.theta_bounds),
                          acquisition=config.acquisition, seed=config.seed,
                          recommendation=RecommendationName(config.recommendation), prior=prior,
-                         model=ModelConfig(batch_position_noise=config.batch_position_noise),
+                         model=ModelConfig(batch_position_noise=config.batch_position_noise,
+                                           ties=TieHandling(config.ties)),
+                         settled_epsilon=config.settled_epsilon,
                          schedule=BatchSchedule(n_initial=config.initial_trials,
                                                 q=config.batch_size, n_unique=unique))
 
@@ -112,6 +115,13 @@ def validation_sobol(config: StudyConfig) -> list[Theta]:
     high = np.array([b[1] for b in config.theta_bounds.values()])
     return [Theta(**dict(zip(config.theta_bounds, low + u * (high - low), strict=True)))
             for u in unit[: config.validation_batches]]
+
+
+def _scale_placement(interaction: int, position: float, equal_to: int | None) -> ScalePlacement:
+    """A marker of the scale as the learner's scale rule takes it (on an earlier one, or placed)."""
+    return ScalePlacement(interaction_id=str(interaction),
+                          position=None if equal_to is not None else position,
+                          equal_to=None if equal_to is None else str(equal_to))
 
 
 class TrialPlan(BaseModel):
@@ -144,6 +154,8 @@ class SessionEngine:
         self._learner: LearnerClient | None = None
         #: the posterior utility through θ* after the latest learner reply (for the dashboard)
         self.posterior_slices: list[PosteriorSlice] = []
+        #: the stopping signal after the latest learning batch (for the dashboard), None before one
+        self.settledness: Settledness | None = None
         #: called with every event once it is stored (with its ``seq``) and the state it leads to,
         #: on the thread that acted (the study's LSL markers: app/session/lsl_outlets.py)
         self.listeners: list[EventListener] = []
@@ -190,14 +202,15 @@ class SessionEngine:
 
     # -- the protocol's actions -----------------------------------------------------------------
     def plan_next(self, timeout: float = 60.0) -> PlannedTheta:
-        """Make sure the current interaction has its θ (asking the learner if needed) and return it."""
+        """Make sure the current interaction has its θ (asking the learner if needed) and return it
+        (when learning stops early, the current interaction becomes the best one)."""
         slot = self._require(Step.PLAN, Step.READY)
         if self.state.step is Step.PLAN:
             if slot.learner_index is not None:
                 self._plan_from_learner(slot, timeout)
             else:
                 self._plan_after_learning(timeout)
-        return self.state.planned[slot.interaction]
+        return self.state.planned[self.state.slot.interaction]
 
     def start_trial(self) -> TrialPlan:
         """Record the start of the current interaction's trial (the experimenter's Start)."""
@@ -302,16 +315,11 @@ class SessionEngine:
             position = markers[equal_to].position
         if position is None or not 0.0 <= position <= 1.0:
             raise RefusedAction(f"position = {position!r} is outside the scale [0.0, 1.0]")
-        scale = [ScalePlacement(interaction_id=str(m.interaction),
-                                position=None if m.equal_to else m.position,
-                                equal_to=None if m.equal_to is None else str(m.equal_to))
-                 for m in self.state.markers]
-        scale.append(ScalePlacement(interaction_id=str(slot.interaction),
-                                    position=None if equal_to else position,
-                                    equal_to=None if equal_to is None else str(equal_to)))
-        learned = comparisons_for_newest(scale)
+        scale = [_scale_placement(m.interaction, m.position, m.equal_to) for m in self.state.markers]
+        scale.append(_scale_placement(slot.interaction, position, equal_to))
+        learned = comparisons_for_newest(scale, ties=True)  # the learner drops or models ties
         comparisons = [Comparison(batch=slot.batch, source=slot.interaction, winner=int(c.winner),
-                                  loser=int(c.loser)) for c in learned]
+                                  loser=int(c.loser)) for c in learned if not c.tie]
         trial_index = self.state.completed_trial[slot.interaction]
         placement = Placement(trial_index=trial_index, interaction=slot.interaction,
                               batch=slot.batch, position=position, equal_to=equal_to, actor=by)
@@ -421,18 +429,18 @@ class SessionEngine:
         snapshot = LearnerSnapshot.model_validate_json(snapshots[-1].state) if snapshots else None
         self._learner = self._learner_factory(config, snapshot)
         known = {i.interaction_id for i in snapshot.interactions} if snapshot else set()
-        later = [p for p in self.store.rows("placements", order_by="interaction")
-                 if str(p.interaction) not in known
+        placements = self.store.rows("placements", order_by="interaction")
+        later = [p for p in placements if str(p.interaction) not in known
                  and self.slots[p.interaction - 1].learner_index is not None]
-        # In the order they were made (rowid), as the live learner received them: the key order
-        # (source, winner, loser) feeds PairwiseGP another comparison order, hence other θ.
-        comparisons = self.store.rows("comparisons", order_by="rowid")
         for placement in later:
             theta = self.state.planned[placement.interaction].theta
+            # The scale as it stood when it was made, so the comparisons (and ties) come in the
+            # order the live learner received them: another order feeds PairwiseGP other θ.
+            scale = [_scale_placement(p.interaction, p.position, p.equal_to) for p in placements
+                     if p.batch == placement.batch and p.interaction <= placement.interaction]
             self._learner.submit(
                 [Interaction(interaction_id=str(placement.interaction), theta=theta.model_dump())],
-                [LearnerComparison(winner=str(c.winner), loser=str(c.loser))
-                 for c in comparisons if c.source == placement.interaction])
+                comparisons_for_newest(scale, ties=True))
         if not later:
             self._learner.submit()
         return self._learner
@@ -441,6 +449,7 @@ class SessionEngine:
         learner = self._ensure_learner()
         suggestion = learner.get(timeout)
         self.posterior_slices = learner.slices or self.posterior_slices
+        self.settledness = learner.settledness or self.settledness
         return suggestion, learner
 
     def _snapshot_row(self, learner: LearnerClient, after: int, suggestion: Suggestion
@@ -470,6 +479,9 @@ class SessionEngine:
         if suggestion.theta is None or suggestion.slot.index != slot.learner_index:
             raise RefusedAction(f"learner answered for slot {suggestion.slot.index}, the session "
                                 f"needs slot {slot.learner_index}")
+        if self._settled(slot, suggestion, learner):
+            self._plan_learned(suggestion, learner)
+            return
         theta = Theta(**suggestion.theta)
         origin = ORIGIN_OF_KIND[suggestion.slot.kind]
         row = self._snapshot_row(learner, slot.interaction - 1, suggestion)
@@ -479,17 +491,42 @@ class SessionEngine:
                                      fit_failed=suggestion.fit.fit_failed),
                      *self._stored(row))
 
+    def _settled(self, slot: Slot, suggestion: Suggestion, learner: LearnerClient) -> bool:
+        """At the opening of a learning batch, with ``stop_when_settled``: whether the learner's
+        latest reply (not a fallback) is settled enough to stop learning; if so, the stop is
+        recorded with its reason (:class:`~app.protocol.events.LearningStopped`)."""
+        rule = self.config.stopping_rule()
+        signal = learner.settledness
+        if (rule is None or slot.phase is not Phase.LEARNING or slot.position != 1
+                or suggestion.fallback or not rule.stops(slot.batch - 1, signal)):
+            return False
+        probability = signal.probability_within(rule.epsilon)  # type: ignore[union-attr]
+        reason = (f"settled after {slot.batch - 1} learning batches: {probability:.0%} sure that "
+                  f"the best handover would be preferred to θ* at most "
+                  f"{self.config.settled_preference:.0%} of the time (stops at "
+                  f"{rule.threshold:.0%}, after at least {rule.min_batches} batches)")
+        self._commit(ev.LearningStopped(
+            actor=Actor.LEARNER, after_interaction=slot.interaction - 1, batches=slot.batch - 1,
+            probability=probability, epsilon=rule.epsilon, threshold=rule.threshold,
+            min_batches=rule.min_batches, reason=reason))
+        log.info("learning stopped after interaction %d: %s", slot.interaction - 1, reason)
+        return True
+
     def _plan_after_learning(self, timeout: float) -> None:
         """θ* of the finished learning phase for the best and validation interactions, and the
         Sobol references of validation, all planned at once."""
-        suggestion, learner = self._suggestion(timeout)
+        self._plan_learned(*self._suggestion(timeout))
+
+    def _plan_learned(self, suggestion: Suggestion, learner: LearnerClient) -> None:
+        """Plan the best and validation interactions from the learner's latest reply."""
         if learner.best is None:
             raise RefusedAction("the learner has no θ* yet")
         best = Theta(**learner.best.theta)
         references = iter(validation_sobol(self.config))
         remaining = [s for s in self.slots if s.learner_index is None
                      and s.interaction not in self.state.planned]
-        row = self._snapshot_row(learner, remaining[0].interaction - 1, suggestion)
+        after = self.state.stopped_after or remaining[0].interaction - 1
+        row = self._snapshot_row(learner, after, suggestion)
         events = []
         for slot in remaining:
             theta = best if slot.origin is ThetaOrigin.BEST else next(references)

@@ -67,6 +67,21 @@ class ThetaPlanned(_Event):
     fit_failed: bool = Field(False, description="the learner's last fit failed")
 
 
+class LearningStopped(_Event):
+    """Learning ended early (``stop_when_settled``): the session goes on to the best interaction,
+    the questionnaire and validation."""
+
+    kind: Literal["learning_stopped"] = "learning_stopped"
+    after_interaction: int = Field(ge=1, description="the last interaction that was learned from")
+    batches: int = Field(ge=1, description="learning batches run")
+    probability: float = Field(ge=0.0, le=1.0, description="the stopping signal: P(θ* is within "
+                               "epsilon of the best θ)")
+    epsilon: float = Field(gt=0.0)
+    threshold: float = Field(ge=0.0, le=1.0)
+    min_batches: int = Field(ge=1)
+    reason: str = Field(description="why, in words")
+
+
 class TrialStarted(_Event):
     kind: Literal["trial_started"] = "trial_started"
     trial_index: int = Field(ge=1)
@@ -148,7 +163,7 @@ class ValidationBlindingSet(_Event):
 
 
 ProtocolEvent = Annotated[
-    SessionCreated | SessionResumed | ThetaPlanned | TrialStarted | TrialStage | TrialEnded
+    SessionCreated | SessionResumed | ThetaPlanned | LearningStopped | TrialStarted | TrialStage | TrialEnded
     | PlacementMade | ValidationRated | AnswerGiven | Paused | Resumed | DevicesRecorded
     | RigChangeConfirmed | SimulatedParticipantSwitched | ValidationBlindingSet,
     Field(discriminator="kind")]

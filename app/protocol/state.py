@@ -75,6 +75,8 @@ class SessionState(BaseModel):
     simulated_participant: bool = False  # the simulated participant rates (switched by events)
     blind: bool | None = None  # the dashboard hides validation θ/origin; None: never recorded
     created: bool = False
+    #: the last interaction learned from when learning stopped early (stop_when_settled), else None
+    stopped_after: int | None = None
     last_event: int = 0
 
     @property
@@ -157,6 +159,20 @@ def _theta_planned(state: SessionState, event: ev.ThetaPlanned) -> None:
     state.planned[event.interaction] = PlannedTheta(
         theta=Theta(a=event.a, delta=event.delta, k=event.k), origin=event.origin,
         fallback=event.fallback)
+
+
+def _learning_stopped(state: SessionState, event: ev.LearningStopped) -> None:
+    slot = state.slot
+    _check(state.step is Step.PLAN and slot is not None and slot.phase is Phase.LEARNING
+           and slot.position == 1, f"learning stops while {_waiting_for(state)}, not at the "
+                                   "opening of a learning batch")
+    _check(event.after_interaction == slot.interaction - 1, f"learning stops after interaction "
+                                                            f"{event.after_interaction}; the last "
+                                                            f"one is {slot.interaction - 1}")
+    state.cursor = next((i for i, s in enumerate(state.slots) if i > state.cursor
+                         and s.learner_index is None), len(state.slots))
+    state.markers = []
+    state.stopped_after = event.after_interaction
 
 
 def _trial_started(state: SessionState, event: ev.TrialStarted) -> None:
@@ -270,6 +286,7 @@ def _recorded(state: SessionState, event: ev.ProtocolEvent) -> None:
 #: event type → the function that folds it into the state (and checks that the state allows it).
 HANDLERS: dict[type, Callable[[SessionState, Any], None]] = {
     ev.SessionCreated: _created, ev.SessionResumed: _recorded, ev.ThetaPlanned: _theta_planned,
+    ev.LearningStopped: _learning_stopped,
     ev.TrialStarted: _trial_started, ev.TrialStage: _trial_stage, ev.TrialEnded: _trial_ended,
     ev.PlacementMade: _placement_made, ev.ValidationRated: _validation_rated,
     ev.AnswerGiven: _answer_given, ev.Paused: _paused, ev.Resumed: _resumed,

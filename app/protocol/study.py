@@ -3,10 +3,13 @@ the θ box of Table I, the controller, the scenario and the seed."""
 
 from __future__ import annotations
 
+import math
+from statistics import NormalDist
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
+from app.learning.config import StoppingRule
 from app.protocol.seeds import Seed
 from robot_io.config import ControllerConfig
 from robot_io.hands.simulated_hand import Scenario
@@ -41,6 +44,23 @@ class StudyConfig(BaseModel):
         False, description="opt-in: the learner weighs each comparison by the noise of eq. (16), "
         "a comparison between batch positions i and j √((i² + j²)/2) times as noisy as one "
         "between two first positions (docs/learning.md)")
+    ties: Literal["drop", "model"] = Field(
+        "drop", description="an \"equal\" placement: dropped (the paper's rule) or, \"model\", "
+        "in the learner's likelihood as a tie (Davidson's tie model in probit form, "
+        "docs/learning.md)")
+    stop_when_settled: bool = Field(
+        False, description="opt-in: end learning after a batch once the learner is "
+        "settled_threshold sure that the participant's best handover would be preferred to θ* at "
+        "most settled_preference of the time (and at least settled_min_batches learning batches "
+        "ran); the best interaction, the questionnaire and validation follow as usual "
+        "(docs/learning.md)")
+    settled_threshold: float = Field(0.9, ge=0.5, le=1.0, description="the probability that "
+                                     "stops learning (stop_when_settled)")
+    settled_min_batches: int = Field(2, ge=1, le=50, description="learning batches run before "
+                                     "learning may stop (stop_when_settled)")
+    settled_preference: float = Field(0.6, gt=0.5, lt=1.0, description="θ* is settled when the "
+                                      "best handover would be preferred to it at most this often "
+                                      "(stop_when_settled)")
     prior_sources: list[str] = Field(
         default_factory=list, description="the participants whose data formed the prior, fixed "
         "when the session was created (empty: no prior)")
@@ -59,6 +79,19 @@ class StudyConfig(BaseModel):
                 raise ValueError(f"theta_bounds.{name} = [{low}, {high}] must lie within the safe "
                                  f"range [{safe_low}, {safe_high}] with low < high")
         return bounds
+
+    def stopping_rule(self) -> StoppingRule | None:
+        """When learning stops early; None: the paper's fixed schedule."""
+        if not self.stop_when_settled:
+            return None
+        return StoppingRule(threshold=self.settled_threshold,
+                            min_batches=self.settled_min_batches, epsilon=self.settled_epsilon)
+
+    @property
+    def settled_epsilon(self) -> float:
+        """ε of the stopping signal: the regret whose probit is ``settled_preference``,
+        √2·Φ⁻¹(p) (app.learning.settled.epsilon_for)."""
+        return math.sqrt(2.0) * NormalDist().inv_cdf(self.settled_preference)
 
     @property
     def interactions(self) -> int:

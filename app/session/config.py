@@ -37,9 +37,10 @@ from robot_io.hands.simulated_hand import Scenario
 #: The fields of a participant's StudyConfig that a lab sets in [protocol] and [learner]; their
 #: types, bounds and documentation are StudyConfig's own.
 PROTOCOL_FIELDS = ("initial_trials", "batch_size", "learning_batches", "best_trials",
-                   "validation_batches")
+                   "validation_batches", "stop_when_settled", "settled_threshold",
+                   "settled_min_batches", "settled_preference")
 LEARNER_FIELDS = ("acquisition", "theta_bounds", "recommendation", "population_prior",
-                  "prior_weight", "batch_position_noise")
+                  "prior_weight", "batch_position_noise", "ties")
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
 #: The largest configuration file read [bytes]: a lab.toml is a few kB.
 MAX_CONFIG_BYTES = 1_000_000
@@ -94,7 +95,7 @@ class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS, "")):
         return self
 
     def counts(self) -> dict[str, int]:
-        """The phase counts of a participant's :class:`StudyConfig`."""
+        """The phase counts (and the early stop) of a participant's :class:`StudyConfig`."""
         return self.model_dump(include=set(PROTOCOL_FIELDS))
 
 

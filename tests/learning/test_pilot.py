@@ -65,3 +65,22 @@ def test_pilot_power_matches_a_direct_computation_from_its_rows(tmp_path, capsys
     assert main([*args[:2], "4", *args[3:]]) == 0
     after = (out / "participants.csv").read_text()
     assert after.startswith(before) and len(after.splitlines()) == 1 + 4 * 6
+
+
+def test_pilot_with_ties_modelled_and_learning_that_stops_when_settled(tmp_path, capsys):
+    """Issue 40 in the pilot: each row says how many interactions learning used (a batch end
+    from the second learning batch on, or the whole schedule) and how many ties it modelled."""
+    out = tmp_path / "pilot"
+    args = ["pilot", "--studies", "1", "--participants", "3", "--scenarios", "1", "--noise", "0.05",
+            "--initial", "3", "--batches", "3", "--batch-size", "3", "--tie", "0.3", "--ties",
+            "model", "--stop-when-settled", "0.5", "--seed", "5", "--out", str(out),
+            "--no-progress", "--json"]
+    assert main(args) == 0
+    report = json.loads(capsys.readouterr().out)
+    with (out / "participants.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    used = [int(r["learning_interactions"]) for r in rows]
+    assert set(used) <= {9, 12}  # 3 + 2 batches of 3, or the whole 3 + 3 batches of 3
+    assert report["median_learning_interactions"] == pytest.approx(sorted(used)[1])
+    assert sum(int(r["ties"]) for r in rows) > 0  # "equal" within 0.3 happens, and is modelled
+    assert report["config"]["stopping"]["threshold"] == 0.5

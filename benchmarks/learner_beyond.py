@@ -1,0 +1,201 @@
+"""Beyond the paper's learner (issue 40): does stopping when settled, and do ties as information, pay?
+
+Two studies with ``handover benchmark-pl``'s simulated participant (Sect. IV: utility ‖θ_t − θ‖ (15),
+observed as y = u + j·N(0, σ²) (16)), the same participants (targets and noise seeded by the study
+seed and the participant, so every arm is paired), on Dask like the other studies:
+
+- **Stopping** (``[protocol] stop_when_settled``): each participant runs the fixed schedule once
+  with the stopping signal recorded after every batch (app.learning.settled); the session that
+  stops is a prefix of the full one, so the stopped and the fixed session are the same participant
+  and the same noise. Printed per stopping rule: the learning interactions used (median,
+  distribution) against the fixed schedule's, and the final distance u(θ*) of the stopped sessions
+  over the fixed schedule's (ratio of means with a paired 95 % bootstrap interval). Goal: ≥ 30 %
+  fewer interactions at a ratio whose upper bound is ≤ 1.05.
+- **Ties** (``[learner] ties``): a participant who says "equal" when two impressions of a batch are
+  closer than ``--tie``; the learner drops the ties (the paper) or models them (app.learning.ties).
+  Printed: u(θ*) at 25 interactions (the session's schedule: 5 + 4 batches of 5), model over drop,
+  with a paired 95 % bootstrap interval. Goal: ≤ 0.9.
+
+Tasks: ``sect4`` (the paper's Sect. IV: 5 + 5 batches of 5 = 30 interactions, no ties) for
+stopping; ``session`` (the session's schedule, 25 interactions, with ties) for both.
+
+Resumable: one JSON line per participant and arm under ``--out``.
+
+Usage: ``nice -n 10 .venv/bin/python benchmarks/learner_beyond.py --participants 200 --workers 2``
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+from recommendation_study import ratio_ci
+
+from app.learning.cluster import dask_client, run_tasks
+from app.learning.config import StoppingRule
+from app.learning.models import TieHandling
+from app.learning.planner import PAPER_SESSION_SCHEDULE
+from app.learning.settled import epsilon_for
+from app.learning.simulation import StudyCondition, TrialResult, run_trial, stop_point
+
+#: The default rule first (90 % sure that the best θ would be preferred to θ* at most 60 % of the
+#: time, after ≥ 2 batches), then looser ones down to one that stops at the first chance: the signal
+#: is recorded as every posterior draw's regret, so any (threshold, preference) is evaluated offline.
+RULES = tuple((pref, StoppingRule(threshold=p, min_batches=b, epsilon=epsilon_for(pref)))
+              for p, b, pref in ((0.9, 2, 0.6), (0.8, 2, 0.65), (0.8, 1, 0.7), (0.8, 2, 0.9),
+                                 (0.5, 1, 0.8)))
+
+
+def arms(noise: float, tie: float) -> dict[str, StudyCondition]:
+    """The conditions run: Sect. IV's task, and the session's schedule with ties dropped/modelled."""
+    session = StudyCondition(noise=noise, q=PAPER_SESSION_SCHEDULE.q,
+                             n_unique=PAPER_SESSION_SCHEDULE.n_unique,
+                             n_initial=PAPER_SESSION_SCHEDULE.n_initial)
+    return {"session-drop": session.with_ties(tie, TieHandling.DROP),
+            "session-model": session.with_ties(tie, TieHandling.MODEL),
+            "sect4": StudyCondition(noise=noise)}
+
+
+def run_arm(condition: StudyCondition, *, participants: int, seed: int, client, out: Path,
+            progress: bool) -> list[TrialResult]:
+    """Run (or resume) ``participants`` trials of ``condition`` with the stopping signal."""
+    path = out / f"{condition.name}-seed{seed}.jsonl"
+    out.mkdir(parents=True, exist_ok=True)
+    done: dict[int, TrialResult] = {}
+    if path.exists():
+        for line in path.read_text().splitlines():
+            if line.strip():
+                result = TrialResult.model_validate_json(line)
+                done[result.trial] = result
+
+    def finished(result: TrialResult) -> None:
+        with path.open("a") as handle:
+            handle.write(result.model_dump_json() + "\n")
+        done[result.trial] = result
+
+    todo = [(condition, seed, t, True) for t in range(participants) if t not in done]
+    run_tasks(client, run_trial, todo, finished, total=participants,
+              initial=participants - len(todo), desc=condition.name, progress=progress)
+    return [done[t] for t in range(participants)]
+
+
+def stopped(condition: StudyCondition, results: list[TrialResult], rule: StoppingRule
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """Per participant, the interactions learning used by ``rule`` and u(θ*) when it stopped."""
+    used = np.array([stop_point(r, condition.schedule, rule) for r in results])
+    return used, np.array([r.distances[n - 1] for r, n in zip(results, used, strict=True)])
+
+
+def draw_tradeoff(tasks: dict[str, tuple[StudyCondition, list[TrialResult]]], path: Path) -> Path:
+    """Mean interactions used against mean u(θ*) when learning stopped, one point per rule (the
+    fixed schedule: the rule that never stops), per task."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(6.4, 4.0))
+    for task, (condition, results) in tasks.items():
+        points = [stopped(condition, results, rule) for _, rule in RULES]
+        fixed = np.mean([r.distances[-1] for r in results])
+        curve = sorted((u.mean(), d.mean()) for u, d in points)
+        line = axis.plot(*zip(*curve, strict=True), "o-", label=task)[0]
+        axis.plot([condition.schedule.n_interactions], [fixed], "s", color=line.get_color(),
+                  markersize=10, fillstyle="none")
+        for (preference, rule), (u, d) in zip(RULES, points, strict=True):
+            axis.annotate(f"{rule.threshold:.0%}/{preference:.0%}/{rule.min_batches}",
+                          (u.mean(), d.mean()), fontsize=7, xytext=(4, 4),
+                          textcoords="offset points")
+    axis.set_xlabel("learning interactions used (mean)")
+    axis.set_ylabel("u(θ*) when learning stopped (mean)")
+    axis.set_title("Stopping when settled: interactions against distance (□ fixed schedule)",
+                   fontsize=9)
+    axis.legend(fontsize=8)
+    figure.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+    return path
+
+
+def stopping_lines(task: str, condition: StudyCondition, results: list[TrialResult],
+                   seed: int) -> list[str]:
+    """One line per stopping rule: interactions used and final distance against the fixed."""
+    fixed_n = condition.schedule.n_interactions
+    fixed = np.array([r.distances[-1] for r in results])
+    lines = []
+    for preference, rule in RULES:
+        used, stopped_at = stopped(condition, results, rule)
+        saving, lo_s, hi_s = ratio_ci(used.astype(float), np.full(len(used), float(fixed_n)), seed)
+        ratio, lo, hi = ratio_ci(stopped_at, fixed, seed)
+        counts = ", ".join(f"{n}: {int((used == n).sum())}" for n in np.unique(used))
+        goal = "met" if saving <= 0.7 and hi <= 1.05 else "not met"
+        lines.append(
+            f"stopping {task} {rule.threshold:.0%} sure best preferred ≤ {preference:.0%} after "
+            f"≥{rule.min_batches} batches: "
+            f"interactions median {np.median(used):g} of {fixed_n} (mean {used.mean():.1f}, "
+            f"{1 - saving:.0%} fewer [{1 - hi_s:.0%}, {1 - lo_s:.0%}]; distribution {counts}); "
+            f"final u(θ*) {stopped_at.mean():.3f} vs fixed {fixed.mean():.3f}, ratio {ratio:.3f} "
+            f"[{lo:.3f}, {hi:.3f}]; goal (≥30 % fewer, ratio ≤ 1.05): {goal}")
+    return lines
+
+
+def ties_line(drop: list[TrialResult], model: list[TrialResult], seed: int, at: int) -> str:
+    """u(θ*) at ``at`` interactions, ties modelled over dropped (paired bootstrap)."""
+    a = np.array([r.distances[at - 1] for r in model])
+    b = np.array([r.distances[at - 1] for r in drop])
+    ratio, lo, hi = ratio_ci(a, b, seed)
+    ties = np.array([r.ties for r in model])
+    goal = "met" if hi <= 0.9 else "not met"
+    return (f"ties at {at} interactions: u(θ*) model {a.mean():.3f} vs drop {b.mean():.3f}, "
+            f"ratio {ratio:.3f} [{lo:.3f}, {hi:.3f}]; ties used per participant median "
+            f"{np.median(ties):g} (mean {ties.mean():.1f}); goal (≤ 0.9): {goal}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--participants", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=4040)
+    parser.add_argument("--noise", type=float, default=0.05, help="σ of eq. (16)")
+    parser.add_argument("--tie", type=float, default=0.05,
+                        help="the participant says 'equal' below this difference of y")
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--scheduler", default=None)
+    parser.add_argument("--out", type=Path, default=Path("out/learner-beyond"))
+    parser.add_argument("--figure", type=Path, default=None,
+                        help="PNG of interactions against distance per rule (default OUT/stopping.png)")
+    parser.add_argument("--no-progress", action="store_true")
+    args = parser.parse_args()
+
+    conditions = arms(args.noise, args.tie)
+    start = time.monotonic()
+    with dask_client(args.scheduler, args.workers) as client:
+        results = {name: run_arm(c, participants=args.participants, seed=args.seed,
+                                 client=client, out=args.out, progress=not args.no_progress)
+                   for name, c in conditions.items()}
+    wall = time.monotonic() - start
+    trials = [r for rs in results.values() for r in rs]
+    print(f"N = {args.participants} paired participants (seed {args.seed}), σ = {args.noise:g}, "
+          f"tie = {args.tie:g}; {np.mean([r.seconds for r in trials]):.1f} s per participant "
+          f"and arm in a worker, {wall:.0f} s wall for this run")
+    for line in stopping_lines("sect4", conditions["sect4"], results["sect4"], args.seed):
+        print(line)
+    for line in stopping_lines("session (ties dropped)", conditions["session-drop"],
+                               results["session-drop"], args.seed):
+        print(line)
+    print(ties_line(results["session-drop"], results["session-model"], args.seed,
+                    PAPER_SESSION_SCHEDULE.n_interactions))
+    figure = draw_tradeoff({"sect4": (conditions["sect4"], results["sect4"]),
+                            "session": (conditions["session-drop"], results["session-drop"])},
+                           args.figure or args.out / "stopping.png")
+    print(f"figure written to {figure}")
+    print("baseline (the paper's fixed schedule, ties dropped): " + json.dumps(
+        {name: round(float(np.mean([r.distances[-1] for r in rs])), 4)
+         for name, rs in results.items()}))
+
+
+if __name__ == "__main__":
+    main()
