@@ -13,22 +13,17 @@ import logging
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 from pydantic import BaseModel
 
-from app.learning.config import LearnerConfig, LearnerSnapshot, ModelConfig
+from app.learning.config import LearnerConfig, LearnerSnapshot
 from app.learning.models import (
     Interaction,
-    ParameterBox,
     PosteriorSlice,
-    RecommendationName,
     Settledness,
     SlotKind,
     Suggestion,
-    TieHandling,
 )
 from app.learning.models import Placement as ScalePlacement
-from app.learning.planner import BatchSchedule
 from app.learning.prior import PopulationPrior
 from app.learning.scale import comparisons_for_newest
 from app.learning.worker import LearnerClient
@@ -36,11 +31,10 @@ from app.protocol import events as ev
 from app.protocol.earlier import earlier_participants_prior
 from app.protocol.errors import RefusedAction
 from app.protocol.plan import Slot, protocol_slots
+from app.protocol.session_inputs import hand_seed, learner_config, validation_sobol
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
 from app.protocol.study import StudyConfig
-from robot_io.config import ControllerConfig
 from robot_io.control.loop import Outcome, TrialRecord
-from robot_io.hands.config import own_keys
 from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.models import (
@@ -63,58 +57,6 @@ LearnerFactory = Callable[[LearnerConfig, LearnerSnapshot | None], LearnerClient
 EventListener = Callable[[ev.ProtocolEvent, SessionState], None]
 ORIGIN_OF_KIND = {SlotKind.INITIAL: ThetaOrigin.SOBOL, SlotKind.BEST: ThetaOrigin.BEST,
                   SlotKind.QUERY: ThetaOrigin.LEARNED}
-
-
-#: The tables of the configuration that name the devices (the rig): a resume on a different rig
-#: needs the experimenter's confirmation.
-RIG_TABLES = ("arm", "ur", "hand_source", "gripper")
-
-
-def rig_of(config: dict) -> dict:
-    """The rig tables of a configuration or of a recorded rig (as JSON). The ``[ur]`` table is part
-    of a rig only when its arm is a UR: a mock arm's says nothing about the rig (and a session
-    recorded before ``[ur] host`` lost its default holds 192.168.1.10 there). A setting a recorded
-    table lacks did not exist when it was recorded: the session ran as its default does (e.g. the
-    NatNet and Robotiq settings), so a resume on the default is no rig change."""
-    defaults = ControllerConfig().model_dump(mode="json")
-    rig = {table: None if config.get(table) is None else {**defaults[table], **config[table]}
-           for table in RIG_TABLES}
-    if (rig["arm"] or {}).get("kind") != "ur":
-        rig["ur"] = None
-    if rig["hand_source"] is not None:  # recorded before each kind had a table of its own: every key
-        rig["hand_source"] = own_keys(rig["hand_source"])
-    return rig
-
-
-def learner_config(config: StudyConfig, prior: PopulationPrior | None = None) -> LearnerConfig:
-    """The learner of ``config``: its schedule for the initial and learning phases, acquisition,
-    recommendation strategy and ``prior`` (the session's, from earlier participants)."""
-    unique = config.initial_trials + config.learning_batches * (config.batch_size - 1)
-    return LearnerConfig(box=ParameterBox.from_bounds(config.theta_bounds),
-                         acquisition=config.acquisition, seed=config.seed,
-                         recommendation=RecommendationName(config.recommendation), prior=prior,
-                         model=ModelConfig(batch_position_noise=config.batch_position_noise,
-                                           ties=TieHandling(config.ties)),
-                         settled_epsilon=config.settled_epsilon,
-                         schedule=BatchSchedule(n_initial=config.initial_trials,
-                                                q=config.batch_size, n_unique=unique))
-
-
-def hand_seed(config: StudyConfig, interaction: int) -> int:
-    """The simulated hand of an interaction: the same for every attempt at it."""
-    return int(np.random.default_rng([config.seed, interaction, 0x4A4D]).integers(2**31))
-
-
-def validation_sobol(config: StudyConfig) -> list[Theta]:
-    """The Sobol reference points of the validation pairs, in the θ box (seeded, not the learner's)."""
-    from scipy.stats import qmc  # here: scipy.stats costs every start of a session ~1 s of CPU
-
-    engine = qmc.Sobol(3, scramble=True, seed=np.random.default_rng([config.seed, 0x50B0]))
-    unit = engine.random(max(config.validation_batches, 1))
-    low = np.array([b[0] for b in config.theta_bounds.values()])
-    high = np.array([b[1] for b in config.theta_bounds.values()])
-    return [Theta(**dict(zip(config.theta_bounds, low + u * (high - low), strict=True)))
-            for u in unit[: config.validation_batches]]
 
 
 def _scale_placement(interaction: int, position: float, equal_to: int | None) -> ScalePlacement:

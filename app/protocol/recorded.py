@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import NamedTuple
 
-from app.protocol.engine import rig_of
+from app.protocol.rig import rig_of
 from app.protocol.state import SessionState
 from app.protocol.stored import stored_session
 from app.protocol.study import StudyConfig

@@ -10,9 +10,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from app.protocol.engine import RIG_TABLES, SessionEngine, rig_of
+from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.recorded import describe_change, recorded_session
+from app.protocol.rig import RIG_TABLES, rig_of
 from app.protocol.seeds import choose_seed
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig

@@ -13,9 +13,10 @@ from app.learning.config import LearnerSnapshot
 from app.learning.learner import PreferenceLearner
 from app.learning.models import TieHandling
 from app.protocol import events as ev
-from app.protocol.engine import SessionEngine, learner_config
+from app.protocol.engine import SessionEngine
 from app.protocol.errors import EventLogError
 from app.protocol.plan import protocol_slots
+from app.protocol.session_inputs import learner_config
 from app.protocol.simulated_participant import SimulatedParticipant, Taste
 from app.protocol.state import SessionState, Step, apply, replay
 from app.session.config import load_lab_config

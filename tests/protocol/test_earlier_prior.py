@@ -10,7 +10,8 @@ from app.learning.config import LearnerSnapshot
 from app.learning.learner import PreferenceLearner
 from app.learning.models import RecommendationName
 from app.learning.pooled_prior import population_prior
-from app.protocol.engine import SessionEngine, learner_config
+from app.protocol.engine import SessionEngine
+from app.protocol.session_inputs import learner_config
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
 from robot_io.hands.simulated_hand import Scenario

@@ -8,7 +8,7 @@ from pydantic import ValidationError
 from support.engine import new_engine
 
 from app.cli import main
-from app.protocol.engine import learner_config
+from app.protocol.session_inputs import learner_config
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig, load_lab_config
 from robot_io.hands.simulated_hand import Scenario
