@@ -25,6 +25,7 @@ from app.protocol.state import Step
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig
 from app.session.drawing import with_links
+from app.session.learning_words import learning_line
 from app.session.lsl_outlets import StudyOutlets
 from app.session.opening import open_session, trial_config
 from app.session.overview import ParticipantSummary, StudyOverview
@@ -60,6 +61,7 @@ class EngineSide:
         self._learner: tuple[bool, str | None] = (False, None)  # preparing, the learner's fault
         self._store_fault: str | None = None  # a write to the study failed: the session stops
         self._theta_star: list[ThetaStar] = []
+        self._learning: str | None = None  # the stopping signal in words, with the θ* above
         self._theta_star_key = -1
         self._overview: list[ParticipantSummary] | None = None  # None: to be read again
         self._study_overview = StudyOverview(study)
@@ -146,7 +148,7 @@ class EngineSide:
         code = engine.participant.code
         close_rig()
         self.close()
-        self._participant, self._theta_star = None, []
+        self._participant, self._theta_star, self._learning = None, [], None
         self._learner, self.failed = (False, None), None
         self._overview = None
         return code
@@ -243,8 +245,9 @@ class EngineSide:
                 ThetaStar(after_interaction=r.after_interaction, a=r.theta_star_a,
                           delta=r.theta_star_delta, k=r.theta_star_k)
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
+            self._learning = learning_line(engine)
         return SessionFacts(
             code=engine.participant.code, scenario=engine.config.scenario, seed=engine.config.seed,
             state=state.model_copy(deep=True), interactions=engine.config.interactions,
             trials=engine.store.rows("trials", order_by="trial_index"),
-            theta_star=self._theta_star, posterior=engine.posterior_slices)
+            theta_star=self._theta_star, posterior=engine.posterior_slices, learning=self._learning)

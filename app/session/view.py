@@ -68,6 +68,7 @@ class RunnerView(BaseModel):
     trials: list[Trial] = []
     theta_star: list[ThetaStar] = []
     posterior: list[PosteriorSlice] = []  # posterior utility through θ*, per parameter
+    learning: str | None = None  # how settled the learner's θ* is, in words (after a learning batch)
 
     @property
     def step(self) -> Step | None:
@@ -116,6 +117,7 @@ class SessionFacts(NamedTuple):
     trials: list[Trial]
     theta_star: list[ThetaStar]
     posterior: list[PosteriorSlice]
+    learning: str | None  # app.session.learning_words.learning_line
 
 
 def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
@@ -165,7 +167,8 @@ def build_view(version: int, status: Status, overview: list[ParticipantSummary],
         version=version, code=session.code, scenario=session.scenario, seed=session.seed,
         state=session.state, interactions=session.interactions, preparing=status.preparing,
         waiting_for=waiting_for(session.state, status.auto or auto_experimenter),
-        trials=session.trials, theta_star=session.theta_star, posterior=session.posterior, **fields)
+        trials=session.trials, theta_star=session.theta_star, posterior=session.posterior,
+        learning=session.learning, **fields)
 
 
 def with_news(view: RunnerView, status: Status) -> RunnerView:

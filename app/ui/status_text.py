@@ -158,6 +158,7 @@ def devices_markdown(view: RunnerView) -> str:
     return "\n".join([*rig, line("arm", arm, view.arm_fault), line("hand", view.hand, view.hand_link),
                       line("gripper", view.gripper, None), *timing,
                       line("learner", view.learner, view.learner_fault),
+                      *([f"- **learning**: {view.learning}"] if view.learning else []),
                       "", "Recent events:", *[f"- {m}" for m in view.messages]])
 
 

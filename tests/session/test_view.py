@@ -42,7 +42,7 @@ def facts(running: int | None, stage: Stage | None) -> SessionFacts:
     return SessionFacts(code="M01", scenario=Scenario.PERTURBED, seed=7, state=state,
                         interactions=len(state.slots), trials=[],
                         theta_star=[ThetaStar(after_interaction=3, a=1.0, delta=0.5, k=2.0)],
-                        posterior=[])
+                        posterior=[], learning="the learner's first choice; 45% sure")
 
 
 @pytest.mark.parametrize(("stage", "auto", "auto_experimenter", "expected"), [
@@ -73,6 +73,7 @@ def test_the_open_session_and_the_devices_make_one_view():
         "protective stop", "lost 0.3 s", "the hand is not at A", "stopped")
     assert view.preparing and view.learner == "fitting the next θ"
     assert view.messages == ["12:00:00 Go"] and view.waiting_for is None
+    assert view.learning == "the learner's first choice; 45% sure"
 
 
 def test_without_a_session_the_view_shows_no_rig_and_no_engine():

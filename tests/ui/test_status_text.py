@@ -8,6 +8,7 @@ from app.session.config import LabConfig
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
 from app.ui.status_text import (
+    devices_markdown,
     learner_markdown,
     overview_markdown,
     progress_markdown,
@@ -73,3 +74,13 @@ def test_the_overview_says_each_status_in_a_word_or_two():
     unreadable = overview_markdown([row(SessionStatus.UNREADABLE, "database disk image is malformed")])
     assert "| unreadable |" in unreadable and unreadable.endswith(
         "Unreadable:\n- P01: database disk image is malformed")
+
+
+def test_the_devices_panel_says_how_settled_the_learner_is_once_it_can():
+    """The stopping signal in words (app.session.learning_words), under the learner's line; no line
+    before the first learning batch has given one."""
+    assert "learning" not in devices_markdown(view_at(6))
+    settled = view_at(11).model_copy(update={"learning": "the learner's choice has not changed in "
+                                                        "1 batch; 92% sure"})
+    assert ("- **learning**: the learner's choice has not changed in 1 batch; 92% sure"
+            in devices_markdown(settled))
