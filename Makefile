@@ -59,8 +59,10 @@ chromium:
 bytecode: install
 	$(BIN)/python .ci/bytecode.py
 
+# mypy checks the packages of pyproject's [tool.mypy] files (its cache in .mypy_cache keeps a rerun short).
 test: install chromium bytecode
 	$(BIN)/ruff check .
+	$(BIN)/mypy
 	PYTHONDONTWRITEBYTECODE= $(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=25 $(PYTEST_ARGS)
 
 soak: install chromium bytecode
@@ -70,4 +72,4 @@ bench: install
 	$(BIN)/python benchmarks/control_loop.py
 
 clean:
-	rm -rf $(VENV) *.egg-info
+	rm -rf $(VENV) *.egg-info .mypy_cache

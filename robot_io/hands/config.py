@@ -31,9 +31,9 @@ if TYPE_CHECKING:
     from robot_io.hands.tracked_hand import TrackedHand
 
 #: How long to look for a stream (Vicon: its first frame) before giving up [s].
-ResolveTimeout = in_range(0, 60, "s")
+ResolveTimeout = Annotated[float, in_range(0, 60, "s")]
 #: Tracker units → metres.
-UnitsToM = in_range(0, 1, "m per unit")
+UnitsToM = Annotated[float, in_range(0, 1, "m per unit")]
 
 
 class HandSourceBase(Frozen):
