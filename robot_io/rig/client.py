@@ -319,7 +319,7 @@ class RigClient:
                 last_count, last_change = count, now
             elif now - last_change > limit[0]:
                 self.backstop(f"the rig wrote no sample for {limit[0]:g} s while {limit[1]} "
-                              f"({self.stage})")  # a StrEnum prints its value (None if the trial ended meanwhile)
+                              f"({self.stage})")  # a StrEnum: its value (None if the trial just ended)
                 return
 
 
