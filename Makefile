@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: install bytecode demo test soak chromium bench clean
+.PHONY: install bytecode demo typecheck test soak chromium bench clean
 
 # The suite runs on PYTEST_WORKERS xdist workers (`--dist loadgroup`: tests marked
 # xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run.
@@ -59,8 +59,14 @@ chromium:
 bytecode: install
 	$(BIN)/python .ci/bytecode.py
 
+# mypy checks the packages pyproject's [tool.mypy] files lists: ~75 s on a fresh clone here (40 CPU-s,
+# most of it reading torch's and botorch's own annotations), ~2 s again with its cache (.mypy_cache).
+typecheck: install
+	$(BIN)/mypy
+
 test: install chromium bytecode
 	$(BIN)/ruff check .
+	$(MAKE) --no-print-directory typecheck
 	PYTHONDONTWRITEBYTECODE= $(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=25 $(PYTEST_ARGS)
 
 soak: install chromium bytecode
@@ -70,4 +76,4 @@ bench: install
 	$(BIN)/python benchmarks/control_loop.py
 
 clean:
-	rm -rf $(VENV) *.egg-info
+	rm -rf $(VENV) *.egg-info .mypy_cache

@@ -76,8 +76,9 @@ class SafetyLimits(Frozen):
         (0.10, -0.60, 0.05), description="workspace box, lower corner [m], each within ±1 m")
     workspace_max: WorkspaceCorner = Field(
         (0.90, 0.60, 0.80), description="workspace box, upper corner [m], each within ±1 m")
-    max_speed: in_range(0, MAX_SPEED_BOUND, "m/s") = Field(1.0, description="TCP speed cap [m/s]")
-    max_acceleration: in_range(0, MAX_ACCELERATION_BOUND, "m/s²") = Field(
+    max_speed: Annotated[float, in_range(0, MAX_SPEED_BOUND, "m/s")] = Field(
+        1.0, description="TCP speed cap [m/s]")
+    max_acceleration: Annotated[float, in_range(0, MAX_ACCELERATION_BOUND, "m/s²")] = Field(
         5.0, description="TCP acceleration cap [m/s²]")
 
     @model_validator(mode="after")
@@ -104,19 +105,19 @@ class HandProfile(Frozen):
     """The participant's hand: the fastest any hand moves, which tracked samples must respect, and
     how the simulated participant moves (each range drawn from uniformly per trial)."""
 
-    max_speed: in_range(0, 10, "m/s") = Field(
+    max_speed: Annotated[float, in_range(0, 10, "m/s")] = Field(
         3.0, description="the fastest a hand moves [m/s]: a tracked sample farther from the last "
                          "accepted one than this speed allows is a tracker jump, refused as a "
                          "dropout (reach-to-grasp peaks at 1-1.5 m/s; 3 leaves room for a hurry)")
 
-    tracker_rate_hz: in_range(0, 2000, "Hz") = Field(
+    tracker_rate_hz: Annotated[float, in_range(0, 2000, "Hz")] = Field(
         100.0, description="tracker sample rate (Vicon in the paper; mocap runs at most ~2 kHz)")
     reaction_delay_s: tuple[float, float] = Field((0.15, 0.35), description="delay after Go [s]")
     mean_speed_mps: tuple[float, float] = Field(
         (0.45, 0.65), description="mean hand speed of each reach [m/s] (duration = length/speed)")
     pause_s: tuple[float, float] = Field(
         (0.25, 0.50), description="pause to grasp the box at B and to put it down at C [s]")
-    noise_std_m: in_range(0, 0.1, "m", low_open=False) = Field(
+    noise_std_m: Annotated[float, in_range(0, 0.1, "m", low_open=False)] = Field(
         0.0, description="tracker noise, std per axis [m]")
     dropout_rate: float = Field(0.0, ge=0, lt=1, description="share of tracker samples lost")
     pull_n: float = Field(15.0, ge=0, le=100, description="pull on the object once grasped [N]; 0: "
@@ -145,14 +146,14 @@ class LoopConfig(Frozen):
     """The control loop: rate, end conditions, and when the tracker counts as lost."""
 
     rate_hz: Literal[125, 500] = Field(500, description="control rate: 125 (CB-series) or 500 Hz")
-    robot_arrival_tolerance_m: in_range(0, 0.1, "m") = Field(
+    robot_arrival_tolerance_m: Annotated[float, in_range(0, 0.1, "m")] = Field(
         0.01, description="robot 'at H' radius [m]")
-    hand_arrival_tolerance_m: in_range(0, 0.2, "m") = Field(
+    hand_arrival_tolerance_m: Annotated[float, in_range(0, 0.2, "m")] = Field(
         0.03, description="hand 'at H' radius [m]")
-    staleness_limit_s: in_range(0, 0.5, "s") = Field(
+    staleness_limit_s: Annotated[float, in_range(0, 0.5, "s")] = Field(
         0.1, description="a hand sample older than this means the tracker is lost: stop [s]; at "
                          "most 0.5 s, so the arm never moves long towards a person it cannot see")
-    timeout_s: in_range(0, 120, "s") = Field(
+    timeout_s: Annotated[float, in_range(0, 120, "s")] = Field(
         20.0, description="a trial longer than this ends as 'timeout' [s]")
     realtime_priority: PrioritySetting = Field(
         "auto", description="the rig's threads under SCHED_FIFO on the wall clock (needs root, "
@@ -181,7 +182,7 @@ class URConfig(Frozen):
         0.6, gt=0, le=1.0, description="move_to refuses a start pose farther than this from the TCP [m]")
     stop_deceleration: float = Field(5.0, gt=0, le=10,
                                      description="servoStop deceleration at the end of a trial [m/s²]")
-    connect_timeout_s: in_range(0, 120, "s") = Field(
+    connect_timeout_s: Annotated[float, in_range(0, 120, "s")] = Field(
         10.0, description="give up connecting after this [s]")
     upper_range_registers: bool = Field(
         False, description="use RTDE registers 24–47 (when a fieldbus owns 0–23)")
@@ -214,10 +215,10 @@ class GripperConfig(Frozen):
     closed_position: RobotiqByte = Field(255, description="robotiq_socket: finger position commanded "
                                                           "to close (255: fully closed); the object "
                                                           "stops the fingers before it")
-    move_timeout_s: in_range(0, 30, "s") = Field(
+    move_timeout_s: Annotated[float, in_range(0, 30, "s")] = Field(
         5.0, description="robotiq_socket: a close or an open that has not ended within this long is "
                          "a fault [s] (a full 2F-85 stroke takes 0.6 s at speed 255, 4.3 s at 0)")
-    reply_timeout_s: in_range(0, 10, "s") = Field(
+    reply_timeout_s: Annotated[float, in_range(0, 10, "s")] = Field(
         1.0, description="robotiq_socket: no answer from the URCap within this long is a fault [s]")
 
     @model_validator(mode="after")
@@ -231,14 +232,14 @@ class GripperConfig(Frozen):
 class ReleaseConfig(Frozen):
     """Force-threshold release (docs/controller.md): baseline at grasp, filtered norm, threshold."""
 
-    threshold_n: in_range(0, 50, "N") = Field(
+    threshold_n: Annotated[float, in_range(0, 50, "N")] = Field(
         10.0, description="pull above the baseline that releases [N]")
-    filter_cutoff_hz: in_range(0, 50, "Hz") = Field(
+    filter_cutoff_hz: Annotated[float, in_range(0, 50, "Hz")] = Field(
         5.0, description="first-order low-pass on the force (a CB-series estimate is ±10 N noisy); "
                          "below the Nyquist frequency of the 125 Hz CB-series rate")
-    baseline_s: in_range(0, 2, "s") = Field(
+    baseline_s: Annotated[float, in_range(0, 2, "s")] = Field(
         0.2, description="averaging window of the baseline at grasp [s]")
-    timeout_s: in_range(0, 60, "s") = Field(
+    timeout_s: Annotated[float, in_range(0, 60, "s")] = Field(
         10.0, description="no release within this long of holding: the trial ends "
                           "not_taken and the robot retracts with the object [s]")
 

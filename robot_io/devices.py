@@ -29,12 +29,16 @@ def tracker_transform(config: ControllerConfig) -> FrameTransform:
 def open_hand(config: ControllerConfig, scenario: Scenario | None = None, seed: int = 0) -> HandSource:
     """The configured hand source: a tracker's, connected (``[hand_source] kind``, robot_io.hands.config),
     or the simulated participant's, which needs a scenario."""
-    source = config.hand_source
-    if source.reader is not None:
-        return source.open(tracker_transform(config), config.hand.max_speed)
+    if config.hand_source.reader is not None:
+        return open_tracked_hand(config)
     if scenario is None:
         raise RobotIOError("hand_source.kind = 'simulated' needs a scenario")
     return SimulatedHand(scenario, config.scene, config.hand, seed)
+
+
+def open_tracked_hand(config: ControllerConfig) -> TrackedHand:
+    """The configured tracker's hand source, connected (``[hand_source]`` names a tracker)."""
+    return config.hand_source.open(tracker_transform(config), config.hand.max_speed)
 
 
 def open_gripper(config: ControllerConfig) -> Gripper:
@@ -95,7 +99,7 @@ def _check_hand(config: ControllerConfig, listen_s: float) -> list[str]:
     if config.hand_source.reader is None:
         return [f"hand: {kind} (no tracker configured)"]
     try:
-        hand = open_hand(config)
+        hand = open_tracked_hand(config)
     except (RobotIOError, OSError) as exc:
         return [f"hand: NOT OK — {exc}"]
     try:

@@ -12,6 +12,7 @@ import contextlib
 import json
 import sqlite3
 from collections.abc import Collection, Mapping
+from collections.abc import Set as AbstractSet
 from pathlib import Path
 from typing import NamedTuple
 
@@ -51,7 +52,7 @@ def _pandas_dtype(sqlite_type: type) -> str:
     return {int: "Int64", float: "float64", str: "string"}[sqlite_type]
 
 
-def _model_dtypes(model: type[BaseModel], exclude: set[str] = frozenset()) -> dict[str, str]:
+def _model_dtypes(model: type[BaseModel], exclude: AbstractSet[str] = frozenset()) -> dict[str, str]:
     dtypes = {"participant": "string"}
     for name, sqlite_type in columns_of(model).items():
         if name in exclude:

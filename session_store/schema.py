@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import types
 import typing
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from enum import Enum
 
 from pydantic import BaseModel
@@ -118,19 +118,19 @@ V1_SAMPLE_COLUMNS: tuple[str, ...] = (
 
 def _create_v1(db: Database) -> None:
     for table, (columns, pk) in V1_TABLES.items():
-        db[table].create(columns, pk=pk)
+        db.table(table).create(columns, pk=pk)
     samples = {"trial_index": int, "cycle": int} | {name: float for name in V1_SAMPLE_COLUMNS}
-    db["samples"].create(samples, pk=("trial_index", "cycle"),
+    db.table("samples").create(samples, pk=("trial_index", "cycle"),
                          foreign_keys=[("trial_index", "trials", "trial_index")])
-    db["trials"].create_index(["interaction"])
-    db["events"].create_index(["kind"])
+    db.table("trials").create_index(["interaction"])
+    db.table("events").create_index(["kind"])
 
 
-def _add_columns(db: Database, table: str, columns: dict[str, type]) -> None:
+def _add_columns(db: Database, table: str, columns: Mapping[str, type]) -> None:
     existing = db[table].columns_dict
     for name, kind in columns.items():
         if name not in existing:  # files made when version 1 was built from the models have them
-            db[table].add_column(name, kind)
+            db.table(table).add_column(name, kind)
 
 
 #: Version 2 (the whole handover cycle on the rig): each trial's cycle times and peak pull, and the

@@ -110,9 +110,9 @@ class ParticipantStore:
             raise
         store.lock = held
         with store.transaction():
-            store.db["participant"].insert({"code": participant.code,
-                                            "created_at": participant.created_at,
-                                            "config": config.model_dump_json()})
+            store.db.table("participant").insert({"code": participant.code,
+                                                  "created_at": participant.created_at,
+                                                  "config": config.model_dump_json()})
         return store
 
     @classmethod
@@ -194,12 +194,12 @@ class ParticipantStore:
     def append_event(self, event: Event) -> Event:
         row = event.model_dump(mode="json", exclude={"seq"})
         row["payload"] = json.dumps(row["payload"], sort_keys=True)
-        seq = self.db["events"].insert(row).last_pk
+        seq = self.db.table("events").insert(row).last_pk
         return event.model_copy(update={"seq": seq})
 
     def put_trial(self, trial: Trial) -> None:
         """Insert a started trial or replace it with its ended version."""
-        self.db["trials"].upsert(trial.model_dump(mode="json"), pk="trial_index")
+        self.db.table("trials").upsert(trial.model_dump(mode="json"), pk="trial_index")
 
     def add_samples(self, trial_index: int, columns: dict[str, np.ndarray]) -> int:
         """The control loop's per-cycle rows of a trial (NaN and ±inf are stored as NULL).
@@ -220,7 +220,7 @@ class ParticipantStore:
 
     def add(self, row: Placement | Comparison | ValidationRating | Answer | LearnerSnapshotRow) -> None:
         table = next(name for name, (model, _) in TABLES.items() if isinstance(row, model))
-        self.db[table].insert(row.model_dump(mode="json"))
+        self.db.table(table).insert(row.model_dump(mode="json"))
 
     # -- reading --------------------------------------------------------------------------------
     def participant(self) -> Participant:

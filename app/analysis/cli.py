@@ -47,8 +47,8 @@ def run(args: argparse.Namespace) -> int:
                           exclude=None if args.force else bad, xdf=args.xdf,
                           xdf_streams=args.xdf_stream)
     print(report.ratings_counted)
-    for path, reason in report.unreadable.items():
-        print(f"warning: {unreadable_text(path, reason)}", file=sys.stderr)
+    for name, reason in report.unreadable.items():
+        print(f"warning: {unreadable_text(name, reason)}", file=sys.stderr)
     for why in report.recording_cut_short:
         print(f"warning: {args.xdf}: {why}", file=sys.stderr)
     if report.incomplete:

@@ -148,7 +148,10 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
             raise XDFError(f"{path}: stream {name!r} holds strings; only numeric streams are drawn")
         values = _samples(stream)
         lab[name] = Channels(np.asarray(stream["time_stamps"]), values, _labels(stream, values.shape[1]))
-    return Recording(path=Path(path), participant=_desc(markers, "participant"),
+    participant = _desc(markers, "participant")
+    if participant is None:
+        raise XDFError(f"{path}: the study marker stream's description names no participant")
+    return Recording(path=Path(path), participant=participant,
                      markers=[(float(stamp), decode(text[0])) for stamp, text
                               in zip(markers["time_stamps"], markers["time_series"], strict=True)],
                      streams=lab, cut_short=[why for s in streams if (why := _cut_short(s))])

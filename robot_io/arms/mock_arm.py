@@ -142,12 +142,12 @@ class MockArm:
         if self._state is ArmState.STOPPING:
             self._decelerate(dt)
         elif self._target is not None and now > self._target_time:
-            self._track()
+            self._track(self._target)
 
-    def _track(self) -> None:
-        """Reach the pending target in one nominal period."""
+    def _track(self, target: np.ndarray) -> None:
+        """Reach the pending ``target`` in one nominal period."""
         dt = self.period
-        velocity = (self._target - self.position) / dt
+        velocity = (target - self.position) / dt
         speed = norm(velocity)
         acceleration = norm(velocity - self.velocity) / dt
         if speed > self.max_speed * (1 + 1e-9):
@@ -157,7 +157,7 @@ class MockArm:
             self._trip(f"following error: target needs {acceleration:.2f} m/s² "
                        f"(max_acceleration = {self.max_acceleration} m/s²)")
         else:
-            self.position = self._target
+            self.position = target
             self.velocity = velocity
             self._target = None
 

@@ -25,6 +25,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from typing import Any
 
 import numpy as np
 
@@ -59,19 +60,49 @@ STATE_SILENCE_S = 0.1
 class URArm:
     """A UR arm as the control loop's ``Arm``; call :meth:`close` when done."""
 
+    #: The controller's last state time stamp, when this process saw it change, and when it last
+    #: looked (``_state_silent``); set when streaming starts.
+    _stamp: float
+    _stamp_seen: float
+    _checked_at: float
+
     def __init__(self, config: URConfig, limits: SafetyLimits) -> None:
         self.config, self.limits = config, limits
-        self._state, self._fault = ArmState.IDLE, None
+        self._state = ArmState.IDLE
+        self._fault: str | None = None
         self._fault_at, self._fault_safety = 0.0, False
         self._low = np.asarray(limits.workspace_min, dtype=float)
         self._high = np.asarray(limits.workspace_max, dtype=float)
         self._worker: ControlWorker | None = None
-        self._receive = self._dashboard = None
+        #: ur_rtde's receive interface and dashboard client (untyped modules): set by connect().
+        self._receive: Any | None = None
+        self._dashboard: Any | None = None
         self.period = 1.0 / 125
         self._last = np.zeros(3)
         self._last_velocity = np.zeros(3)
         self._joints = np.full(6, np.nan)
         self.connect()
+
+    # The connections, between connect() and close(): the arm is not used outside them.
+    @property
+    def _host(self) -> str:
+        assert self.config.host is not None, "[ur] host is set (the rig refuses arm.kind = 'ur' without it)"
+        return self.config.host
+
+    @property
+    def _rtde(self) -> Any:
+        assert self._receive is not None, "the UR arm is connected"
+        return self._receive
+
+    @property
+    def _dash(self) -> Any:
+        assert self._dashboard is not None, "the UR arm is connected"
+        return self._dashboard
+
+    @property
+    def _control(self) -> ControlWorker:
+        assert self._worker is not None, "the UR arm's control worker is running"
+        return self._worker
 
     # -- connection ----------------------------------------------------------------------------
     def connect(self) -> None:
@@ -79,23 +110,23 @@ class URArm:
         import dashboard_client
         import rtde_receive
 
-        cfg = self.config
+        cfg, host = self.config, self._host
         try:
-            self._receive = rtde_receive.RTDEReceiveInterface(cfg.host, -1.0, VARIABLES)
-            self._dashboard = dashboard_client.DashboardClient(cfg.host)
-            self._dashboard.connect(int(cfg.connect_timeout_s * 1000))
-            self.polyscope_version = self._dashboard.polyscopeVersion()
+            self._receive = receive = rtde_receive.RTDEReceiveInterface(host, -1.0, VARIABLES)
+            self._dashboard = dashboard = dashboard_client.DashboardClient(host)
+            dashboard.connect(int(cfg.connect_timeout_s * 1000))
+            self.polyscope_version: str = dashboard.polyscopeVersion()
         except RuntimeError as exc:
             raise ArmFault(f"cannot connect to the UR controller at {cfg.host}: {exc}") from exc
         self.rate_hz = 125 if self.polyscope_version.startswith("3.") else 500
         self.period = 1.0 / self.rate_hz
         try:
-            self._worker = ControlWorker(cfg.host, cfg.upper_range_registers, cfg.connect_timeout_s)
+            self._worker = ControlWorker(host, cfg.upper_range_registers, cfg.connect_timeout_s)
         except ArmFault:
             self.close()  # leave no receive or dashboard connection behind
             raise
         try:
-            self.orientation = self._finite(self._receive.getActualTCPPose()[3:], "TCP orientation")
+            self.orientation = self._finite(receive.getActualTCPPose()[3:], "TCP orientation")
         except ArmFault:
             self.close()
             raise
@@ -122,9 +153,9 @@ class URArm:
             self._worker = None
         if self._receive is not None and not self._receive.isConnected():
             self._receive.reconnect()
-        self._dashboard.disconnect()
-        self._dashboard.connect(int(self.config.connect_timeout_s * 1000))
-        self._worker = ControlWorker(self.config.host, self.config.upper_range_registers,
+        self._dash.disconnect()
+        self._dash.connect(int(self.config.connect_timeout_s * 1000))
+        self._worker = ControlWorker(self._host, self.config.upper_range_registers,
                                      self.config.connect_timeout_s)
 
     # -- state ---------------------------------------------------------------------------------
@@ -141,17 +172,17 @@ class URArm:
     def is_moving(self) -> bool:
         """True while the TCP moves; an unreadable (non-finite) speed counts as moving, and faults."""
         try:
-            speed = norm(self._finite(self._receive.getActualTCPSpeed()[:3], "TCP speed"))
+            speed = norm(self._finite(self._rtde.getActualTCPSpeed()[:3], "TCP speed"))
         except ArmFault:
             return True
-        return speed > REST_SPEED and self._receive.isConnected()
+        return speed > REST_SPEED and self._rtde.isConnected()
 
     def read_pose(self) -> np.ndarray:
         """TCP position [m], base frame; a non-finite reading faults the arm (ArmFault). The joint
         angles of the same controller state are kept for :meth:`read_joints`: ur_rtde updates its
         state a whole package at a time, so a time stamp unchanged across both reads means one
         package (a new one in between is read again)."""
-        receive = self._receive
+        receive = self._rtde
         for _ in range(SAME_STATE_TRIES):
             stamp = receive.getTimestamp()
             pose, joints = receive.getActualTCPPose(), receive.getActualQ()
@@ -168,7 +199,7 @@ class URArm:
     def read_force(self) -> np.ndarray:
         """Force at the TCP [N], base frame (CB-series: estimated from joint currents, ±10 N); a
         non-finite reading faults the arm (ArmFault)."""
-        return self._finite(self._receive.getActualTCPForce()[:3], "TCP force")
+        return self._finite(self._rtde.getActualTCPForce()[:3], "TCP force")
 
     def _finite(self, values, what: str) -> np.ndarray:
         """``values`` as an array, or an arm fault if any is NaN or infinite: a motion computed from
@@ -182,14 +213,14 @@ class URArm:
         return array
 
     def _bits(self, name: str) -> int:
-        return int(getattr(self._receive, name)())
+        return int(getattr(self._rtde, name)())
 
     def _check(self) -> None:
         """Turn whatever the controller reports into FAULT, in plain words."""
         if self._state is ArmState.FAULT:
             return
         host = self.config.host
-        if not self._receive.isConnected():
+        if not self._rtde.isConnected():
             self._trip(f"lost the RTDE connection to the controller at {host}; "
                        "call recover() to reconnect before the next trial")
             return
@@ -225,7 +256,7 @@ class URArm:
         stalled = now - self._checked_at > STATE_SILENCE_S / 2
         self._checked_at = now
         try:
-            stamp = float(self._finite(self._receive.getTimestamp(), "state time stamp"))
+            stamp = float(self._finite(self._rtde.getTimestamp(), "state time stamp"))
         except ArmFault:
             return False
         if stamp != self._stamp or stalled:
@@ -246,7 +277,7 @@ class URArm:
         log.error("UR arm fault: %s", reason)
         self._state, self._fault, self._fault_at = ArmState.FAULT, reason, time.monotonic()
         self._fault_safety = safety
-        if self._dashboard is not None and self._receive.isConnected():  # not on a dead link
+        if self._dashboard is not None and self._rtde.isConnected():  # not on a dead link
             try:
                 self._dashboard.addToLog(f"handover-lab: {reason}"[:200])
             except Exception:  # the pybind layer raises RuntimeError or boost errors
@@ -270,11 +301,11 @@ class URArm:
         host) still reported the script that a trial's stop had just ended, the script was not
         re-uploaded, and the next moveL was refused. The wait ends when both see it running, as
         ``_check`` reads the reader's bit while streaming."""
-        if not self._worker.call("isProgramRunning"):
+        if not self._control.call("isProgramRunning"):
             log.info("control script not running: re-uploading it")
-            self._worker.call("reuploadScript")
+            self._control.call("reuploadScript")
         deadline = time.monotonic() + self.config.connect_timeout_s
-        while not (self._worker.call("isProgramRunning") and self._program_running()):
+        while not (self._control.call("isProgramRunning") and self._program_running()):
             if time.monotonic() > deadline:
                 raise ArmFault("the control script did not start after re-upload "
                                f"within {self.config.connect_timeout_s} s")
@@ -297,14 +328,14 @@ class URArm:
         cfg = self.config
         deadline = (time.monotonic() + distance / cfg.move_speed
                     + cfg.move_speed / cfg.move_acceleration + 5.0)
-        if not self._worker.call("moveL", [*target, *self.orientation], cfg.move_speed,
+        if not self._control.call("moveL", [*target, *self.orientation], cfg.move_speed,
                                  cfg.move_acceleration, True):
             raise ArmFault("the controller did not accept the moveL to the start pose (control "
-                           f"script running: {self._worker.call('isProgramRunning')}, safety "
+                           f"script running: {self._control.call('isProgramRunning')}, safety "
                            f"status bits {self._bits('getSafetyStatusBits'):#x})")
         while np.linalg.norm(target - self.read_pose()) > ARRIVED_M or self.is_moving:
             if stop is not None and stop.is_set():
-                self._worker.call("stopL", cfg.stop_deceleration, False, timeout=2.0)
+                self._control.call("stopL", cfg.stop_deceleration, False, timeout=2.0)
                 raise MoveStopped("the move to the start pose was stopped on request")
             if self.state is ArmState.FAULT:
                 raise ArmFault(self._fault)
@@ -317,11 +348,11 @@ class URArm:
         if self.state is ArmState.FAULT:
             raise ArmFault(f"arm in fault: {self._fault}")
         self._ensure_program()
-        if not self._worker.call("setWatchdog", self.config.watchdog_hz):
+        if not self._control.call("setWatchdog", self.config.watchdog_hz):
             raise ArmFault("the controller did not accept the watchdog")
         self._last = self.read_pose()
         self._last_velocity = np.zeros(3)
-        self._stamp, self._stamp_seen = self._receive.getTimestamp(), time.monotonic()
+        self._stamp, self._stamp_seen = self._rtde.getTimestamp(), time.monotonic()
         self._checked_at = self._stamp_seen
         self._state = ArmState.STREAMING
 
@@ -338,7 +369,7 @@ class URArm:
             self._trip(str(exc))
             raise
         cfg = self.config
-        self._worker.servo([*target, *self.orientation], self.limits.max_speed,
+        self._control.servo([*target, *self.orientation], self.limits.max_speed,
                            self.limits.max_acceleration, self.period, cfg.servo_lookahead_s,
                            cfg.servo_gain)
         self._last_velocity = (target - self._last) / self.period
@@ -376,7 +407,7 @@ class URArm:
         if self.state is not ArmState.FAULT:
             return
         deadline = time.monotonic() + timeout
-        if not self._receive.isConnected() or self._worker is None or not self._worker.alive:
+        if not self._rtde.isConnected() or self._worker is None or not self._worker.alive:
             self._reconnect()
         safety = self._bits("getSafetyStatusBits")
         if any(safety >> bit & 1 for bit in EMERGENCY_STOPPED_BITS):
@@ -392,10 +423,10 @@ class URArm:
         if wait > 0:
             log.info("waiting %.1f s before unlocking the protective stop (controller's rule)", wait)
             time.sleep(wait)
-        self._dashboard.closeSafetyPopup()
+        self._dash.closeSafetyPopup()
         while True:
             try:
-                self._dashboard.unlockProtectiveStop()
+                self._dash.unlockProtectiveStop()
                 return
             except RuntimeError as exc:
                 if time.monotonic() > deadline:

@@ -179,6 +179,7 @@ class HandoverLoop:
         self._refused_before = getattr(self.hand, "invalid", 0)  # a tracked hand's refusals so far
         robot_arrival = hand_arrival = first_target = hold_at = release_at = None
         stage, peak_pull = Stage.GO, 0.0
+        reason: str | None
         outcome, reason = Outcome.TIMEOUT, f"no handover within timeout_s = {cfg.timeout_s}"
         misses, lateness, prev_measured, started = 0, 0.0, None, False
         clock.start()
@@ -296,7 +297,9 @@ class HandoverLoop:
         """What a tracked hand (robot_io.hands.tracked_hand) refused during this trial, said in the
         trial's reason when it is lost ('' for none, or a source that refuses nothing)."""
         refused = getattr(self.hand, "invalid", 0) - self._refused_before
-        return f"; {refused} samples refused, the latest as {self.hand.refusal}" if refused else ""
+        if not refused:
+            return ""
+        return f"; {refused} samples refused, the latest as {getattr(self.hand, 'refusal', None)}"
 
     def _latest_valid(self, t: float) -> HandSample | None:
         """The newest valid hand sample; a new invalid one (NaN) is counted and ignored."""

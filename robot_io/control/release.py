@@ -58,6 +58,7 @@ class ForceRelease:
             if self._count >= self.baseline_cycles:
                 self.baseline, self.phase = self._sum / self._count, ReleasePhase.ARMED
             return False
+        assert self.baseline is not None, "F₀ is set when the phase turns ARMED"
         self.pull = norm(self.filtered - self.baseline)
         if self.pull >= self.config.threshold_n:
             self.phase = ReleasePhase.RELEASED

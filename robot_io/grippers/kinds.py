@@ -21,14 +21,27 @@ class GripperKind(NamedTuple):
     check: Callable[[ControllerConfig], str]
 
 
+def _ur_host(config: ControllerConfig) -> str:
+    """The UR a tool-output gripper is on: ControllerConfig refuses the kind without arm.kind = "ur",
+    and that without [ur] host."""
+    assert config.ur.host is not None, "[ur] host is set for a tool-output gripper"
+    return config.ur.host
+
+
+def _robotiq_host(config: ControllerConfig) -> str:
+    """The URCap's address: ControllerConfig refuses a robotiq_socket gripper without one."""
+    assert config.gripper_host is not None, "[gripper] host or [ur] host is set for a Robotiq gripper"
+    return config.gripper_host
+
+
 def _check_tool_output(config: ControllerConfig) -> str:
-    ToolOutputGripper(config.ur.host, config.gripper).disconnect()
+    ToolOutputGripper(_ur_host(config), config.gripper).disconnect()
     return f"tool digital output {config.gripper.tool_output} reachable (not switched)"
 
 
 def _check_robotiq(config: ControllerConfig) -> str:
     """Reachable, and its activation, position and fault code (read, never activated or moved)."""
-    status = probe(config.gripper_host, config.gripper)
+    status = probe(_robotiq_host(config), config.gripper)
     where = f"Robotiq URCap on {config.gripper_host}:{config.gripper.port}, {status.describe()}"
     if status.flt:
         return f"NOT OK — {where}: clear the fault on the teach pendant"
@@ -42,9 +55,9 @@ GRIPPERS: dict[str, GripperKind] = {
     "none": GripperKind(lambda config: NoGripper(), lambda config: "no gripper",
                         lambda config: "none configured"),
     "tool_output": GripperKind(
-        lambda config: ToolOutputGripper(config.ur.host, config.gripper),
+        lambda config: ToolOutputGripper(_ur_host(config), config.gripper),
         lambda config: f"tool digital output {config.gripper.tool_output}", _check_tool_output),
     "robotiq_socket": GripperKind(
-        lambda config: RobotiqSocketGripper(config.gripper_host, config.gripper),
+        lambda config: RobotiqSocketGripper(_robotiq_host(config), config.gripper),
         lambda config: f"Robotiq 2F-85 on {config.gripper_host}:{config.gripper.port}", _check_robotiq),
 }

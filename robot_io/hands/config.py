@@ -18,7 +18,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Mapping
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, Union
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, TypeAlias, Union, get_args
 
 import numpy as np
 from pydantic import BeforeValidator, Field, field_validator, model_validator
@@ -31,9 +31,9 @@ if TYPE_CHECKING:
     from robot_io.hands.tracked_hand import TrackedHand
 
 #: How long to look for a stream (Vicon: its first frame) before giving up [s].
-ResolveTimeout = in_range(0, 60, "s")
+ResolveTimeout = Annotated[float, in_range(0, 60, "s")]
 #: Tracker units → metres.
-UnitsToM = in_range(0, 1, "m per unit")
+UnitsToM = Annotated[float, in_range(0, 1, "m per unit")]
 
 
 class HandSourceBase(Frozen):
@@ -189,7 +189,7 @@ class ViconSource(HandSourceBase):
 
 #: Every kind of hand source, by its ``kind``: the one place a new kind is registered.
 HAND_SOURCES: dict[str, type[HandSourceBase]] = {
-    model.model_fields["kind"].annotation.__args__[0]: model
+    get_args(model.model_fields["kind"].annotation)[0]: model
     for model in (SimulatedSource, LSLSource, UDPSource, NatNetSource, ViconSource)}
 
 
@@ -244,6 +244,10 @@ def _by_kind(value: Any) -> Any:
     return HAND_SOURCES[kind].model_validate(table)
 
 
-#: ``[hand_source]``: one of :data:`HAND_SOURCES`, chosen by ``kind``.
-HandSourceConfig = Annotated[Union[tuple(HAND_SOURCES.values())],  # noqa: UP007 (built from the table)
-                             Field(discriminator="kind"), BeforeValidator(_by_kind)]
+if TYPE_CHECKING:
+    #: To the type checker, a table of any kind: the union below is built at run time.
+    HandSourceConfig: TypeAlias = HandSourceBase
+else:
+    #: ``[hand_source]``: one of :data:`HAND_SOURCES`, chosen by ``kind``.
+    HandSourceConfig = Annotated[Union[tuple(HAND_SOURCES.values())],  # noqa: UP007 (built from the table)
+                                 Field(discriminator="kind"), BeforeValidator(_by_kind)]

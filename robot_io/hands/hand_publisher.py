@@ -32,6 +32,7 @@ from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.config import ControllerConfig
 from robot_io.control.minimum_jerk import minimum_jerk
 from robot_io.devices import tracker_transform
+from robot_io.hands.config import LSLSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 
@@ -78,8 +79,10 @@ def _serve(conn: Connection, spec: PublisherSpec) -> None:
     transform = tracker_transform(config)
     outlet = None
     if spec.lsl_name is not None:
+        source = config.hand_source
+        assert isinstance(source, LSLSource), "an LSL stream is published for an LSL hand source"
         # a source_id of its own: no other outlet (another rehearsal, a test) can be taken for it
-        info = pylsl.StreamInfo(spec.lsl_name, config.hand_source.lsl_stream_type, 3,
+        info = pylsl.StreamInfo(spec.lsl_name, source.lsl_stream_type, 3,
                                 config.hand.tracker_rate_hz,
                                 pylsl.cf_double64, f"{spec.lsl_name}-{uuid.uuid4().hex}")
         outlet = pylsl.StreamOutlet(info)
@@ -204,7 +207,7 @@ def _play(conn: Connection, spec: PublisherSpec, transform: FrameTransform, outl
         natnet_tracker[0] = (now, tracker)
         if outlet is not None:
             outlet.push_sample(tracker.tolist(), pylsl.local_clock())
-        if udp is not None:
+        if udp is not None and spec.udp_target is not None:
             datagram = {axis: (None if not np.isfinite(v) else float(v))
                         for axis, v in zip("xyz", tracker, strict=True)}
             udp.sendto(json.dumps(datagram | {"t": now}).encode(), spec.udp_target)

@@ -156,6 +156,8 @@ class NatNetHand(TrackedHand):
 
     def __init__(self, config: NatNetSource, transform: FrameTransform, max_speed: float) -> None:
         super().__init__(transform, max_speed)
+        # NatNetSource refuses a table without them (HandSourceBase._tracker_complete)
+        assert config.natnet_rigid_body and config.natnet_server is not None
         self.rigid_body = config.natnet_rigid_body
         self.server = (config.natnet_server, config.natnet_command_port)
         self._local = config.natnet_local_address or local_address_for(*self.server)
@@ -250,9 +252,9 @@ class NatNetHand(TrackedHand):
                 self._clock.reset()
             latency = reported_latency(frame, self._rate)
             body = next((b for b in frame.rigid_bodies if b.id_num == self.body_id), None)
-            lost = body is None or body.tracking_valid is False
             stamp = self._clock.stamp(frame.suffix.timestamp, arrived - (latency or 0.0))
-            self.put(stamp, np.full(3, np.nan) if lost else body.pos)
+            tracked = body is not None and body.tracking_valid is not False
+            self.put(stamp, body.pos if tracked and body is not None else np.full(3, np.nan))
             self.frames += 1
             self.latency_s, self.last_arrival = latency, arrived
             self.first_arrival = self.first_arrival or arrived
@@ -261,9 +263,10 @@ class NatNetHand(TrackedHand):
 
     def rate_hz(self) -> float | None:
         """Frames per second over those received (None before two)."""
-        if self.frames < 2 or self.last_arrival == self.first_arrival:
+        first, last = self.first_arrival, self.last_arrival
+        if self.frames < 2 or first is None or last is None or last == first:
             return None
-        return (self.frames - 1) / (self.last_arrival - self.first_arrival)
+        return (self.frames - 1) / (last - first)
 
     def describe(self) -> str:
         """Which rigid body of which server, in words."""

@@ -259,6 +259,7 @@ class TrackedHand:
         self.link.lost(f"nothing received for {silent:.1f} s", since=arrived)
         self.reconnect()
         with self._lock:
+            assert self._arrived_at is not None, "set by put, never unset"
             self._arrived_at = max(self._arrived_at, time.monotonic())
 
     def reconnect(self) -> None:

@@ -39,9 +39,9 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -85,6 +85,12 @@ class Reading:
     position_mm: tuple[float, float, float] | None  # None: lost (occluded, or not in this frame)
 
 
+def _xyz(values: Iterable[Any]) -> tuple[float, float, float]:
+    """The SDK's three coordinates as floats."""
+    x, y, z = values
+    return float(x), float(y), float(z)
+
+
 def read_frame(client: ViconClient, subject: str, segment: str) -> Reading:
     """The hand's segment in the client's current frame. A subject or segment this frame does not
     hold exactly once, or that the SDK reports as occluded, is lost (``position_mm`` None)."""
@@ -94,7 +100,7 @@ def read_frame(client: ViconClient, subject: str, segment: str) -> Reading:
             and client.GetSegmentNames(subject).count(segment) == 1):
         translation, occluded = client.GetSegmentGlobalTranslation(subject, segment)
         if not occluded:
-            position = tuple(float(value) for value in translation)
+            position = _xyz(translation)
     return Reading(int(client.GetFrameNumber()), float(client.GetFrameRate()),
                    latency if 0.0 < latency <= MAX_REPORTED_LATENCY_S else None, position)
 
@@ -197,7 +203,7 @@ class PyViconClient:
         translation = self._client.get_segment_global_translation(subject, segment)
         if translation is None:
             return (0.0, 0.0, 0.0), True
-        return tuple(float(value) for value in translation), False
+        return _xyz(translation), False
 
     def Disconnect(self) -> None:
         self._client.disconnect()
@@ -226,6 +232,8 @@ class ViconHand(TrackedHand):
     def __init__(self, config: ViconSource, transform: FrameTransform, max_speed: float,
                  connect: Callable[[str, int], ViconClient] | None = None) -> None:
         super().__init__(transform, max_speed)
+        # ViconSource refuses a table without them (HandSourceBase._tracker_complete)
+        assert config.vicon_subject and config.vicon_segment and config.vicon_server is not None
         self.subject, self.segment = config.vicon_subject, config.vicon_segment
         self.server = f"{config.vicon_server}:{config.vicon_port}"
         self._address = (config.vicon_server, config.vicon_port)
@@ -334,9 +342,10 @@ class ViconHand(TrackedHand):
 
     def rate_hz(self) -> float | None:
         """New frames per second over those received (None before two)."""
-        if self.frames < 2 or self.last_seen == self.first_seen:
+        first, last = self.first_seen, self.last_seen
+        if self.frames < 2 or first is None or last is None or last == first:
             return None
-        return (self.frames - 1) / (self.last_seen - self.first_seen)
+        return (self.frames - 1) / (last - first)
 
     def describe(self) -> str:
         """Which segment of which subject from which server, in words."""

@@ -105,7 +105,7 @@ class RigClient:
         self._recovered = threading.Event()
         self._recovery: Recovered | None = None
         self._send_lock = threading.Lock()
-        self._stopper = None
+        self._stopper: DashboardStop | None = None
         try:
             self.devices = self._await_open()
         except BaseException:
@@ -130,8 +130,10 @@ class RigClient:
         if isinstance(report, RigFailed):
             raise RigError(f"the rig could not open its devices: {report.reason}")
         assert isinstance(report, RigOpened), report
+        host = self.spec.config.ur.host
         if self.spec.config.arm.kind == "ur":
-            self._stopper = DashboardStop(self.spec.config.ur.host)
+            assert host is not None, "ControllerConfig refuses arm.kind = 'ur' without [ur] host"
+            self._stopper = DashboardStop(host)
         return report.devices
 
     # -- commands ----------------------------------------------------------------------------------
@@ -172,6 +174,7 @@ class RigClient:
             raise RigError("the rig process is not reachable")
         if not self._recovered.wait(timeout):
             raise RigError(f"the rig did not answer the recovery within {timeout} s")
+        assert self._recovery is not None, "set before the answer is signalled"
         return self._recovery
 
     def stop(self, reason: str) -> bool:
@@ -316,7 +319,7 @@ class RigClient:
                 last_count, last_change = count, now
             elif now - last_change > limit[0]:
                 self.backstop(f"the rig wrote no sample for {limit[0]:g} s while {limit[1]} "
-                              f"({self.stage.value})")
+                              f"({self.stage})")  # a StrEnum: its value (None if the trial just ended)
                 return
 
 

@@ -22,11 +22,11 @@ from robot_io.arms.mock_arm import MockArm
 from robot_io.arms.ur_arm import URArm
 from robot_io.control.cycle import CycleDevices
 from robot_io.control.trial import make_clock
-from robot_io.devices import open_gripper, open_hand
+from robot_io.devices import open_gripper, open_tracked_hand
 from robot_io.errors import ArmFault, ConfigError, GripperFault
 from robot_io.grippers.gripper import Gripper, NoGripper, ToolOutputGripper
 from robot_io.grippers.kinds import GRIPPERS
-from robot_io.hands.simulated_hand import SimulatedHand
+from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.hands.simulated_pull import SimulatedPull
 from robot_io.hands.tracked_hand import TrackedHand
 from robot_io.rig.messages import DeviceReport, RigSpec
@@ -66,7 +66,7 @@ class RigDevices:
             if config.arm.kind == "ur":
                 self.ur = URArm(config.ur, config.safety)
             if config.hand_source.reader is not None:
-                self.tracked = open_hand(config)
+                self.tracked = open_tracked_hand(config)
             self.gripper = open_gripper(config)
         except BaseException:
             self.close()
@@ -74,6 +74,12 @@ class RigDevices:
         rate = self.ur.rate_hz if self.ur is not None else config.loop.rate_hz
         self.config = config.model_copy(update={"loop": config.loop.model_copy(
             update={"rate_hz": rate})})
+
+    @property
+    def _scenario(self) -> Scenario:
+        """The simulated hand's scenario: the rig refuses a simulated hand without one (above)."""
+        assert self.spec.scenario is not None, "a simulated hand source has the session's scenario"
+        return self.spec.scenario
 
     def report(self) -> DeviceReport:
         config, ur, tracked = self.config, self.ur, self.tracked
@@ -83,7 +89,7 @@ class RigDevices:
             arm_detail = f"mock arm, {config.loop.rate_hz} Hz"
         source = config.hand_source
         hand_detail = (f"{tracked.PROTOCOL} {tracked.describe()}" if tracked is not None
-                       else f"simulated hand ({self.spec.scenario.value})")
+                       else f"simulated hand ({self._scenario.value})")
         gripper_detail = GRIPPERS[config.gripper.kind].describe(config)
         return DeviceReport(arm=config.arm.kind, arm_detail=arm_detail,
                             polyscope_version=None if ur is None else ur.polyscope_version,
@@ -95,8 +101,8 @@ class RigDevices:
         """The arm, hand, gripper and a fresh clock for one trial."""
         config, spec = self.config, self.spec
         clock = make_clock(config, realtime=spec.realtime, realtime_priority=spec.realtime_priority)
-        hand = self.tracked or SimulatedHand(spec.scenario, config.scene, config.hand, hand_seed)
-        arm = self.ur
+        hand = self.tracked or SimulatedHand(self._scenario, config.scene, config.hand, hand_seed)
+        arm: URArm | MockArm | None = self.ur
         if arm is None:
             if self._mock is not None:
                 self._mock_position = self._mock.read_pose()
@@ -118,15 +124,15 @@ class RigDevices:
         emergency) is cleared only once someone inspected its cause; a refusal touches nothing.
         Returns what was done; raises ArmFault or GripperFault if refused."""
         arm = self.ur or self._mock
-        faulted = arm is not None and arm.state is ArmState.FAULT
-        fault = arm.fault if faulted else None
-        if faulted and arm.safety_stopped and not inspected:
+        faulted = arm if arm is not None and arm.state is ArmState.FAULT else None
+        fault = None if faulted is None else faulted.fault
+        if faulted is not None and faulted.safety_stopped and not inspected:
             raise ArmFault(f"not recovered: {fault} — inspect the cause, then recover from the "
                            "dashboard")
         gripper = self._recover_gripper()
-        if not faulted:
+        if faulted is None:
             return gripper or "the arm has no fault"
-        arm.recover()
+        faulted.recover()
         if isinstance(self.gripper, ToolOutputGripper):  # its link is the UR's: it dropped with it
             self.gripper.reconnect()
             gripper = gripper or "the gripper's RTDE IO link connected again"
@@ -155,8 +161,8 @@ class RigDevices:
         """Stop the arm, then release everything (never raises)."""
         for name, action in (("arm", self.stop_arm),
                              ("gripper", lambda: self.gripper.disconnect()),
-                             ("hand source", lambda: self.tracked and self.tracked.close()),
-                             ("UR", lambda: self.ur and self.ur.close())):
+                             ("hand source", lambda: _close(self.tracked)),
+                             ("UR", lambda: _close(self.ur))):
             began = time.monotonic()
             try:
                 action()
@@ -166,3 +172,8 @@ class RigDevices:
                 # the application kills a rig that is slow to exit after Shutdown: say where
                 # the time went
                 log.warning("closing the rig's %s took %.1f s", name, took)
+
+
+def _close(device: TrackedHand | URArm | None) -> None:
+    if device is not None:
+        device.close()

@@ -34,7 +34,7 @@ import socket
 import struct
 import threading
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import NamedTuple
 
 log = logging.getLogger(__name__)
@@ -248,7 +248,7 @@ def hidden() -> RigidBodyPose:
     return RigidBodyPose((0.0, 0.0, 0.0), tracked=False)
 
 
-def pose_at(position) -> RigidBodyPose:
+def pose_at(position: Iterable[float]) -> RigidBodyPose:
     """A tracked pose at ``position`` [m], or :func:`hidden` if it has no finite position."""
-    values = [float(v) for v in position]
-    return RigidBodyPose(tuple(values)) if all(math.isfinite(v) for v in values) else hidden()
+    x, y, z = (float(v) for v in position)
+    return RigidBodyPose((x, y, z)) if all(math.isfinite(v) for v in (x, y, z)) else hidden()

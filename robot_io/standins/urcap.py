@@ -112,8 +112,9 @@ class RobotiqModel:
             return
         if self.sta != 3 or not self.gto:
             return
-        blocked = self.object_position is not None and self.pre > self.object_position
-        stop = min(self.pre, self.object_position) if blocked and self.position <= self.object_position \
+        held_at = self.object_position
+        blocked = held_at is not None and self.pre > held_at
+        stop = min(self.pre, held_at) if held_at is not None and blocked and self.position <= held_at \
             else self.pre
         if self.obj == CONTACT_CLOSING and blocked:
             return

@@ -88,3 +88,18 @@ def test_report_xdf_on_a_recording_cut_short_says_so_in_a_sentence(recorded_sess
         assert refused or reported_cut, err
     else:
         assert refused, err
+
+
+def test_report_xdf_refuses_a_marker_stream_naming_no_participant(recorded_session, tmp_path, capsys):
+    """The marker stream's description says whose markers they are; one that does not (another
+    tool's outlet, an edited header) is refused in words, never reported as "trials of None"."""
+    session, renamed = recorded_session, tmp_path / "renamed.xdf"
+    data = session.xdf.read_bytes()
+    assert b"<participant>" in data  # the marker stream's (and the robot stream's) description
+    # the same number of bytes: every chunk keeps its length, only the key is unknown
+    renamed.write_bytes(data.replace(b"<participant>", b"<participxnt>").replace(
+        b"</participant>", b"</participxnt>"))
+    assert main(["report", str(session.study), "--out", str(tmp_path / "r"), "--xdf",
+                 str(renamed)]) == 2
+    err = capsys.readouterr().err
+    assert "the study marker stream's description names no participant" in err, err

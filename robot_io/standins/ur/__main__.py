@@ -40,7 +40,11 @@ def main(argv: list[str] | None = None) -> int:
     standin = StandinController(args.host, series, control_port=args.control_port)
     signal.signal(signal.SIGTERM, lambda *_: standin.close())
     if args.exit_with_stdin:
-        threading.Thread(target=lambda: (sys.stdin.read(), standin.close()), daemon=True).start()
+        def close_at_end_of_stdin() -> None:
+            sys.stdin.read()
+            standin.close()
+
+        threading.Thread(target=close_at_end_of_stdin, daemon=True).start()
     print(f"ready {args.host}", flush=True)
     try:
         standin.wait()

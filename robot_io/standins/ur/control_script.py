@@ -64,6 +64,7 @@ class ControlScript:
             self._signal(controller, READY)
             self._signalled = True
         if self._watchdog_expired(controller):
+            assert self.watchdog_hz is not None, "only a watchdog that is set expires"
             controller.event(f"watchdog: input_int_register_{self.offset} not written for "
                              f"{1.0 / self.watchdog_hz:.3f} s; program stopped")
             return False

@@ -31,7 +31,7 @@ def reply(controller: Controller, command: str) -> str:
             "safetystatus": f"Safetystatus: {controller.safety.name}",
             "running": f"Program running: {str(running).lower()}",
             "programstate": f"{'PLAYING' if running else 'STOPPED'} "
-                            f"{program.name if running else '<unnamed>'}",
+                            f"{program.name if program is not None else '<unnamed>'}",
             "polyscopeversion": POLYSCOPE[controller.series],
             "is in remote control": "true",
             "get robot model": "UR5",

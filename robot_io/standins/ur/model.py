@@ -234,6 +234,12 @@ class Controller:
         return bits
 
     # -- inputs ------------------------------------------------------------------------------------
+    def _scalar(self, name: str) -> float:
+        """An input that is one number (a register or a mask; other inputs may be vectors)."""
+        value = self.inputs[name]
+        assert isinstance(value, int | float), f"{name} is a scalar input, not {value!r}"
+        return float(value)
+
     def write_inputs(self, names: list[str], values: list[object]) -> None:
         """Apply one input data package (called by the RTDE server with the lock held)."""
         now = time.monotonic()
@@ -241,15 +247,15 @@ class Controller:
             self.inputs[name] = value
             self.input_times[name] = now
         if "tool_digital_output_mask" in names:
-            mask = int(self.inputs["tool_digital_output_mask"])
-            bits = int(self.inputs.get("tool_digital_output", 0))
+            mask = int(self._scalar("tool_digital_output_mask"))
+            bits = int(self._scalar("tool_digital_output")) if "tool_digital_output" in self.inputs else 0
             self.tool_outputs = (self.tool_outputs & ~mask) | (bits & mask)
             self.event(f"tool digital outputs = {self.tool_outputs:#04b}")
         for register, offset in COMMAND_REGISTERS.items():
-            if register in names and int(self.inputs[register]) != 0:
-                doubles = [float(self.inputs[f"input_double_register_{i + offset}"])
+            if register in names and int(self._scalar(register)) != 0:
+                doubles = [self._scalar(f"input_double_register_{i + offset}")
                            for i in range(48 - offset) if f"input_double_register_{i + offset}" in names]
-                self.received.append(Received(now, int(self.inputs[register]), doubles))
+                self.received.append(Received(now, int(self._scalar(register)), doubles))
 
     # -- safety ------------------------------------------------------------------------------------
     def protective_stop(self, reason: str) -> None:
