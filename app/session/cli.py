@@ -11,7 +11,7 @@ import signal
 import sys
 import threading
 from collections.abc import Iterator
-from typing import get_args
+from typing import cast, get_args
 
 from tqdm import tqdm
 
@@ -58,7 +58,7 @@ def rehearsed_hand(args: argparse.Namespace, lab: LabConfig) -> HandKind:
                           '"vicon"): there is no stand-in Vicon server. Say which protocol stands in '
                           "for it, e.g. --rehearse-hand lsl (the rest of the session runs as on the "
                           "rig; the Vicon link is checked by `handover check-devices` on the rig)")
-    return kind if kind in get_args(HandKind) else "lsl"
+    return cast(HandKind, kind) if kind in get_args(HandKind) else "lsl"
 
 
 class Interrupted(Exception):

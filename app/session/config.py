@@ -61,20 +61,24 @@ def _whole_number_in(low: int, high: int) -> BeforeValidator:
 
 def _annotation(field: FieldInfo) -> Any:
     """The field's type; a bounded integer also names its range in every refusal."""
-    low = next((m.ge for m in field.metadata if isinstance(m, annotated_types.Ge)), None)
-    high = next((m.le for m in field.metadata if isinstance(m, annotated_types.Le)), None)
+    low = next((m.ge for m in field.metadata
+                if isinstance(m, annotated_types.Ge) and isinstance(m.ge, int)), None)
+    high = next((m.le for m in field.metadata
+                 if isinstance(m, annotated_types.Le) and isinstance(m.le, int)), None)
     if field.annotation is int and low is not None and high is not None:
         return Annotated[int, _whole_number_in(low, high)]
     return field.annotation
 
 
-def _settings(name: str, fields: tuple[str, ...], doc: str) -> type[BaseModel]:
-    definitions = {field: (_annotation(StudyConfig.model_fields[field]),
-                           StudyConfig.model_fields[field]) for field in fields}
-    return create_model(name, __config__=_FROZEN, __doc__=doc, **definitions)
+def _settings(name: str, fields: tuple[str, ...]) -> type[BaseModel]:
+    """A frozen model of ``fields`` of StudyConfig, made at run time: mypy cannot see its fields, so
+    the classes below that extend it read them as Any (``type: ignore[misc]``)."""
+    definitions: dict[str, Any] = {field: (_annotation(StudyConfig.model_fields[field]),
+                                           StudyConfig.model_fields[field]) for field in fields}
+    return create_model(name, __config__=_FROZEN, **definitions)
 
 
-class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS, "")):
+class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS)):  # type: ignore[misc]
     """[protocol]: the counts of the study's phases (the paper's by default)."""
 
     without_learning: bool = Field(
@@ -99,9 +103,9 @@ class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS, "")):
         return self.model_dump(include=set(PROTOCOL_FIELDS))
 
 
-LearnerSettings = _settings("LearnerSettings", LEARNER_FIELDS,
-                            "[learner]: the acquisition function, the θ box (Table I), how θ* is "
-                            "recommended and the opt-in prior from earlier participants.")
+class LearnerSettings(_settings("_LearnerFields", LEARNER_FIELDS)):  # type: ignore[misc]
+    """[learner]: the acquisition function, the θ box (Table I), how θ* is recommended and the
+    opt-in prior from earlier participants."""
 
 
 class RecordSettings(BaseModel):
@@ -141,7 +145,7 @@ class LabConfig(ControllerConfig):
 
     @property
     def controller(self) -> ControllerConfig:
-        return ControllerConfig.model_validate(self.model_dump(exclude=APPLICATION_TABLES))
+        return ControllerConfig.model_validate(self.model_dump(exclude=set(APPLICATION_TABLES)))
 
     def study_config(self, scenario: Scenario, seed: int) -> StudyConfig:
         """A new participant's session plan under this configuration."""

@@ -189,6 +189,7 @@ class EngineSide:
     def simulated_turn(self, step: Step, auto: bool) -> None:
         """The simulated participant acts if it is on (``auto``) and the session waits for ``step``."""
         if auto and self.engine is not None and self.engine.state.step is step:
+            assert self._participant is not None, "opened with the engine, dropped when it ends"
             rate_once(self.engine, self._participant)
 
     def planning(self, preparing: bool, fault: str | None) -> None:
@@ -204,12 +205,12 @@ class EngineSide:
         stops here — every further action is refused with the reason, and the worker stops — until
         it is resumed (which records a trial left running as aborted). The reason, and whether
         this is the first failure."""
-        first = self._store_fault is None
-        if first:
-            self._store_fault = (f"{exc} (run-session --resume, or restart serve and open the "
-                                 "participant)")
-            self.fail(self._store_fault)
-        return self._store_fault, first
+        fault, first = self._store_fault, self._store_fault is None
+        if fault is None:
+            fault = self._store_fault = (f"{exc} (run-session --resume, or restart serve and open "
+                                         "the participant)")
+            self.fail(fault)
+        return fault, first
 
     def replay_rows(self, trial_index: int) -> dict[str, np.ndarray]:
         """A stored trial as the live view's columns with the arm's links; refused while a trial

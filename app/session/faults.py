@@ -33,7 +33,7 @@ def stage(fault: StagedFault, rehearsal: Rehearsal | None, rig: RigClient | None
     if rehearsal is None:
         raise RefusedAction(f"{fault.value!r} refused: faults are staged only in a rehearsal")
     if fault is StagedFault.TRACKER_LOST:
-        rehearsal.publisher.occlude(TRACKER_LOSS_S)
+        rehearsal.hand_publisher().occlude(TRACKER_LOSS_S)
     elif fault is StagedFault.PROTECTIVE_STOP:
         rehearsal.control("protective_stop")
     else:

@@ -76,6 +76,7 @@ def open_session(study: Path, lab: LabConfig, identity: dict, code: str, scenari
         else:
             # the plan is validated before anything is written (with the seed asked for, or
             # 0); the seed is checked and the session created in one step for the study folder
+            assert scenario is not None, "a new session without a scenario is refused above"
             config, changed = lab.study_config(scenario, seed or 0), None
             creation.enter_context(writer_lock.creating_participant(study))
             config = config.model_copy(

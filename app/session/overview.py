@@ -73,7 +73,7 @@ def summary_of(store: ParticipantStore, code: str, open_code: str | None = None)
 def _signature(path: Path) -> tuple[tuple[int, int, int, int] | None, ...]:
     """What a write to a participant's database changes: the inode, size and times of its file and
     of its WAL (a writer commits into the WAL; a checkpoint rewrites the file)."""
-    signature = []
+    signature: list[tuple[int, int, int, int] | None] = []
     for file in (path, path.with_name(path.name + "-wal")):
         try:
             stat = file.stat()

@@ -27,6 +27,7 @@ import numpy as np
 
 from app.session.config import LabConfig
 from robot_io.config import ROBOTIQ_PORT, GripperConfig
+from robot_io.hands.config import NatNetSource, UDPSource
 from robot_io.hands.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.standins.ur.control import ControlClient
@@ -112,6 +113,7 @@ class Rehearsal:
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.publisher: HandPublisher | None = None
         try:
+            assert self.standin.stdout is not None, "started with stdout=PIPE"
             line = self.standin.stdout.readline()
             if line.strip() != f"ready {self.host}":
                 raise OSError(f"the stand-in controller did not start ({line.strip()!r})")
@@ -136,8 +138,10 @@ class Rehearsal:
             self.publisher = HandPublisher(PublisherSpec(
                 config=self.lab.controller, standin_host=self.host,
                 lsl_name=stream if hand == "lsl" else None,
-                udp_target=(source.udp_host, source.udp_port) if hand == "udp" else None,
-                natnet_rigid_body=source.natnet_rigid_body if hand == "natnet" else None,
+                udp_target=((source.udp_host, source.udp_port) if isinstance(source, UDPSource)
+                            else None),
+                natnet_rigid_body=(source.natnet_rigid_body if isinstance(source, NatNetSource)
+                                   else None),
                 realtime_priority=realtime_priority))
             if hand == "natnet":
                 self.lab = self.lab.with_rig(hand_source=source.model_copy(
@@ -160,10 +164,16 @@ class Rehearsal:
                      open_level=self.lab.gripper.open_level, gripper=self.lab.gripper.kind)
 
     def play(self, scenario: Scenario, seed: int, go_monotonic: float) -> None:
-        self.publisher.play(scenario, seed, go_monotonic)
+        self.hand_publisher().play(scenario, seed, go_monotonic)
 
     def rest(self) -> None:
-        self.publisher.rest()
+        self.hand_publisher().rest()
+
+    def hand_publisher(self) -> HandPublisher:
+        """The simulated hand (None only while ``__init__`` runs, which closes the rehearsal if it
+        fails)."""
+        assert self.publisher is not None, "a rehearsal has its hand once it is made"
+        return self.publisher
 
     def observed(self) -> dict[str, int | float]:
         """What the stand-in controller saw: gripper openings and closings (on the tool output, or

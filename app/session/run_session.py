@@ -106,6 +106,7 @@ def run_session(args: argparse.Namespace) -> int:
         return 128 + exc.signum
     if view.failed is not None:
         raise StoreError(f"the session stopped: {view.failed}")
+    assert view.state is not None, "the view of an open session, done"
     with reading(args.study, args.participant) as store:  # read, never written: a plain file stays
         counts = store.counts()
         snapshot = store.rows("learner_snapshots")[-1]

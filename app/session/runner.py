@@ -148,20 +148,26 @@ class SessionRunner:
         self._changed()
         return self._pairing
 
+    def _tablet(self) -> TabletPairing:
+        """The pairing of the tablet page that calls (a page is served only once attached)."""
+        assert self._pairing is not None, "attach_tablet comes before serve serves a page"
+        return self._pairing
+
     def tablet_connected(self, page: int, address: str, browser: str | None = None) -> None:
         """A page opened on the tablet port from ``address``, in ``browser`` (its id, if known)."""
-        again = self._pairing.connected(page, address, browser)
+        again = self._tablet().connected(page, address, browser)
         self._news("the tablet is paired again (the browser paired before)" if again else None)
 
     def tablet_closed(self, page: int) -> None:
-        self._pairing.closed(page)
+        self._tablet().closed(page)
         self._news(None)
 
     def pair_tablet(self, page: int, code: str) -> str | None:
         """The code typed on a tablet page: None if it is now the study's tablet, else why not."""
-        before = self._pairing.status()
-        refusal = self._pairing.pair(page, code)
-        after = self._pairing.status()
+        pairing = self._tablet()
+        before = pairing.status()
+        refusal = pairing.pair(page, code)
+        after = pairing.status()
         if refusal is None and before.address not in (None, after.address):
             message = f"the tablet was taken over: from {before.address} to {after.address}"
         elif refusal is None:
@@ -191,7 +197,7 @@ class SessionRunner:
         """Resume ``code``'s session, or create it (with ``scenario``) if it has none
         (:func:`~app.session.opening.open_session`: the writer lock, the seed, the rig change)."""
         self._call(lambda: self._open(code, scenario, seed, confirm_rig_change, confirm_seed_reuse))
-        self._changed(f"participant {code} open on {self._supervisor.status().devices.arm_detail}")
+        self._changed(f"participant {code} open on {self._rig_detail()}")
 
     def start_trial(self) -> Trial:
         """Start the next trial; the trial started."""
@@ -216,8 +222,7 @@ class SessionRunner:
         fault), a fresh one is opened: it connects to the devices and moves nothing."""
         if not self._supervisor.alive:
             self._call(lambda: self._open_rig(self._side.require().config))
-            self._changed("a fresh rig process is open on "
-                          f"{self._supervisor.status().devices.arm_detail}")
+            self._changed(f"a fresh rig process is open on {self._rig_detail()}")
             return
         self._changed(self._supervisor.recover(inspected))
 
@@ -391,12 +396,22 @@ class SessionRunner:
     def _open_rig(self, session: StudyConfig) -> DeviceReport:
         """Start a rig process for the session (the previous one, if any, is closed); its devices."""
         self._supervisor.open(trial_config(self.lab, session), session.scenario)
-        return self._supervisor.status().devices
+        return self._devices()
+
+    def _devices(self) -> DeviceReport:
+        """The devices of the rig opened just before."""
+        devices = self._supervisor.status().devices
+        assert devices is not None, "a rig was opened just before"
+        return devices
+
+    def _rig_detail(self) -> str:
+        """The arm of the rig opened just before, for the session's log."""
+        return self._devices().arm_detail
 
     def _start_trial(self) -> TrialPlan:
         engine = self._side.require()
         self._supervisor.refuse_unless_armed()
-        blocker = self._pairing.status().blocker() if self.tablet_required else None
+        blocker = self._tablet().status().blocker() if self.tablet_required else None
         if blocker is not None:
             raise RefusedAction(f"Start refused: {blocker}")
         self._supervisor.ready_rig(trial_config(self.lab, engine.config), engine.config.scenario)

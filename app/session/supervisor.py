@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -106,7 +106,7 @@ class TrialSupervisor:
             return plan, None
         return plan, with_links(rig.stream.view(stride))
 
-    def _set(self, **fields: object) -> None:
+    def _set(self, **fields: Any) -> None:
         """Change the status (under the lock)."""
         self._status = self._status._replace(**fields)
 
@@ -159,9 +159,11 @@ class TrialSupervisor:
             self.refuse_unless_armed()
             self._plan, self._abort_reason, self._abort_actor = plan, None, Actor.SYSTEM
             self._set(ready_wait=None)
-            self._rig.run_trial(RunTrial(trial_index=plan.trial.trial_index, theta=plan.theta,
-                                         hand_seed=plan.trial.hand_seed, auto_loaded=automatic,
-                                         auto_go=automatic))
+            rig = self._rig
+            assert rig is not None, "ready_rig opened it on this (the engine) thread"
+            rig.run_trial(RunTrial(trial_index=plan.trial.trial_index, theta=plan.theta,
+                                   hand_seed=plan.trial.hand_seed, auto_loaded=automatic,
+                                   auto_go=automatic))
 
     # -- the experimenter (screens' threads; never wait for the engine) -----------------------------
     def _halting(self, reason: str) -> RigClient | None:
@@ -177,6 +179,7 @@ class TrialSupervisor:
             if self._plan is None or self._rig is None or self._rig.running is None:
                 raise RefusedAction("abort refused: no trial is running")
             rig = self._halting(ABORT_REASON)
+        assert rig is not None, "checked above under the lock"
         rig.stop(ABORT_REASON)
 
     def stop(self) -> str:
@@ -256,6 +259,7 @@ class TrialSupervisor:
                 if timing is not None and timing.trial_index != report.trial_index:
                     self._set(timing=None)  # this trial ran on time
                 rig = self._rig
+            assert rig is not None, "its reader reports a trial's end before the rig is closed"
             self._flush_outlets()
             self._finish(report.trial_index, TrialRecord(report.summary, rig.stream.columns()))
         elif isinstance(report, RigDied):
@@ -277,6 +281,7 @@ class TrialSupervisor:
             rig, reason = self._rig, self._abort_reason or report.reason
         self._flush_outlets()
         if report.trial_index is not None:
+            assert rig is not None, "a trial ran on it: the rig is closed only once none runs"
             record = not_started(rig.spec.config, self._realtime, Outcome.ERROR, report.reason)
             self._finish(report.trial_index, TrialRecord(record.summary, rig.stream.columns()),
                          reason)
@@ -299,6 +304,8 @@ class TrialSupervisor:
         if report.stage is Stage.GO and outlets is not None:
             outlets.feed.go(report.trial_index, report.monotonic)
         if report.stage is Stage.GO and self._rehearsal is not None and plan is not None:
+            assert rig is not None and rig.spec.scenario is not None, \
+                "the rig that reports its plan's trial, opened with the session's scenario"
             self._rehearsal.play(rig.spec.scenario, plan.trial.hand_seed, report.monotonic)
         self._recording.stage(report)
 
@@ -326,6 +333,9 @@ class TrialSupervisor:
             log.error("trial %d's end not recorded: %s", trial_index, exc)
             return
         self._stopped()
-        self._recording.changed(None if ended is None else
-                                f"trial {ended.trial_index} {ended.outcome.value}"
-                                + (f": {ended.reason}" if ended.reason else ""))
+        message = None
+        if ended is not None:
+            assert ended.outcome is not None, "a trial's end is stored with its outcome"
+            message = (f"trial {ended.trial_index} {ended.outcome.value}"
+                       + (f": {ended.reason}" if ended.reason else ""))
+        self._recording.changed(message)
