@@ -106,8 +106,9 @@ def port_number(text: str) -> int:
 
 def participant_line(view: RunnerView) -> str:
     """The participant open at start, where their session stands, or how to open one."""
-    if view.code is None:
+    if view.code is None or view.state is None:
         return "none open: create or open one on the dashboard"
+    assert view.scenario is not None, "an open session's view has its scenario"
     return (f"{view.code} ({view.scenario.value}), {view.state.completed} of {view.interactions} "
             "handovers done")
 

@@ -143,7 +143,8 @@ class Controls:
         refresh for anything else in between would set the box back and lose the click."""
         if auto != self.shown_auto:
             self.shown_auto = auto
-            self.auto.value = auto
+            # viser 1.1.1 defines the value's setter apart from its getter, so mypy reads it as read-only
+            self.auto.value = auto  # type: ignore[misc]
 
 
 @dataclass
@@ -293,6 +294,7 @@ class DashboardClient:
 
     def _participant(self, gui: viser.GuiApi, view: RunnerView) -> None:
         if view.code is not None:
+            assert view.scenario is not None, "an open session's view has its scenario"
             gui.add_markdown(f"Open: **{view.code}** ({view.scenario.value}, seed {view.seed}). "
                              "End the session to open or create another participant.")
             return
@@ -316,7 +318,9 @@ class DashboardClient:
             code_error.content = ""
             return True
 
-        code.on_update(lambda _: check_code())
+        @code.on_update
+        def _(_: viser.GuiEvent) -> None:
+            check_code()
 
         def open_session() -> None:
             if not check_code():
@@ -360,10 +364,13 @@ class DashboardClient:
         gui.add_markdown("Stage a fault during a trial to see the rig handle it.")
         for fault in StagedFault:
             button = gui.add_button(fault.value, color="orange")
-            button.on_click(lambda _, fault=fault: self._act(lambda: self.runner.stage_fault(fault)))
+            button.on_click(self._staging(fault))
         refuse = gui.add_checkbox("The participant does not take the object", view.refusing_object)
         refuse.on_update(lambda event: None if event.client is None else self._act(
             lambda: self.runner.refuse_object(refuse.value)))
+
+    def _staging(self, fault: StagedFault) -> Callable[[object], None]:
+        return lambda _: self._act(lambda: self.runner.stage_fault(fault))
 
     # -- replay -----------------------------------------------------------------------------------
     def _replay_controls(self, gui: viser.GuiApi) -> None:
@@ -380,7 +387,8 @@ class DashboardClient:
                    for t in view.trials if t.outcome is not None] or ["—"]
         if tuple(options) != tuple(self.replay_trial.options):
             self.replay_trial.options = options
-            self.replay_trial.value = options[-1]
+            # viser 1.1.1 defines the value's setter apart from its getter, so mypy reads it as read-only
+            self.replay_trial.value = options[-1]  # type: ignore[misc]
 
     def _start_replay(self) -> None:
         choice = self.replay_trial.value
@@ -390,6 +398,7 @@ class DashboardClient:
         rows = self.runner.trial_rows(trial_index)
         self.cancel_replay()
         self.replay_status.content = f"replaying trial {trial_index} at {self.replay_speed.value}"
+        assert self.live is not None, "the replay's controls are built with the live view"
         self.replay = Replay(self.live, rows, SPEEDS[self.replay_speed.value],
                              busy=lambda: self.runner.view.step is Step.RUNNING,
                              on_end=self._replay_ended)
@@ -407,7 +416,7 @@ class DashboardClient:
         self.windows.take(self.client.client_id)
         self._on_windows()
 
-    def _act(self, action: Callable[[], None], control: bool = True) -> None:
+    def _act(self, action: Callable[[], object], control: bool = True) -> None:
         """Run an experimenter's action (``control``: one that controls the session, refused in a
         view-only window; STOP ARM is none); show why it was refused, next to the controls."""
         try:

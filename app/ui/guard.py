@@ -34,6 +34,8 @@ from urllib.parse import urlsplit
 import viser
 from viser import _messages
 from viser.infra import WebsockClientConnection
+from websockets.asyncio.server import ServerConnection
+from websockets.http11 import Request
 
 from app.session.access import AttemptLimit, KnownBrowsers
 from app.ui.client_page import BROWSER_ID_PATTERN, ClientPage, StudyViserServer, client_folder
@@ -83,8 +85,7 @@ class Guard:
             self._infra.unregister_handler(message)  # viser's own: it would open a public tunnel
             self._infra.register_handler(message, self._refuse_share_link)
         self._infra.on_client_connect(self._check_origin)
-        self._infra.on_client_disconnect(
-            lambda conn: self._addresses.pop(conn.client_id, None))
+        self._infra.on_client_disconnect(self._forget)
 
     def source_of(self, client_id: int) -> str:
         """The remote address of a connected client ("unknown" once it has gone)."""
@@ -102,7 +103,7 @@ class Guard:
         connection = self._infra._live_connections.get(client_id)
         if connection is None:
             return None
-        headers = connection.request.headers
+        headers = _request(connection).headers
         if not same_origin(headers.get("Origin"), headers.get("Host"), self.port):
             return None
         cookie = SimpleCookie()
@@ -114,6 +115,9 @@ class Guard:
         if morsel is None or not re.fullmatch(BROWSER_ID_PATTERN, morsel.value):
             return None
         return morsel.value
+
+    def _forget(self, conn: WebsockClientConnection) -> None:
+        self._addresses.pop(conn.client_id, None)
 
     def _refuse(self, what: str) -> None:
         self.refused.append(what)
@@ -129,11 +133,18 @@ class Guard:
             return
         address = connection.remote_address[0] if connection.remote_address else "unknown"
         self._addresses[conn.client_id] = address
-        headers = connection.request.headers
+        headers = _request(connection).headers
         origin, host = headers.get("Origin"), headers.get("Host")
         if not same_origin(origin, host, self.port):
             self._refuse(f"websocket from {address} with Origin {origin!r} (served as {host!r})")
             await connection.close(POLICY_VIOLATION, "origin not allowed")
+
+
+def _request(connection: ServerConnection) -> Request:
+    """The opening handshake's request of a live websocket (viser lists a connection once its
+    handshake is done)."""
+    assert connection.request is not None, "a live connection has had its handshake"
+    return connection.request
 
 
 def same_origin(origin: str | None, host: str | None, port: int) -> bool:

@@ -14,10 +14,12 @@ from dataclasses import dataclass
 
 import viser
 
-from app.protocol.state import Step
+from app.protocol.errors import RefusedAction
+from app.protocol.plan import Slot
+from app.protocol.state import SessionState, Step
 from app.session.runner import RunnerView, SessionRunner
-from app.ui.tablet import RATINGS, answer_options
-from session_store.vocabulary import Rater, question
+from app.ui.tablet import RATINGS, answer_options, asked_question
+from session_store.vocabulary import Rater
 
 #: The "same as" choice that means: a position on the scale, not an earlier marker.
 NOT_EQUAL = "— (use the position)"
@@ -53,18 +55,21 @@ class OnBehalf:
         by = Rater.EXPERIMENTER
 
         def place() -> None:
-            state = runner.view.state
+            state = _open_state(runner.view)
             if entry.same_as.value == NOT_EQUAL:
-                runner.place(state.slot.interaction, position=entry.position.value, by=by)
+                runner.place(_slot(state).interaction, position=entry.position.value, by=by)
                 return
             label = int(entry.same_as.value.split()[-1])  # as the tablet numbers the batch
             same = next((m.interaction for m in state.markers if m.label == label), None)
             if same is None:
                 raise ValueError(f"handover {label} is not on the scale any more")
-            runner.place(state.slot.interaction, equal_to=same, by=by)
+            runner.place(_slot(state).interaction, equal_to=same, by=by)
 
         def rate(value: str) -> None:
-            runner.rate(runner.view.state.slot.interaction, value, by=by)
+            runner.rate(_slot(_open_state(runner.view)).interaction, value, by=by)
+
+        def rating(value: str) -> Callable[[object], None]:
+            return lambda _: act(lambda: rate(value))
 
         def answer() -> None:
             question = _question(runner.view)
@@ -75,7 +80,7 @@ class OnBehalf:
 
         entry.place.on_click(lambda _: act(place))
         for button, (_, value) in zip(entry.ratings, RATINGS, strict=True):
-            button.on_click(lambda _, value=value: act(lambda: rate(value)))
+            button.on_click(rating(value))
         entry.store_answer.on_click(lambda _: act(answer))
         return entry
 
@@ -87,18 +92,20 @@ class OnBehalf:
         for button in self.ratings:
             button.disabled = step is not Step.RATE
         self.answer.disabled = self.store_answer.disabled = step is not Step.ANSWER
-        markers = [] if step is not Step.PLACE else [f"handover {m.label}" for m in state.markers]
+        placing = state if step is Step.PLACE else None
+        markers = [] if placing is None else [f"handover {m.label}" for m in placing.markers]
         options = (NOT_EQUAL, *markers)
         if tuple(self.same_as.options) != options:
             self.same_as.options = options
-            self.same_as.value = NOT_EQUAL
-        if step is Step.PLACE:
-            self.what.content = f"The participant places **handover {state.slot.position}**."
+            # viser 1.1.1 defines the value's setter apart from its getter, so mypy reads it as read-only
+            self.same_as.value = NOT_EQUAL  # type: ignore[misc]
+        if placing is not None:
+            self.what.content = f"The participant places **handover {_slot(placing).position}**."
         elif step is Step.RATE:
             self.what.content = ("The participant compares the **second handover of the pair** "
                                  "with the first.")
         elif step is Step.ANSWER:
-            asked = question(_question(view))
+            asked = asked_question(_question(view))
             self.what.content = f"**{asked.id}**: {asked.text}"
         else:
             self.what.content = "Nothing to enter now."
@@ -110,4 +117,18 @@ class OnBehalf:
 
 def _question(view: RunnerView) -> str:
     """The first question not answered yet (the order the tablet asks them in)."""
-    return view.state.unanswered[0]
+    return _open_state(view).unanswered[0]
+
+
+def _open_state(view: RunnerView) -> SessionState:
+    """The open session's state; an entry that arrives once no session is open is refused."""
+    if view.state is None:
+        raise RefusedAction("no participant is open")
+    return view.state
+
+
+def _slot(state: SessionState) -> Slot:
+    """The handover at the cursor, the one an entry is for."""
+    if state.slot is None:
+        raise RefusedAction("the session waits for no handover")
+    return state.slot

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from datetime import datetime
 
-from app.protocol.state import Step
+from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
 from app.ui.stage_words import CYCLE, INSTEAD_OF, STAGE_WORDS, stage_name
@@ -61,6 +61,7 @@ def _status(view: RunnerView) -> str:
     if (halted := _halted(view)) is not None:
         return halted[1]
     state = view.state
+    assert state is not None, "a view with no session open is halted"
     step = state.step
     if step is Step.PLAN or view.preparing:
         return "**Preparing the next handover** (the learner chooses it) — please wait."
@@ -75,7 +76,9 @@ def _status(view: RunnerView) -> str:
         stage = view.stage
         return f"**Handover running** — {STAGE_WORDS[stage].dashboard if stage else 'starting'}."
     if step is Step.PLACE:
-        return (f"**Waiting for the participant** to place handover {state.slot.position} on "
+        slot = state.slot
+        assert slot is not None, "a placement is due for the slot at the cursor"
+        return (f"**Waiting for the participant** to place handover {slot.position} on "
                 "the tablet.")
     if step is Step.RATE:
         return "**Waiting for the participant** to rate the pair on the tablet."
@@ -85,8 +88,8 @@ def _status(view: RunnerView) -> str:
     return "**Session complete** — press **End session**, then open the next participant."
 
 
-def _batches(view: RunnerView, phase: Phase) -> int:
-    return max((s.batch for s in view.state.slots if s.phase is phase), default=0)
+def _batches(state: SessionState, phase: Phase) -> int:
+    return max((s.batch for s in state.slots if s.phase is phase), default=0)
 
 
 def progress_markdown(view: RunnerView) -> str:
@@ -94,6 +97,7 @@ def progress_markdown(view: RunnerView) -> str:
     state = view.state
     if state is None:
         return ""
+    assert view.scenario is not None, "an open session's view has its scenario"
     lines = [f"**{view.code}** · {view.scenario.value} · {state.completed} of "
              f"{view.interactions} handovers completed"]
     slot = state.slot
@@ -102,7 +106,7 @@ def progress_markdown(view: RunnerView) -> str:
     elif slot is not None:
         where = PHASE_WORDS[slot.phase]
         if slot.phase in (Phase.LEARNING, Phase.VALIDATION):
-            where += f" {slot.batch} of {_batches(view, slot.phase)}"
+            where += f" {slot.batch} of {_batches(state, slot.phase)}"
         if slot.batch_size > 1:
             where += f" · handover {slot.position} of {slot.batch_size}"
         attempt = state.attempts.get(slot.interaction, 0) + (state.step in (Step.PLAN, Step.READY))

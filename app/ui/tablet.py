@@ -38,15 +38,15 @@ import viser
 from pydantic import BaseModel, ConfigDict
 
 from app.protocol.errors import RefusedAction
-from app.protocol.plan import Rating
-from app.protocol.state import PARTICIPANT_STEPS, Marker, Step
+from app.protocol.plan import Rating, Slot
+from app.protocol.state import PARTICIPANT_STEPS, Marker, SessionState, Step
 from app.session.runner import RunnerView, SessionRunner
 from app.ui.deliberate import SETTLE_S, Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
 from app.ui.stage_words import STAGE_WORDS
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
-from session_store.vocabulary import Phase, question, questions
+from session_store.vocabulary import Phase, Question, question, questions
 
 log = logging.getLogger(__name__)
 
@@ -78,10 +78,10 @@ UNUSED = Screen(kind="unused")
 PAIR = Screen(kind="pair")
 
 
-def _next_up(view: RunnerView) -> Screen:
+def _next_up(state: SessionState) -> Screen:
     """"Please wait", saying what comes next; before the first validation pair, the pairs' plain
     introduction. Counts are 1-based and never tell the conditions apart."""
-    slot = view.state.slot
+    slot = state.slot
     if slot is None:
         return Screen(kind="wait")
     if slot.phase is Phase.VALIDATION:
@@ -103,27 +103,41 @@ def screen_for(view: RunnerView) -> Screen:
     step, slot = state.step, state.slot
     shown = STAGE_WORDS[state.stage].tablet if step is Step.RUNNING and state.stage else "wait"
     if shown != "wait":  # "go": the cue, the robot starts with it; "back": it moves back
-        return Screen(kind=shown, interaction=slot.interaction)
+        return Screen(kind=shown, interaction=_current(slot).interaction)
     if view.auto and step in PARTICIPANT_STEPS:
         # the simulated participant answers: the person holding the tablet is asked nothing
         return Screen(kind="wait")
     if step is Step.PLACE:
-        return Screen(kind="place", interaction=slot.interaction, label=slot.position,
+        placed = _current(slot)
+        return Screen(kind="place", interaction=placed.interaction, label=placed.position,
                       markers=tuple(state.markers))
     if step is Step.RATE:
-        return Screen(kind="rate", interaction=slot.interaction)
+        return Screen(kind="rate", interaction=_current(slot).interaction)
     if step is Step.ANSWER:
         return Screen(kind="question",
                       questions=state.unanswered)
     if step is Step.DONE:
         return Screen(kind="done")
-    return _next_up(view)
+    return _next_up(state)
+
+
+def _current(slot: Slot | None) -> Slot:
+    """The slot at the cursor while a trial runs, or is placed or rated: there is one."""
+    assert slot is not None, "a trial runs, or is placed or rated, for the slot at the cursor"
+    return slot
+
+
+def asked_question(question_id: str) -> Question:
+    """The questionnaire's question ``question_id`` (an id the session or the draft holds)."""
+    asked = question(question_id)
+    assert asked is not None, f"{question_id!r} comes from the questionnaire"
+    return asked
 
 
 def answer_options(question_id: str) -> list[tuple[str, str]]:
     """(button text, stored value) of a question's answers: 1–5 with the paper's end labels, or
     the words themselves."""
-    q = question(question_id)
+    q = asked_question(question_id)
     if not q.numeric:
         return [(answer, answer) for answer in q.answers]
     return [(f"{i} – {text}" if not text.isdigit() else text, str(i))
@@ -134,7 +148,7 @@ def question_html(draft: Draft) -> str:
     """The question screen's heading: "Question 2 of 3" and the question as the participant reads
     it."""
     return (f'<div class="hl-count">Question {draft.number} of {len(questions())}</div>'
-            + screen_text(question(draft.question).text, kind="hl-question"))
+            + screen_text(asked_question(draft.question).text, kind="hl-question"))
 
 
 class Choice:
@@ -146,7 +160,11 @@ class Choice:
         self.buttons = {value: gui.add_button(text, color="orange" if value == chosen else "gray")
                         for text, value in options}
         for value, button in self.buttons.items():
-            button.on_click(lambda _, value=value: on_choose(value))
+            button.on_click(self._choosing(value, on_choose))
+
+    @staticmethod
+    def _choosing(value: str, on_choose: Callable[[str], None]) -> Callable[[object], None]:
+        return lambda _: on_choose(value)
 
     def show(self, chosen: str | None) -> None:
         for value, button in self.buttons.items():
@@ -179,6 +197,7 @@ class TabletClient:
 
     def _draw(self) -> None:
         screen, gui = self.screen, self.client.gui
+        assert screen is not None, "a page is drawn once show has given it its screen"
         with self.client.atomic():
             gui.reset()
             gui.add_html(PAGE_STYLE)
@@ -235,15 +254,16 @@ class TabletClient:
         gui.add_html(screen_text(f"Handover {screen.label}",
                                  "Drag the orange handle to where this handover belongs. "
                                  "Drop it on a number if it felt the same."))
-        markers = list(screen.markers)
+        markers, label, interaction = list(screen.markers), screen.label, screen.interaction
+        assert label is not None and interaction is not None, "screen_for names the handover"
         start = start_position(markers)
-        scale = gui.add_html(render_scale(markers, screen.label, start))
+        scale = gui.add_html(render_scale(markers, label, start))
         slider = gui.add_slider("", min=0.0, max=1.0, step=0.001, initial_value=start)
         confirm = gui.add_button("Confirm", color="green", disabled=True)
 
         @slider.on_update
         def _(_: viser.GuiEvent) -> None:
-            scale.content = render_scale(markers, screen.label, slider.value)
+            scale.content = render_scale(markers, label, slider.value)
             if self.settle.ready():  # a drag carried over from the screen before does not count
                 confirm.disabled = False
 
@@ -251,7 +271,7 @@ class TabletClient:
             if confirm.disabled:
                 return  # the handle has not moved: nothing to confirm
             landed = snap(slider.value, markers)
-            self.runner.place(screen.interaction,
+            self.runner.place(interaction,
                               position=None if landed else round(slider.value, 3),
                               equal_to=landed.interaction if landed else None)
 
@@ -262,6 +282,8 @@ class TabletClient:
         gui.add_html(screen_text("Compared with the handover before it, this one felt …",
                                  kind="hl-question"))
         chosen: list[str] = []
+        interaction = screen.interaction
+        assert interaction is not None, "screen_for names the handover"
 
         def choose(value: str) -> None:
             chosen[:] = [value]
@@ -270,7 +292,7 @@ class TabletClient:
 
         def rate() -> None:
             if chosen:
-                self.runner.rate(screen.interaction, chosen[0])
+                self.runner.rate(interaction, chosen[0])
 
         choice = Choice(gui, list(RATINGS), None, lambda value: self._input(lambda: choose(value)))
         confirm = gui.add_button("Confirm", color="green", disabled=True)
@@ -279,6 +301,7 @@ class TabletClient:
 
     def _question(self, gui: viser.GuiApi, screen: Screen) -> Choice:
         draft = self._draft
+        assert draft is not None, "show starts a draft with every question screen"
         if not draft.first:
             gui.add_button("‹ Back", color="dark").on_click(
                 lambda _: self._input(lambda: self._turn(draft.back())))
@@ -293,9 +316,12 @@ class TabletClient:
 
     # -- the questionnaire's moves (on the page until the last Next) -----------------------------
     def _choose(self, value: str) -> None:
-        self._draft = self._draft.choose(value)
-        self._choice.show(value)
-        self._next.disabled = False
+        draft, choice, next_button = self._draft, self._choice, self._next
+        assert draft is not None and choice is not None and next_button is not None, \
+            "chosen on a question screen, which has them"
+        self._draft = draft.choose(value)
+        choice.show(value)
+        next_button.disabled = False
 
     def _turn(self, draft: Draft) -> None:
         self._draft = draft
@@ -304,6 +330,7 @@ class TabletClient:
 
     def _forward(self) -> None:
         draft = self._draft
+        assert draft is not None, "Next is on a question screen, which has its draft"
         if draft.choice is None:
             return
         if not draft.last:
