@@ -130,7 +130,7 @@ class PreferenceLearner:
         if found is None:
             return BestPoint(theta=self.config.box.from_unit(self.data.points[0]),
                              interaction_ids=self.data.interactions_at(0), utility_mean=None)
-        ids = () if found.index is None else self.data.interactions_at(found.index)
+        ids = () if found.observed_index is None else self.data.interactions_at(found.observed_index)
         return BestPoint(theta=self.config.box.from_unit(found.unit), interaction_ids=ids,
                          utility_mean=found.mean, strategy=strategy)
 
