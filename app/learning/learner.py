@@ -256,7 +256,9 @@ class PreferenceLearner:
                 logger.info("no preference model yet (no comparisons): Sobol point for slot %d",
                             slot.index)
             return self._sobol(slot)
-        index, _ = self.model.best(self.data)  # type: ignore[misc]  # a model exists here
+        found = self.model.best(self.data)
+        assert found is not None, "a model exists here"
+        index, _ = found
         best_x = torch.tensor(self.data.points[index], dtype=torch.float64)
         with kernel_evaluation(self.config.model):
             return propose(acquisition, model, best_x, self.config.optimizer,

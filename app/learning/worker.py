@@ -241,7 +241,9 @@ class LearnerClient:
             if remaining <= 0:
                 return self._fallback()
             self._collect(block=True, timeout=min(remaining, _LIVENESS_PERIOD))
-        return self._take()  # type: ignore[return-value]
+        ready = self._take()
+        assert ready is not None, "the loop above ends with a reply"
+        return ready
 
     def close(self, timeout: float = 5.0) -> None:
         """Stop the worker: a polite request first, then terminate if it does not exit."""
