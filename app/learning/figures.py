@@ -21,7 +21,8 @@ def draw_figure3(results: Sequence[tuple[ConditionSummary, list[InteractionSumma
     """Draw both panels of Fig. 3 for ``results`` (one entry per condition) to the PNG ``path``."""
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(8.0, 7.0), sharex=True)
     methods = sorted({(s.acquisition, s.q) for s, _ in results})
-    colours = dict(zip(methods, plt.get_cmap("tab10").colors, strict=False))
+    tab10 = plt.get_cmap("tab10")  # ten listed colours: tab10(i) is the i-th
+    colours = {method: tab10(i) for i, method in enumerate(methods)}
     for summary, rows in results:
         x = [r.interaction for r in rows]
         mean = [r.mean_distance for r in rows]

@@ -130,7 +130,7 @@ class PreferenceLearner:
         if found is None:
             return BestPoint(theta=self.config.box.from_unit(self.data.points[0]),
                              interaction_ids=self.data.interactions_at(0), utility_mean=None)
-        ids = () if found.index is None else self.data.interactions_at(found.index)
+        ids = () if found.observed_index is None else self.data.interactions_at(found.observed_index)
         return BestPoint(theta=self.config.box.from_unit(found.unit), interaction_ids=ids,
                          utility_mean=found.mean, strategy=strategy)
 
@@ -256,7 +256,9 @@ class PreferenceLearner:
                 logger.info("no preference model yet (no comparisons): Sobol point for slot %d",
                             slot.index)
             return self._sobol(slot)
-        index, _ = self.model.best(self.data)  # type: ignore[misc]  # a model exists here
+        found = self.model.best(self.data)
+        assert found is not None, "a model exists here"
+        index, _ = found
         best_x = torch.tensor(self.data.points[index], dtype=torch.float64)
         with kernel_evaluation(self.config.model):
             return propose(acquisition, model, best_x, self.config.optimizer,

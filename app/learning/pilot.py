@@ -41,6 +41,7 @@ from app.learning.planner import PAPER_SESSION_SCHEDULE, BatchSchedule
 from app.learning.rng import derive_seed
 from app.learning.simulation import (
     StudyCondition,
+    best_theta,
     participant_target,
     simulate_learner,
     stop_point,
@@ -119,7 +120,7 @@ def simulate_participant(config: PilotConfig, study: int, scenario: int,
     used = (len(trial.distances) if config.stopping is None
             else stop_point(trial, config.schedule, config.stopping))
     signal = trial.settled[used - 1] if config.stopping is not None else None
-    best = learner.best().theta if signal is None else signal.theta  # type: ignore[union-attr]
+    best = best_theta(learner) if signal is None else signal.theta
     theta_star = np.array([best[n] for n in learner.config.box.names])
     rng = np.random.default_rng(derive_seed(*key, 3))
     wins = 0

@@ -28,7 +28,10 @@ class PopulationMean(Mean):
     def __init__(self, prior: PopulationPrior) -> None:
         super().__init__()
         share = prior.weight / len(prior.components)
-        points, lengthscales, coefficients, owners = [], [], [], []
+        points: list[list[float]] = []
+        lengthscales: list[list[float]] = []
+        coefficients: list[float] = []
+        owners: list[int] = []
         for p, c in enumerate(prior.components):
             points.extend(c.points)
             lengthscales.extend([c.lengthscale] * len(c.points))

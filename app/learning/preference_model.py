@@ -167,13 +167,14 @@ class PreferenceModel:
         n_points, n_comparisons = len(data.points), len(data.comparisons)
         if n_comparisons == 0:
             return FitReport(n_points=n_points, n_comparisons=0)
-        optimize = fit_hyperparameters or self.hyperparameters is None
+        previous = self.hyperparameters
+        optimize = fit_hyperparameters or previous is None
         start = time.monotonic()
-        initial = self.hyperparameters if self.config.warm_start or not optimize else None
+        initial = previous if self.config.warm_start or not optimize else None
         try:
-            hyperparameters = (hyperparameters_of(fit_model(data, self.config, initial,
-                                                            prior_mean=self.prior_mean))
-                               if optimize else self.hyperparameters)
+            hyperparameters = (previous if not optimize and previous is not None else
+                               hyperparameters_of(fit_model(data, self.config, initial,
+                                                            prior_mean=self.prior_mean)))
             model = self._build(data, hyperparameters)
         except (ModelFittingError, NotPSDError) as exc:
             message = f"{type(exc).__name__}: {exc}; keeping the previous model"

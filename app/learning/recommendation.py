@@ -34,7 +34,8 @@ class Recommendation(NamedTuple):
 
     unit: list[float]
     mean: float
-    index: int | None
+    #: not ``index``: that would shadow ``tuple.index``
+    observed_index: int | None
 
 
 def recommend(strategy: RecommendationName, model: PairwiseGP, data: PreferenceData,

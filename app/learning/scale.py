@@ -27,7 +27,8 @@ def _resolve(placements: Sequence[Placement]) -> tuple[dict[InteractionId, float
                 f"placements[{index}].interaction_id = {iid!r} is already placed in this batch; "
                 "each interaction is placed once")
         if placement.equal_to is None:
-            position[iid] = placement.position  # type: ignore[assignment]  # validated non-None
+            assert placement.position is not None, "a Placement has a position or an equal_to"
+            position[iid] = placement.position
             group[iid] = iid
         else:
             if placement.equal_to not in position:

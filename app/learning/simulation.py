@@ -235,7 +235,7 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         ends_batch = final or learner.next_slot().kind is SlotKind.BEST
         settled.append(learner.settledness() if settle and ends_batch else None)
         for strategy, curve in curves.items():
-            curve.append(distance(learner.best(strategy).theta)  # type: ignore[union-attr]
+            curve.append(distance(best_theta(learner, strategy))
                          if final or strategy in tracked else math.nan)
         shown.append(u)
     result = TrialResult(trial=trial, distances=curves[condition.recommendation],
@@ -244,6 +244,14 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
                          seconds=time.monotonic() - start, settled=settled if settle else [],
                          ties=learner.data.n_ties)
     return result, learner
+
+
+def best_theta(learner: PreferenceLearner, strategy: RecommendationName | None = None
+               ) -> dict[str, float]:
+    """θ* of a learner that has observed at least one interaction (by ``strategy``)."""
+    best = learner.best(strategy)
+    assert best is not None, "a learner that has observed an interaction has a θ*"
+    return best.theta
 
 
 def _placement(iid: str, y: float, felt: dict[str, float], tie: float) -> Placement:

@@ -31,6 +31,7 @@ import os
 import statistics
 import time
 from collections import defaultdict
+from collections.abc import Sequence
 from pathlib import Path
 
 from distributed import Client
@@ -95,7 +96,7 @@ class ConditionSummary(BaseModel):
     out_dir: str
 
 
-def t_half_width(values: list[float]) -> float:
+def t_half_width(values: Sequence[float]) -> float:
     """Half-width of the Student-t 95 % CI of the mean of ``values`` (NaN for fewer than two)."""
     n = len(values)
     return (float(stats.t.ppf(0.975, n - 1)) * statistics.stdev(values) / math.sqrt(n)

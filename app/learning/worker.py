@@ -35,7 +35,8 @@ import multiprocessing as mp
 import queue
 import threading
 import time
-from typing import Any
+from multiprocessing.context import ForkContext, ForkServerContext, SpawnContext
+from typing import Any, cast
 
 from pydantic import BaseModel, ConfigDict
 
@@ -141,13 +142,19 @@ def _ready() -> None:  # pragma: no cover - child process
     """The child of :func:`warm_up`: proof that the forkserver serves."""
 
 
+def _context(start_method: str) -> ForkContext | ForkServerContext | SpawnContext:
+    """The :mod:`multiprocessing` context of ``start_method`` (``get_context`` is typed as returning
+    the base class, which has no ``Process``, for a method name that is not a literal)."""
+    return cast(ForkContext | ForkServerContext | SpawnContext, mp.get_context(start_method))
+
+
 def warm_up(start_method: str = START_METHOD) -> threading.Thread:
     """Have this process's learner forkserver import :data:`PRELOAD` now, in the background, so
     that the session's first learner forks at once instead of waiting for the imports (several
     CPU-seconds). The thread forks one empty child and lives until the forkserver serves: the
     forkserver's import dies with the *thread* that started it (``forkserver_preload``), so a
     thread that only started it and ended would kill it mid-import."""
-    context = mp.get_context(start_method)
+    context = _context(start_method)
     if start_method == "forkserver":
         context.set_forkserver_preload(PRELOAD)
 
@@ -179,7 +186,7 @@ class LearnerClient:
         #: the stopping signal of the latest reply (None unless it ended a batch)
         self.settledness: Settledness | None = None
         self._snapshot = snapshot
-        self._context = mp.get_context(start_method)
+        self._context = _context(start_method)
         if start_method == "forkserver":  # effective until this process's server has started
             self._context.set_forkserver_preload(PRELOAD)
         self._history: list[ObserveRequest] = []  # answered requests, replayed after a crash
@@ -234,7 +241,9 @@ class LearnerClient:
             if remaining <= 0:
                 return self._fallback()
             self._collect(block=True, timeout=min(remaining, _LIVENESS_PERIOD))
-        return self._take()  # type: ignore[return-value]
+        ready = self._take()
+        assert ready is not None, "the loop above ends with a reply"
+        return ready
 
     def close(self, timeout: float = 5.0) -> None:
         """Stop the worker: a polite request first, then terminate if it does not exit."""

@@ -22,14 +22,16 @@ def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
     by = Rater.SIMULATED_PARTICIPANT
     state = engine.state
     step, slot = state.step, state.slot
-    if step is Step.PLACE:
-        earlier = [(m, _trial(engine, m.interaction)) for m in state.markers]
-        position, equal_to = participant.place(_trial(engine, slot.interaction), slot.position,
-                                               earlier)
-        engine.place(position=position, equal_to=equal_to, by=by)
-    elif step is Step.RATE:
-        engine.rate_validation(participant.rate(_trial(engine, slot.interaction - 1),
-                                                _trial(engine, slot.interaction)), by=by)
+    if step in (Step.PLACE, Step.RATE):
+        assert slot is not None, "a placement and a validation rating are of an interaction"
+        if step is Step.PLACE:
+            earlier = [(m, _trial(engine, m.interaction)) for m in state.markers]
+            position, equal_to = participant.place(_trial(engine, slot.interaction), slot.position,
+                                                   earlier)
+            engine.place(position=position, equal_to=equal_to, by=by)
+        else:
+            engine.rate_validation(participant.rate(_trial(engine, slot.interaction - 1),
+                                                    _trial(engine, slot.interaction)), by=by)
     elif step is Step.ANSWER:
         best = [s.interaction for s in engine.slots if s.phase is Phase.BEST]
         best_trial = _trial(engine, best[-1]) if best else None

@@ -77,6 +77,7 @@ def _name(table: str, key: Key) -> str:
     if table == "trials":
         return f"trial {key}"
     if table == "comparisons":
+        assert isinstance(key, tuple), "a comparison is keyed by (source, winner, loser)"
         source, winner, loser = key
         return f"comparison {winner} over {loser} (from interaction {source}'s placement)"
     if table == "answers":

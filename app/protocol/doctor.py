@@ -62,6 +62,7 @@ def examine(path: Path) -> Verdict:
         verdict.notes.append(f"open for writing now: {holder.describe()}")
     if found.participant is None:
         return verdict
+    assert found.schema_version is not None, "the schema version is read before the participant"
     if found.participant.code != path.stem:
         verdict.problems.append(f"holds participant {found.participant.code!r}, not {path.stem!r} "
                                 "as its file name says (a copy?)")

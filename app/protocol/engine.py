@@ -146,17 +146,17 @@ class SessionEngine:
     def plan_next(self, timeout: float = 60.0) -> PlannedTheta:
         """Make sure the current interaction has its θ (asking the learner if needed) and return it
         (when learning stops early, the current interaction becomes the best one)."""
-        slot = self._require(Step.PLAN, Step.READY)
+        slot = self._require_slot(Step.PLAN, Step.READY)
         if self.state.step is Step.PLAN:
             if slot.learner_index is not None:
                 self._plan_from_learner(slot, timeout)
             else:
                 self._plan_after_learning(timeout)
-        return self.state.planned[self.state.slot.interaction]
+        return self.state.planned[self._current_slot().interaction]
 
     def start_trial(self) -> TrialPlan:
         """Record the start of the current interaction's trial (the experimenter's Start)."""
-        slot = self._require(Step.READY)
+        slot = self._require_slot(Step.READY)
         if self.state.paused:
             raise RefusedAction("start refused: the session is paused; resume it first")
         planned = self.state.planned[slot.interaction]
@@ -248,7 +248,7 @@ class SessionEngine:
         in [0, 1] ("Strongly Worse" … "Strongly Better") or ``equal_to`` an earlier marker of the
         batch; ``by`` whom (its provenance). Returns the comparisons it adds (newest against every
         earlier one; ties none)."""
-        slot = self._require(Step.PLACE)
+        slot = self._require_slot(Step.PLACE)
         markers = {m.interaction: m for m in self.state.markers}
         if equal_to is not None:
             if equal_to not in markers:
@@ -287,7 +287,7 @@ class SessionEngine:
 
     def rate_validation(self, rating: str, by: Rater = Rater.PARTICIPANT) -> ValidationRating:
         """The second interaction of a validation pair, rated against the first (``by`` whom)."""
-        slot = self._require(Step.RATE)
+        slot = self._require_slot(Step.RATE)
         if rating not in ("better", "worse", "equal"):
             raise RefusedAction(f"rating = {rating!r} is not one of 'better', 'worse', 'equal'")
         learned_second = slot.origin is ThetaOrigin.BEST
@@ -332,12 +332,22 @@ class SessionEngine:
                     if e.kind == "paused")
 
     # -- internals ---------------------------------------------------------------------------------
-    def _require(self, *steps: Step) -> Slot | None:
+    def _require(self, *steps: Step) -> None:
         step = self.state.step
         if step not in steps:
             wanted = " or ".join(s.value for s in steps)
             raise RefusedAction(f"refused: the session waits for '{step.value}', not '{wanted}'")
-        return self.state.slot
+
+    def _require_slot(self, *steps: Step) -> Slot:
+        """:meth:`_require` for ``steps`` taken at an interaction (all but ANSWER and DONE), and
+        that interaction's slot."""
+        self._require(*steps)
+        return self._current_slot()
+
+    def _current_slot(self) -> Slot:
+        slot = self.state.slot
+        assert slot is not None, f"the session at '{self.state.step.value}' is past its last slot"
+        return slot
 
     def _commit(self, event: ev.ProtocolEvent, *writes: Callable[[], None]) -> None:
         """Check ``event`` against a copy of the state (a breach raises and writes nothing), write
@@ -350,7 +360,9 @@ class SessionEngine:
             apply(state, event)
         with self.store.transaction():
             stored = [self.store.append_event(ev.to_row(event)).seq for event in events]
-            state.last_event = stored[-1]
+            last = stored[-1]
+            assert last is not None, "append_event numbers the event it stores"
+            state.last_event = last
             for write in writes:
                 write()
         self.state = state
@@ -439,10 +451,10 @@ class SessionEngine:
         recorded with its reason (:class:`~app.protocol.events.LearningStopped`)."""
         rule = self.config.stopping_rule()
         signal = learner.settledness
-        if (rule is None or slot.phase is not Phase.LEARNING or slot.position != 1
+        if (rule is None or signal is None or slot.phase is not Phase.LEARNING or slot.position != 1
                 or suggestion.fallback or not rule.stops(slot.batch - 1, signal)):
             return False
-        probability = signal.probability_within(rule.epsilon)  # type: ignore[union-attr]
+        probability = signal.probability_within(rule.epsilon)
         reason = (f"settled after {slot.batch - 1} learning batches: {probability:.0%} sure that "
                   f"the best handover would be preferred to θ* at most "
                   f"{self.config.settled_preference:.0%} of the time (stops at "
@@ -469,11 +481,11 @@ class SessionEngine:
                      and s.interaction not in self.state.planned]
         after = self.state.stopped_after or remaining[0].interaction - 1
         row = self._snapshot_row(learner, after, suggestion)
-        events = []
+        events: list[ev.ProtocolEvent] = []
         for slot in remaining:
             theta = best if slot.origin is ThetaOrigin.BEST else next(references)
             events.append(ev.ThetaPlanned(actor=Actor.LEARNER, interaction=slot.interaction,
                                           **theta.model_dump(), origin=slot.origin))
         self._commit_all(events, *self._stored(row))
-        self._learner.close()
+        learner.close()  # the engine's own learner (_suggestion), done with
         self._learner = None

@@ -197,5 +197,5 @@ def parse(row: Event) -> ProtocolEvent:
 
 def to_row(event: ProtocolEvent) -> Event:
     """The stored form of an event: its envelope and its payload (JSON)."""
-    payload = event.model_dump(mode="json", by_alias=True, exclude=ENVELOPE)
+    payload = event.model_dump(mode="json", by_alias=True, exclude=set(ENVELOPE))
     return Event(seq=event.seq, at=event.at, actor=event.actor, kind=event.kind, payload=payload)

@@ -12,6 +12,7 @@ With the defaults: 5 + 20 + 1 + 8 = 34 interactions.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from enum import StrEnum
 
 import numpy as np
@@ -53,7 +54,7 @@ def protocol_slots(config: StudyConfig) -> list[Slot]:
     slots: list[Slot] = []
 
     def add(phase: Phase, batch: int, size: int, rating: Rating,
-            origins: list[ThetaOrigin | None], learner: bool) -> None:
+            origins: Sequence[ThetaOrigin | None], learner: bool) -> None:
         for position, origin in enumerate(origins, start=1):
             index = len(slots)
             slots.append(Slot(interaction=index + 1, phase=phase, batch=batch, position=position,

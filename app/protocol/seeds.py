@@ -14,6 +14,7 @@ participants with one seed get the same initial θ and the same validation order
 from __future__ import annotations
 
 import secrets
+from collections.abc import Container
 from pathlib import Path
 from typing import Annotated
 
@@ -55,7 +56,7 @@ def seeds_in_use(study_dir: Path) -> dict[int, list[str]]:
     return used
 
 
-def fresh_seed(used: set[int] | dict[int, list[str]] = frozenset()) -> int:
+def fresh_seed(used: Container[int] = frozenset()) -> int:
     """A random seed (from the OS's entropy) that no participant of the study has yet."""
     while (seed := secrets.randbelow(FRESH_SEED_LIMIT)) in used:
         pass

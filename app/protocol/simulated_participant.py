@@ -14,7 +14,7 @@ from pydantic import BaseModel, Field
 
 from app.protocol.state import Marker
 from session_store.models import Trial
-from session_store.vocabulary import question
+from session_store.vocabulary import question, question_ids
 
 
 class Taste(BaseModel):
@@ -68,6 +68,8 @@ class SimulatedParticipant:
         """Q3 (coordination of the last θ, 1–5) from how good ``best`` was; any other question at
         random: a word (Q2: Yes/No/Maybe) or 3–5 on a scale (Q1, memory)."""
         asked = question(question_id)
+        if asked is None:
+            raise ValueError(f"question_id = {question_id!r} is not one of {question_ids()}")
         rng = np.random.default_rng([self.seed, 0xA25, ord(question_id[-1])])
         if not asked.numeric:
             return str(rng.choice(asked.answers))

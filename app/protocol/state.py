@@ -163,9 +163,10 @@ def _theta_planned(state: SessionState, event: ev.ThetaPlanned) -> None:
 
 def _learning_stopped(state: SessionState, event: ev.LearningStopped) -> None:
     slot = state.slot
-    _check(state.step is Step.PLAN and slot is not None and slot.phase is Phase.LEARNING
-           and slot.position == 1, f"learning stops while {_waiting_for(state)}, not at the "
-                                   "opening of a learning batch")
+    if not (state.step is Step.PLAN and slot is not None and slot.phase is Phase.LEARNING
+            and slot.position == 1):
+        raise _Breach(f"learning stops while {_waiting_for(state)}, not at the opening of a "
+                      "learning batch")
     _check(event.after_interaction == slot.interaction - 1, f"learning stops after interaction "
                                                             f"{event.after_interaction}; the last "
                                                             f"one is {slot.interaction - 1}")
@@ -182,6 +183,7 @@ def _trial_started(state: SessionState, event: ev.TrialStarted) -> None:
     _check(state.step is Step.READY, f"trial {event.trial_index} starts while "
                                      f"{_waiting_for(state)}")
     _check(not state.paused, f"trial {event.trial_index} starts while the session is paused")
+    assert slot is not None, "the session is READY only at a slot"
     _check(event.interaction == slot.interaction, f"trial {event.trial_index} is for interaction "
                                                   f"{event.interaction}; the session is at "
                                                   f"interaction {slot.interaction}")
@@ -253,7 +255,8 @@ def _answer_given(state: SessionState, event: ev.AnswerGiven) -> None:
     _check(state.step is Step.ANSWER, f"an answer to {event.question} while "
                                       f"{_waiting_for(state)}")
     asked = question(event.question)
-    _check(asked is not None, f"question = {event.question!r} is not one of {question_ids()}")
+    if asked is None:
+        raise _Breach(f"question = {event.question!r} is not one of {question_ids()}")
     _check(event.question not in state.answers, f"{event.question} is answered twice")
     _check(event.value in asked.allowed(), f"answer to {event.question} = {event.value!r} is "
                                            f"not one of {asked.allowed()}")
