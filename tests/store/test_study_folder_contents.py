@@ -243,9 +243,10 @@ def test_a_writer_in_a_folder_it_cannot_write_says_so_before_anything(study, cap
 
 #: Run as another user (nobody) the readers that need no lock: what they print, or their refusal.
 AS_ANOTHER_USER = """
-import os, sys
-from app.cli import main
-import app.protocol.cli, app.analysis.cli, session_store.export  # imported while root may
+import importlib, os, sys
+from app.cli import _COMMAND_MODULES, main
+for name in (*_COMMAND_MODULES, "session_store.export"):  # imported while root may
+    importlib.import_module(name)
 os.setgid(65534); os.setuid(65534)
 sys.exit(main(sys.argv[1:]))
 """
