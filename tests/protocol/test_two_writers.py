@@ -114,5 +114,11 @@ def test_serve_holding_a_participant_refuses_run_session(tmp_path):
     finally:
         serve.send_signal(signal.SIGCONT)  # held above; a failed assertion may leave it stopped
         serve.send_signal(signal.SIGINT)
-        code = serve.wait(CEILING_S)  # a ceiling for a hung shutdown; raises rather than read None
+        try:
+            code = serve.wait(CEILING_S)  # a ceiling for a hung shutdown, not a measurement
+        except subprocess.TimeoutExpired:
+            serve.kill()  # by its own pid: a hung serve must not outlive the test
+            serve.wait()
+            raise AssertionError(f"serve did not close within {CEILING_S:g} s of SIGINT; its log: "
+                                 f"{tail(log.read_text())}") from None
     assert code == 0, log.read_text()
