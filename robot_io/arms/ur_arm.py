@@ -81,6 +81,9 @@ class URArm:
         self._last = np.zeros(3)
         self._last_velocity = np.zeros(3)
         self._joints = np.full(6, np.nan)
+        #: How many times a recovery found the RTDE link down and connected it again: the links of
+        #: the same RTDE server (a tool-output gripper's) dropped with it (``robot_io.rig.devices``).
+        self.links_restored = 0
         self.connect()
 
     # The connections, between connect() and close(): the arm is not used outside them.
@@ -407,8 +410,10 @@ class URArm:
         if self.state is not ArmState.FAULT:
             return
         deadline = time.monotonic() + timeout
-        if not self._rtde.isConnected() or self._worker is None or not self._worker.alive:
+        link_down = not self._rtde.isConnected()
+        if link_down or self._worker is None or not self._worker.alive:
             self._reconnect()
+        self.links_restored += link_down
         safety = self._bits("getSafetyStatusBits")
         if any(safety >> bit & 1 for bit in EMERGENCY_STOPPED_BITS):
             raise ArmFault("emergency stop still engaged: release the button on the teach pendant")

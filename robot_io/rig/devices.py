@@ -132,8 +132,13 @@ class RigDevices:
         gripper = self._recover_gripper()
         if faulted is None:
             return gripper or "the arm has no fault"
+        restored = 0 if self.ur is None else self.ur.links_restored
         faulted.recover()
-        if isinstance(self.gripper, ToolOutputGripper):  # its link is the UR's: it dropped with it
+        # A tool-output gripper's link is the UR's RTDE server's: it dropped when the arm's did, and
+        # only then is it connected again (a live link reconnected raced the server's release of
+        # its registers: "One of the RTDE input registers are already in use")
+        if isinstance(self.gripper, ToolOutputGripper) and self.ur is not None \
+                and self.ur.links_restored > restored:
             self.gripper.reconnect()
             gripper = gripper or "the gripper's RTDE IO link connected again"
         return f"recovered from: {fault}" + (f"; {gripper}" if gripper else "")

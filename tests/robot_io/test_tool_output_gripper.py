@@ -54,3 +54,27 @@ def test_the_arms_recovery_after_an_rtde_drop_connects_the_gripper_again():
                      seen=output)
         finally:
             devices.close()
+
+
+def test_a_recovery_with_the_link_up_leaves_the_grippers_link_alone():
+    """A protective stop drops no link: the recovery must not connect the gripper's live link again.
+    It did, after every fault, and raced the controller's release of the old link's registers (CI:
+    "One of the RTDE input registers are already in use", Recover refused)."""
+    with standin() as ur, realtime_threads():
+        devices = RigDevices(RigSpec(config=rig_config(ur.host), scenario=Scenario.PERTURBED))
+        try:
+            def output() -> bool:
+                return bool(ur.control("state")["tool_outputs"] >> TOOL_OUTPUT & 1)
+
+            devices.gripper.close()
+            wait_for(output, "the stand-in's tool output high after close", seen=output)
+            assert ur.control("protective_stop")["ok"]
+            wait_for(lambda: devices.ur.state is ArmState.FAULT, "the arm to see the protective stop",
+                     seen=lambda: devices.ur.state)
+            said = devices.recover(inspected=True)
+            assert "protective stop" in said and "gripper" not in said, said
+            devices.gripper.open()  # the same link still reaches the controller
+            wait_for(lambda: not output(), "the stand-in's tool output low after open",
+                     seen=output)
+        finally:
+            devices.close()
