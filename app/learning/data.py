@@ -13,6 +13,7 @@ Ties ("equal" placements, ``Comparison.tie``) are dropped (the paper's rule) or,
 from __future__ import annotations
 
 import logging
+import math
 
 import torch
 
@@ -36,6 +37,8 @@ class PreferenceData:
         self.merge_tolerance = merge_tolerance
         self.ties = ties
         self.points: list[list[float]] = []
+        #: per point: some interaction showed it (False: only coactive hints named it)
+        self.shown: list[bool] = []
         self.comparisons: list[tuple[int, int]] = []
         #: each comparison's relative noise √((i² + j²)/2) from its batch positions (eq. (16))
         self.comparison_noise: list[float] = []
@@ -76,16 +79,19 @@ class PreferenceData:
         return tuple(iid for iid, i in self._index.items() if i == index)
 
     def add_interaction(self, interaction_id: InteractionId, unit_point: list[float],
-                        position: int = 1) -> int:
+                        position: int = 1, shown: bool = True) -> int:
         """Register an interaction at a unit-cube point and its ``position`` j within its batch
-        (eq. (16)); returns its (possibly reused) point index."""
+        (eq. (16)); ``shown=False``: a point a coactive hint named. Returns its (possibly reused)
+        point index."""
         self.check_new_ids([interaction_id])
         index = self._find(unit_point)
         if index is None:
             index = len(self.points)
             self.points.append(list(unit_point))
+            self.shown.append(shown)
         else:
             logger.debug("interaction %s reuses point %d", interaction_id, index)
+            self.shown[index] = self.shown[index] or shown
         self._index[interaction_id] = index
         self._position[interaction_id] = position
         return index
@@ -113,6 +119,11 @@ class PreferenceData:
         X = torch.tensor(self.points, dtype=torch.float64).reshape(-1, self.dim)
         C = torch.tensor(self.comparisons, dtype=torch.long).reshape(-1, 2)
         return X, C
+
+    def unshown_penalty(self) -> torch.Tensor:
+        """0 at the points a handover showed, −inf at those only hints named: added to a score over
+        :meth:`tensors`' points, its argmax is a shown point (θ* in the sample is one felt)."""
+        return torch.tensor([0.0 if s else -math.inf for s in self.shown], dtype=torch.float64)
 
     def _find(self, unit_point: list[float]) -> int | None:
         for index, point in enumerate(self.points):

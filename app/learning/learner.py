@@ -63,7 +63,8 @@ class PreferenceLearner:
 
     @property
     def n_interactions(self) -> int:
-        return len(self._interactions)
+        """Handovers run (the points coactive hints named are not counted)."""
+        return sum(i.shown for i in self._interactions)
 
     def next_slot(self) -> Slot:
         """Where the next interaction sits in the schedule."""
@@ -105,8 +106,11 @@ class PreferenceLearner:
                     raise UnknownInteractionError(
                         f"comparison names interaction_id = {iid!r}, which is not known")
         for interaction, unit in zip(interactions, units, strict=True):
-            position = self.config.schedule.slot(self.n_interactions).position  # j of eq. (16)
-            self.data.add_interaction(interaction.interaction_id, unit, position)
+            # j of eq. (16); a hinted point is judged at once, against the handover just felt
+            position = (self.config.schedule.slot(self.n_interactions).position
+                        if interaction.shown else 1)
+            self.data.add_interaction(interaction.interaction_id, unit, position,
+                                      shown=interaction.shown)
             self._interactions.append(interaction)
         added = [self.data.add_comparison(c) for c in comparisons]
         self._comparisons.extend(comparisons)

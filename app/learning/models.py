@@ -136,10 +136,13 @@ class Comparison(_Frozen):
 
 
 class Interaction(_Frozen):
-    """One handover that was run: its id and the θ it actually used (by parameter name)."""
+    """One handover that was run: its id and the θ it actually used (by parameter name); or, with
+    ``shown=False``, a point a coactive hint named (:mod:`app.learning.coactive`): in the data, but
+    never run, so the schedule does not count it and θ* in the sample is never it."""
 
     interaction_id: InteractionId = Field(min_length=1)
     theta: dict[str, float]
+    shown: bool = Field(True, description="a handover that was run (False: a hinted point)")
 
 
 class TieHandling(StrEnum):

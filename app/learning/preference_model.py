@@ -216,7 +216,7 @@ class PreferenceModel:
                              prior_mean=self.prior_mean)
 
     def best(self, data: PreferenceData) -> tuple[int, float] | None:
-        """θ*: index and posterior mean of the observed point with the largest posterior mean.
+        """θ*: index and posterior mean of the shown point with the largest posterior mean.
 
         None without a model. The previous model (after a failed fit) may not know the newest
         points, so the posterior is evaluated at all of ``data``'s points, which any model can.
@@ -226,5 +226,5 @@ class PreferenceModel:
         X, _ = data.tensors()
         with kernel_evaluation(self.config):
             mean = posterior_mean(self.model, X)
-        index = int(mean.argmax())
+        index = int((mean + data.unshown_penalty()).argmax())
         return index, float(mean[index])

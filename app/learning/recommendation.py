@@ -43,10 +43,11 @@ def recommend(strategy: RecommendationName, model: PairwiseGP, data: PreferenceD
     """θ* by ``strategy`` (unit cube); deterministic in ``seed``. ``data`` must be non-empty."""
     X, _ = data.tensors()
     mean, std = posterior_at(model, X)
+    unshown = data.unshown_penalty()  # in the sample: a handover the participant felt
     if strategy is RecommendationName.IN_SAMPLE_LCB:
-        index = int((mean - lcb_beta * std).argmax())
+        index = int((mean - lcb_beta * std + unshown).argmax())
         return Recommendation(data.points[index], float(mean[index]), index)
-    index = int(mean.argmax())
+    index = int((mean + unshown).argmax())
     incumbent = Recommendation(data.points[index], float(mean[index]), index)
     if strategy is RecommendationName.IN_SAMPLE_MEAN:
         return incumbent

@@ -192,7 +192,7 @@ class LearnerClient:
         self._history: list[ObserveRequest] = []  # answered requests, replayed after a crash
         self._pending: ObserveRequest | None = None
         self._next_id = 0
-        self._n_interactions = len(snapshot.interactions) if snapshot else 0
+        self._n_interactions = sum(i.shown for i in snapshot.interactions) if snapshot else 0
         self._ready: Suggestion | None = None
         self._start([])
 
@@ -215,7 +215,7 @@ class LearnerClient:
         if self._pending is not None:
             self._history.append(self._pending)
         self._pending = request
-        self._n_interactions += len(request.interactions)
+        self._n_interactions += sum(i.shown for i in request.interactions)
         self._requests.put(request.model_dump(mode="json"))
         return request.request_id
 
@@ -301,7 +301,7 @@ class LearnerClient:
         answered, self._pending = self._pending, None
         if reply.error is not None:
             # the worker rejected the request before changing its state: forget the request
-            self._n_interactions -= len(answered.interactions)
+            self._n_interactions -= sum(i.shown for i in answered.interactions)
             raise LearningError(reply.error)
         self._history.append(answered)
         assert reply.suggestion is not None
