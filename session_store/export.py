@@ -26,6 +26,7 @@ from session_store.models import (
     Answer,
     Comparison,
     Event,
+    HintRow,
     LearnerSnapshotRow,
     Placement,
     Trial,
@@ -69,6 +70,7 @@ DTYPES: dict[str, dict[str, str]] = {
     "comparisons": _model_dtypes(Comparison),
     "validation_ratings": _model_dtypes(ValidationRating),
     "answers": _model_dtypes(Answer),
+    "hints": _model_dtypes(HintRow),
     "learner_snapshots": _model_dtypes(LearnerSnapshotRow, SNAPSHOT_EXCLUDED),
     "events": _model_dtypes(Event),
     "samples": {"participant": "string", "trial_index": "Int64", "cycle": "Int64"}
@@ -83,6 +85,7 @@ ROW_MEANING = {
     "comparisons": "one pairwise comparison winner ≻ loser implied by a placement (eq. 11)",
     "validation_ratings": "the second interaction of a validation pair rated against the first",
     "answers": "one answer to a question of the questionnaire (Q1, Q2, …)",
+    "hints": "one coactive hint after a placement ([protocol] coactive): θ' preferred to θ",
     "learner_snapshots": "the learner after planning the next θ: θ*, fit status",
     "events": "one line of the append-only event log (payload as JSON)",
     "samples": "one control cycle of a trial (t, DMP state, hand, coupling, poses)",

@@ -35,7 +35,7 @@ TABLE_CHECKS: tuple[tuple[str, str], ...] = (
      "WHERE t.outcome IS NULL"),
 )
 #: The tables derived from the event log, read whole for the doctor's comparison with it.
-DERIVED_TABLES = ("trials", "placements", "comparisons", "validation_ratings", "answers")
+DERIVED_TABLES = ("trials", "placements", "comparisons", "validation_ratings", "answers", "hints")
 
 
 class FileInspection(BaseModel):
@@ -98,8 +98,11 @@ def inspect_database(path: Path) -> FileInspection:
                         {**dict(event), "payload": json.loads(event["payload"])}))
                 except (ValidationError, json.JSONDecodeError) as exc:
                     report.problems.append(f"event {event['seq']} is not a stored event: {exc}")
+            present = {r[0] for r in conn.execute("SELECT name FROM sqlite_master "
+                                                  "WHERE type = 'table'")}
+            # a file older than a table (read-only: not migrated) has none of its rows
             report.tables = {table: [dict(r) for r in conn.execute(f'SELECT * FROM "{table}"')]
-                             for table in DERIVED_TABLES}
+                             if table in present else [] for table in DERIVED_TABLES}
             report.problems += _table_problems(conn)
     except sqlite3.DatabaseError as exc:
         report.problems.append(f"not a readable SQLite database: {exc}")

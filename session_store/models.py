@@ -14,7 +14,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from robot_io.theta import Theta
 from session_store.paths import check_participant_code
-from session_store.vocabulary import Actor, Phase, Rater, ThetaOrigin, question, question_ids
+from session_store.vocabulary import Actor, Hint, Phase, Rater, ThetaOrigin, question, question_ids
 
 
 def utc_now() -> str:
@@ -130,6 +130,26 @@ class Comparison(_Row):
         if self.winner == self.loser:
             raise ValueError(f"winner = loser = {self.winner}: an interaction cannot beat itself")
         return self
+
+
+class HintRow(_Row):
+    """A coactive hint (``[protocol] coactive``): after placing a handover, the participant said
+    which way the robot should change, or that nothing should. A hint is the comparison θ' ≻ θ of
+    the handover, θ' its θ moved along the hint (Tucker et al.'s coactive feedback)."""
+
+    trial_index: int = Field(description="the completed trial the hint is about")
+    interaction: int = Field(description="its interaction")
+    batch: int = Field(description="its batch")
+    hint: Hint | None = Field(description="sooner, later, more (react more to the hand), less; "
+                                          "empty: \"nothing to change\"")
+    step: float = Field(description="how far a hint moves θ: a share of the parameter's range "
+                                    "([protocol] hint_step)")
+    hinted_a: float | None = Field(description="θ' (preferred to the handover's θ): a; empty "
+                                               "without a hint or when θ stood at the edge")
+    hinted_delta: float | None = Field(description="θ': δ")
+    hinted_k: float | None = Field(description="θ': k")
+    given_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
+    actor: Rater = Field(description=RATER_DESCRIPTION.split("; empty")[0])
 
 
 class ValidationRating(_Row):

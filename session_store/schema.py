@@ -22,6 +22,7 @@ from session_store.models import (
     Answer,
     Comparison,
     Event,
+    HintRow,
     LearnerSnapshotRow,
     Placement,
     Trial,
@@ -80,6 +81,7 @@ TABLES: dict[str, tuple[type[BaseModel], str | tuple[str, ...]]] = {
     "comparisons": (Comparison, ("source", "winner", "loser")),
     "validation_ratings": (ValidationRating, "trial_index"),
     "answers": (Answer, "question"),
+    "hints": (HintRow, "trial_index"),
     "learner_snapshots": (LearnerSnapshotRow, "after_interaction"),
     "events": (Event, "seq"),
 }
@@ -165,6 +167,18 @@ def _add_joint_columns(db: Database) -> None:
     _add_columns(db, "samples", V4_SAMPLE_COLUMNS)
 
 
+#: Version 5 (coactive hints, ``[protocol] coactive``): one row per hint given after a placement.
+V5_HINT_COLUMNS = {"trial_index": int, "interaction": int, "batch": int, "hint": str,
+                   "step": float, "hinted_a": float, "hinted_delta": float, "hinted_k": float,
+                   "given_at": str, "actor": str}
+
+
+def _add_hints(db: Database) -> None:
+    if "hints" not in db.table_names():
+        db.table("hints").create(V5_HINT_COLUMNS, pk="trial_index")
+
+
 MIGRATIONS: dict[int, Callable[[Database], None]] = {1: _create_v1, 2: _add_cycle_columns,
-                                                     3: _add_provenance, 4: _add_joint_columns}
+                                                     3: _add_provenance, 4: _add_joint_columns,
+                                                     5: _add_hints}
 SCHEMA_VERSION = max(MIGRATIONS)

@@ -34,6 +34,7 @@ from session_store.models import (
     Answer,
     Comparison,
     Event,
+    HintRow,
     LearnerSnapshotRow,
     Participant,
     Placement,
@@ -218,7 +219,8 @@ class ParticipantStore:
         self.db.conn.executemany(insert, rows.tolist())
         return len(matrix)
 
-    def add(self, row: Placement | Comparison | ValidationRating | Answer | LearnerSnapshotRow) -> None:
+    def add(self, row: Placement | Comparison | ValidationRating | Answer | HintRow
+            | LearnerSnapshotRow) -> None:
         table = next(name for name, (model, _) in TABLES.items() if isinstance(row, model))
         self.db.table(table).insert(row.model_dump(mode="json"))
 

@@ -52,6 +52,17 @@ class Rater(StrEnum):
         return Actor(self.value)
 
 
+class Hint(StrEnum):
+    """A coactive hint after a handover (``[protocol] coactive``): which way the participant felt
+    the robot should change. The tablet's words are the UI's; the θ each moves is the protocol's
+    (:mod:`app.protocol.hints`)."""
+
+    SOONER = "sooner"  # the robot should have come sooner
+    LATER = "later"  # … later
+    MORE = "more"  # … reacted more to the participant's hand
+    LESS = "less"  # … reacted less
+
+
 class Question(BaseModel):
     """One question of the questionnaire: the tablet shows ``text``, the report ``paper_text``."""
 

@@ -1,4 +1,4 @@
-"""The simulated participant's actions on a session: placing, rating and answering as a person would
+"""The simulated participant's actions on a session: placing, hinting, rating and answering as a person would
 (:func:`rate_once`, used by the session runner when "Simulated participant rates" is on)."""
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ def _trial(engine: SessionEngine, interaction: int) -> Trial:
 
 
 def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
-    """The simulated participant places, rates or answers whatever the session waits for, once;
+    """The simulated participant places, hints, rates or answers whatever the session waits for, once;
     every row it makes is recorded as the simulated participant's."""
     by = Rater.SIMULATED_PARTICIPANT
     state = engine.state
@@ -32,6 +32,9 @@ def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
         else:
             engine.rate_validation(participant.rate(_trial(engine, slot.interaction - 1),
                                                     _trial(engine, slot.interaction)), by=by)
+    elif step is Step.HINT:
+        assert slot is not None, "a hint is about an interaction"
+        engine.hint(participant.hint(_trial(engine, slot.interaction), slot.position), by=by)
     elif step is Step.ANSWER:
         best = [s.interaction for s in engine.slots if s.phase is Phase.BEST]
         best_trial = _trial(engine, best[-1]) if best else None

@@ -2,7 +2,7 @@
 
 The event log is the truth (``handover doctor``): every row of ``trials`` (which attempt of which
 interaction, its θ, its outcome), ``placements``, ``comparisons``, ``validation_ratings`` and
-``answers`` was written in the transaction of the event that records it. So the rows can be
+``answers`` and ``hints`` was written in the transaction of the event that records it. So the rows can be
 rebuilt from the events alone, and a row that differs from them, is missing, or has no event was
 changed after it was written (an edit, a half-restored copy, a tool that wrote the tables).
 """
@@ -25,11 +25,13 @@ FIELDS: dict[str, tuple[str, ...]] = {
     "comparisons": (),
     "validation_ratings": ("trial_index", "rating"),
     "answers": ("value",),
+    "hints": ("trial_index", "hint", "hinted_a", "hinted_delta", "hinted_k"),
 }
 #: How a stored row's key is read, by table.
 KEYS = {"trials": lambda r: r["trial_index"], "placements": lambda r: r["interaction"],
         "comparisons": lambda r: (r["source"], r["winner"], r["loser"]),
-        "validation_ratings": lambda r: r["interaction"], "answers": lambda r: r["question"]}
+        "validation_ratings": lambda r: r["interaction"], "answers": lambda r: r["question"],
+        "hints": lambda r: r["interaction"]}
 
 
 def implied_rows(events: Iterable[Event]) -> dict[str, Rows]:
@@ -64,6 +66,12 @@ def implied_rows(events: Iterable[Event]) -> dict[str, Rows]:
                 "trial_index": completed.get(p["interaction"]), "rating": p["rating"]}
         elif event.kind == "answer_given":
             rows["answers"][p["question"]] = {"value": p["value"]}
+        elif event.kind == "hint_given":
+            hinted = p.get("hinted") or {}
+            rows["hints"][p["interaction"]] = {
+                "trial_index": p["trial_index"], "hint": p.get("hint"),
+                "hinted_a": hinted.get("a"), "hinted_delta": hinted.get("delta"),
+                "hinted_k": hinted.get("k")}
     return rows
 
 
@@ -82,6 +90,8 @@ def _name(table: str, key: Key) -> str:
         return f"comparison {winner} over {loser} (from interaction {source}'s placement)"
     if table == "answers":
         return f"answer to {key}"
+    if table == "hints":
+        return f"hint about interaction {key}"
     return f"interaction {key}"
 
 

@@ -15,9 +15,14 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
+from app.learning.coactive import hint_observations, hinted_theta
 from app.learning.config import LearnerConfig, LearnerSnapshot
 from app.learning.models import (
+    Comparison as LearnedComparison,
+)
+from app.learning.models import (
     Interaction,
+    ParameterBox,
     PosteriorSlice,
     Settledness,
     SlotKind,
@@ -30,6 +35,7 @@ from app.learning.worker import LearnerClient
 from app.protocol import events as ev
 from app.protocol.earlier import earlier_participants_prior
 from app.protocol.errors import RefusedAction
+from app.protocol.hints import DIRECTIONS
 from app.protocol.plan import Slot, protocol_slots
 from app.protocol.session_inputs import hand_seed, learner_config, validation_sobol
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
@@ -40,6 +46,7 @@ from robot_io.theta import Theta
 from session_store.models import (
     Answer,
     Comparison,
+    HintRow,
     LearnerSnapshotRow,
     Participant,
     Placement,
@@ -49,7 +56,7 @@ from session_store.models import (
     utc_now,
 )
 from session_store.store import ParticipantStore
-from session_store.vocabulary import Actor, Phase, Rater, ThetaOrigin
+from session_store.vocabulary import Actor, Hint, Phase, Rater, ThetaOrigin
 
 log = logging.getLogger(__name__)
 
@@ -276,14 +283,57 @@ class SessionEngine:
                                       equal_to=equal_to,
                                       comparisons=[(c.winner, c.loser) for c in comparisons]),
                      write)
-        # A session resumed in a fresh process has no learner yet: the next plan_next starts it,
-        # restored from the store (which now holds this placement). Starting it here held the
-        # participant's Confirm for as long as a first learner process takes to import (13–18 s).
-        if slot.learner_index is not None and self._learner is not None:
-            theta = self.state.planned[slot.interaction].theta
-            self._learner.submit([Interaction(interaction_id=str(slot.interaction),
-                                              theta=theta.model_dump())], learned)
+        if not self.state.coactive:  # else the hint that follows completes what the learner gets
+            self._teach(slot, learned, None)
         return comparisons
+
+    def hint(self, hint: Hint | None, by: Rater = Rater.PARTICIPANT) -> HintRow:
+        """The participant's coactive hint about the handover just placed (``[protocol]
+        coactive``): which way the robot should change, or None for "nothing"; ``by`` whom. The
+        learner gets the placement's comparisons and θ' ≻ θ, θ' the handover's θ moved along the
+        hint by ``hint_step`` of the parameter's range (:mod:`app.protocol.hints`)."""
+        slot = self._require_slot(Step.HINT)
+        theta = self.state.planned[slot.interaction].theta
+        hinted = None if hint is None else hinted_theta(
+            theta.model_dump(), self._box, DIRECTIONS[hint], self.config.hint_step)
+        row = HintRow(trial_index=self.state.completed_trial[slot.interaction],
+                      interaction=slot.interaction, batch=slot.batch, hint=hint,
+                      step=self.config.hint_step,
+                      hinted_a=None if hinted is None else hinted["a"],
+                      hinted_delta=None if hinted is None else hinted["delta"],
+                      hinted_k=None if hinted is None else hinted["k"], actor=by)
+        scale = [_scale_placement(m.interaction, m.position, m.equal_to) for m in self.state.markers]
+        self._commit(ev.HintGiven(actor=by.actor, trial_index=row.trial_index,
+                                  interaction=slot.interaction, hint=hint, hinted=hinted),
+                     lambda: self.store.add(row))
+        self._teach(slot, comparisons_for_newest(scale, ties=True), row)
+        return row
+
+    @property
+    def _box(self) -> ParameterBox:
+        return ParameterBox.from_bounds(self.config.theta_bounds)
+
+    def _observations(self, interaction: int, learned: list[LearnedComparison],
+                      hint: HintRow | None) -> tuple[list[Interaction], list[LearnedComparison]]:
+        """What the learner gets for a placed interaction: its θ with the placement's comparisons
+        (``learned``, ties included), and the hint's θ' ≻ θ if one was given."""
+        theta = self.state.planned[interaction].theta.model_dump()
+        interactions = [Interaction(interaction_id=str(interaction), theta=theta)]
+        comparisons = list(learned)
+        if hint is not None and hint.hint is not None:
+            more, hinted = hint_observations(str(interaction), theta, self._box,
+                                             DIRECTIONS[hint.hint], hint.step)
+            interactions += more
+            comparisons += hinted
+        return interactions, comparisons
+
+    def _teach(self, slot: Slot, learned: list[LearnedComparison], hint: HintRow | None) -> None:
+        """Send an interaction's observations to the running learner. A session resumed in a fresh
+        process has no learner yet: the next plan_next starts it, restored from the store (which
+        holds them). Starting it here held the participant's Confirm for as long as a first
+        learner process takes to import (13–18 s)."""
+        if slot.learner_index is not None and self._learner is not None:
+            self._learner.submit(*self._observations(slot.interaction, learned, hint))
 
     def rate_validation(self, rating: str, by: Rater = Rater.PARTICIPANT) -> ValidationRating:
         """The second interaction of a validation pair, rated against the first (``by`` whom)."""
@@ -384,17 +434,19 @@ class SessionEngine:
         self._learner = self._learner_factory(config, snapshot)
         known = {i.interaction_id for i in snapshot.interactions} if snapshot else set()
         placements = self.store.rows("placements", order_by="interaction")
+        hints = {h.interaction: h for h in self.store.rows("hints")}
+        # with coactive hints, the learner hears of a placement with its hint (HINT: not yet)
         later = [p for p in placements if str(p.interaction) not in known
-                 and self.slots[p.interaction - 1].learner_index is not None]
+                 and self.slots[p.interaction - 1].learner_index is not None
+                 and (not self.state.coactive or p.interaction in hints)]
         for placement in later:
-            theta = self.state.planned[placement.interaction].theta
             # The scale as it stood when it was made, so the comparisons (and ties) come in the
             # order the live learner received them: another order feeds PairwiseGP other θ.
             scale = [_scale_placement(p.interaction, p.position, p.equal_to) for p in placements
                      if p.batch == placement.batch and p.interaction <= placement.interaction]
-            self._learner.submit(
-                [Interaction(interaction_id=str(placement.interaction), theta=theta.model_dump())],
-                comparisons_for_newest(scale, ties=True))
+            self._learner.submit(*self._observations(
+                placement.interaction, comparisons_for_newest(scale, ties=True),
+                hints.get(placement.interaction)))
         if not later:
             self._learner.submit()
         return self._learner

@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
 from app.protocol.errors import EventLogError
 from robot_io.stages import Stage
 from session_store.models import Event, TrialOutcome, utc_now
-from session_store.vocabulary import Actor, Rater, ThetaOrigin
+from session_store.vocabulary import Actor, Hint, Rater, ThetaOrigin
 
 #: The envelope's fields: stored as columns of the events table, not in the payload.
 ENVELOPE = frozenset({"seq", "at", "actor", "kind"})
@@ -112,6 +112,18 @@ class PlacementMade(_Rated):
     comparisons: list[tuple[int, int]] = Field(description="[winner, loser] pairs it implies")
 
 
+class HintGiven(_Rated):
+    """A coactive hint after a placement (``[protocol] coactive``): which way the robot should
+    change (``hint``), or nothing (None); ``hinted`` is θ', the handover's θ moved that way, which
+    the learner takes as preferred to it (None without a hint, or when θ stood at that edge)."""
+
+    kind: Literal["hint_given"] = "hint_given"
+    trial_index: int = Field(ge=1)
+    interaction: int = Field(ge=1)
+    hint: Hint | None
+    hinted: dict[str, float] | None = Field(description="θ' as {a, delta, k}")
+
+
 class ValidationRated(_Rated):
     kind: Literal["validation_rated"] = "validation_rated"
     interaction: int = Field(ge=1)
@@ -164,7 +176,7 @@ class ValidationBlindingSet(_Event):
 
 ProtocolEvent = Annotated[
     SessionCreated | SessionResumed | ThetaPlanned | LearningStopped | TrialStarted | TrialStage | TrialEnded
-    | PlacementMade | ValidationRated | AnswerGiven | Paused | Resumed | DevicesRecorded
+    | PlacementMade | HintGiven | ValidationRated | AnswerGiven | Paused | Resumed | DevicesRecorded
     | RigChangeConfirmed | SimulatedParticipantSwitched | ValidationBlindingSet,
     Field(discriminator="kind")]
 _ADAPTER: TypeAdapter[ProtocolEvent] = TypeAdapter(ProtocolEvent)

@@ -25,6 +25,7 @@ from session_store.vocabulary import Phase, ThetaOrigin
 class Rating(StrEnum):
     SCALE = "scale"  # placed on the refreshing relative scale
     VALIDATION = "validation"  # better / worse / equal than the previous interaction
+    HINT = "hint"  # awaited only: a coactive hint after a placement ([protocol] coactive)
     NONE = "none"
 
 

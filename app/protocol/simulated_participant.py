@@ -14,13 +14,15 @@ from pydantic import BaseModel, Field
 
 from app.protocol.state import Marker
 from session_store.models import Trial
-from session_store.vocabulary import question, question_ids
+from session_store.vocabulary import Hint, question, question_ids
 
 
 class Taste(BaseModel):
     preferred_gap_s: float = Field(description="g*: robot arrival − hand arrival liked best [s]")
     noise_s: float = Field(gt=0, description="σ of eq. (16), in seconds of arrival gap")
     tie_s: float = Field(gt=0, description="impressions closer than this feel 'equal'")
+    hint_s: float = Field(0.1, gt=0, description="a coactive hint when the felt arrival gap misses "
+                                                 "g* by more than this [s]")
 
 
 class SimulatedParticipant:
@@ -56,6 +58,18 @@ class SimulatedParticipant:
         lower = max((m.position for m, v in felt if v < y), default=0.0)
         upper = min((m.position for m, v in felt if v > y), default=1.0)
         return (lower + upper) / 2.0, None
+
+    def hint(self, trial: Trial, position: int) -> Hint | None:
+        """A coactive hint about the handover just placed (``[protocol] coactive``): "sooner" when
+        the robot felt later than g* by more than ``hint_s``, "later" when it felt earlier, else
+        none. The felt gap is the impression's (eq. 16: j·N(0, σ²)), with a draw of its own."""
+        if trial.arrival_gap_s is None:
+            return None
+        noise = np.random.default_rng([self.seed, trial.interaction, 0x417]).normal()
+        miss = trial.arrival_gap_s + position * self.taste.noise_s * noise - self.taste.preferred_gap_s
+        if abs(miss) <= self.taste.hint_s:
+            return None
+        return Hint.SOONER if miss > 0 else Hint.LATER
 
     def rate(self, first: Trial, second: Trial) -> str:
         """The second of a validation pair against the first: better, worse or equal."""

@@ -34,13 +34,14 @@ class Step(StrEnum):
     READY = "ready"  # θ is planned: the experimenter may start the trial
     RUNNING = "running"  # a trial is running
     PLACE = "place"  # the participant places the last interaction on the scale
+    HINT = "hint"  # the participant may hint which way the robot should change (coactive)
     RATE = "rate"  # the participant rates the last interaction against the previous one
     ANSWER = "answer"  # the questionnaire
     DONE = "done"
 
 
 #: The steps that wait for the participant's answer (on the tablet, or the simulated participant's).
-PARTICIPANT_STEPS = frozenset({Step.PLACE, Step.RATE, Step.ANSWER})
+PARTICIPANT_STEPS = frozenset({Step.PLACE, Step.HINT, Step.RATE, Step.ANSWER})
 
 
 class PlannedTheta(BaseModel):
@@ -75,6 +76,8 @@ class SessionState(BaseModel):
     simulated_participant: bool = False  # the simulated participant rates (switched by events)
     blind: bool | None = None  # the dashboard hides validation θ/origin; None: never recorded
     created: bool = False
+    #: a coactive hint follows every placement ([protocol] coactive, from session_created)
+    coactive: bool = False
     #: the last interaction learned from when learning stopped early (stop_when_settled), else None
     stopped_after: int | None = None
     last_event: int = 0
@@ -101,6 +104,8 @@ class SessionState(BaseModel):
             return Step.RUNNING
         if self.awaiting is Rating.SCALE:
             return Step.PLACE
+        if self.awaiting is Rating.HINT:
+            return Step.HINT
         if self.awaiting is Rating.VALIDATION:
             return Step.RATE
         if self.questionnaire_due:
@@ -149,6 +154,7 @@ def _waiting_for(state: SessionState) -> str:
 def _created(state: SessionState, event: ev.SessionCreated) -> None:
     _check(not state.created, "the session is created twice")
     state.created = True
+    state.coactive = bool(event.config.get("coactive", False))
 
 
 def _theta_planned(state: SessionState, event: ev.ThetaPlanned) -> None:
@@ -240,6 +246,20 @@ def _placement_made(state: SessionState, event: ev.PlacementMade) -> None:
            f"equal_to = {event.equal_to} is not on the scale (on it: {sorted(markers)})")
     state.markers.append(Marker(interaction=slot.interaction, label=slot.position,
                                 position=event.position, equal_to=event.equal_to))
+    if state.coactive:
+        state.awaiting = Rating.HINT
+    else:
+        _advance(state)
+
+
+def _hint_given(state: SessionState, event: ev.HintGiven) -> None:
+    _check(state.step is Step.HINT, f"a hint about trial {event.trial_index} while "
+                                    f"{_waiting_for(state)}")
+    slot = state.slots[state.cursor]
+    completed = state.completed_trial.get(slot.interaction)
+    _check(event.interaction == slot.interaction and event.trial_index == completed,
+           f"a hint about trial {event.trial_index} (interaction {event.interaction}); the session "
+           f"waits for one about trial {completed} (interaction {slot.interaction})")
     _advance(state)
 
 
@@ -291,7 +311,8 @@ HANDLERS: dict[type, Callable[[SessionState, Any], None]] = {
     ev.SessionCreated: _created, ev.SessionResumed: _recorded, ev.ThetaPlanned: _theta_planned,
     ev.LearningStopped: _learning_stopped,
     ev.TrialStarted: _trial_started, ev.TrialStage: _trial_stage, ev.TrialEnded: _trial_ended,
-    ev.PlacementMade: _placement_made, ev.ValidationRated: _validation_rated,
+    ev.PlacementMade: _placement_made, ev.HintGiven: _hint_given,
+    ev.ValidationRated: _validation_rated,
     ev.AnswerGiven: _answer_given, ev.Paused: _paused, ev.Resumed: _resumed,
     ev.DevicesRecorded: _recorded, ev.RigChangeConfirmed: _recorded,
     ev.SimulatedParticipantSwitched: _switched, ev.ValidationBlindingSet: _blinding_set,

@@ -61,6 +61,13 @@ class StudyConfig(BaseModel):
     settled_preference: float = Field(0.6, gt=0.5, lt=1.0, description="θ* is settled when the "
                                       "best handover would be preferred to it at most this often "
                                       "(stop_when_settled)")
+    coactive: bool = Field(
+        False, description="opt-in: after placing a handover of the initial and learning batches "
+        "the participant may say which way the robot should change (sooner, later, react more, "
+        "react less) or that nothing should; each hint is a comparison of θ moved that way over "
+        "the handover's θ (Tucker et al.'s coactive feedback, docs/learning.md)")
+    hint_step: float = Field(0.2, gt=0.0, le=0.5, description="how far a coactive hint moves θ: a "
+                             "share of the parameter's range (coactive)")
     prior_sources: list[str] = Field(
         default_factory=list, description="the participants whose data formed the prior, fixed "
         "when the session was created (empty: no prior)")

@@ -38,7 +38,7 @@ from robot_io.hands.simulated_hand import Scenario
 #: types, bounds and documentation are StudyConfig's own.
 PROTOCOL_FIELDS = ("initial_trials", "batch_size", "learning_batches", "best_trials",
                    "validation_batches", "stop_when_settled", "settled_threshold",
-                   "settled_min_batches", "settled_preference")
+                   "settled_min_batches", "settled_preference", "coactive", "hint_step")
 LEARNER_FIELDS = ("acquisition", "theta_bounds", "recommendation", "population_prior",
                   "prior_weight", "batch_position_noise", "ties")
 _FROZEN = ConfigDict(frozen=True, extra="forbid")

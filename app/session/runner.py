@@ -57,7 +57,7 @@ from robot_io.rig.stream import SampleStream
 from session_store.errors import StoreError, StoreWriteError
 from session_store.models import Trial
 from session_store.store import participant_codes
-from session_store.vocabulary import Actor, Rater
+from session_store.vocabulary import Actor, Hint, Rater
 
 __all__ = ["CLOSE_REASON", "END_REASON", "PLAN_TIMEOUT_S", "REOPEN_REASON", "RunnerView",
            "SessionRunner"]
@@ -294,6 +294,11 @@ class SessionRunner:
               equal_to: int | None = None, by: Rater = Rater.PARTICIPANT) -> None:
         self._call(lambda: self._side.require_current(interaction, Step.PLACE).place(
             position=position, equal_to=equal_to, by=by))
+        self._changed(None)
+
+    def hint(self, interaction: int, hint: Hint | None, by: Rater = Rater.PARTICIPANT) -> None:
+        """A coactive hint about ``interaction`` (None: nothing to change)."""
+        self._call(lambda: self._side.require_current(interaction, Step.HINT).hint(hint, by=by))
         self._changed(None)
 
     def rate(self, interaction: int, rating: str, by: Rater = Rater.PARTICIPANT) -> None:

@@ -97,7 +97,8 @@ def test_an_old_file_migrates_to_the_current_version_and_keeps_every_row(tmp_pat
         old_samples = conn.execute(f"SELECT {kept} FROM samples ORDER BY trial_index, cycle").fetchall()
     store = ParticipantStore.open(tmp_path, code)
     try:
-        assert store.db.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 4
+        assert store.db.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 5
+        assert store.rows("hints") == []  # no hints before version 5 (coactive hints)
         assert set(V2_TRIAL_COLUMNS) <= set(store.db["trials"].columns_dict)
         assert set(V2_SAMPLE_COLUMNS) <= set(store.db["samples"].columns_dict)
         for table in V3_PROVENANCE_TABLES:
