@@ -263,8 +263,9 @@ def validation_lines(conditions: dict[str, StudyCondition],
     """One line per arm (θ* after the fixed schedule), and the three together (stopped)."""
     missing = [name for name, rs in results.items() if any(not r.theta_star for r in rs)]
     if missing:
-        return [f"validation scores: θ* not recorded in the stored results of {missing} (written "
-                "before it was); run into a fresh --out"]
+        return [f"validation scores: θ* is not recorded in the stored results of {missing} "
+                "(written before TrialResult kept it); those arms must run again for them (another "
+                "--out, or remove their .jsonl files)"]
     scores = {name: validation_scores(rs, [len(r.distances) for r in rs], seed, noise)
               for name, rs in results.items()}
     together, _ = stopped(conditions["session-all"], results["session-all"], DEFAULT_RULE)
