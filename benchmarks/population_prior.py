@@ -45,7 +45,7 @@ def participant(condition: StudyCondition, seed: int, spread: float | None, popu
     prior = None if prior_json is None else PopulationPrior.model_validate_json(prior_json)
     key = (seed, population, index)
     trial, learner = simulate_learner(condition, target, derive_seed(*key, 1),
-                                      derive_seed(*key, 2), prior=prior,
+                                      derive_seed(*key, 2), derive_seed(*key, 3), prior=prior,
                                       strategies=tuple(RecommendationName))
     return {"population": population, "index": index, "prior": prior is not None,
             "distances": trial.distances, "snapshot": learner.snapshot().model_dump_json(),

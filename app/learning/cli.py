@@ -86,6 +86,10 @@ def add_shared_options(parser: argparse.ArgumentParser, *, noise: float, out: st
     parser.add_argument("--ties", choices=[t.value for t in TieHandling], default="drop",
                         help="what the learner does with 'equal': drop (the paper's rule, default) "
                         "or model (a tie in the likelihood, docs/learning.md)")
+    parser.add_argument("--coactive", action="store_true",
+                        help="after each placement the simulated participant may hint which way "
+                        "the 2nd or 3rd parameter (δ, k) should have moved, each hint one more "
+                        "comparison (docs/learning.md, 'Coactive hints'; default: no hints)")
     add_cluster_options(parser)
     parser.add_argument("--out", type=Path, default=Path(out),
                         help=f"output folder, resumed from (default {out})")
@@ -161,7 +165,7 @@ def run_pilot_command(args: argparse.Namespace) -> int:
                          acquisition=AcquisitionName(args.acq),
                          recommendation=RecommendationName(args.recommendation), seed=args.seed,
                          batch_position_noise=args.batch_position_noise, tie=args.tie,
-                         ties=TieHandling(args.ties),
+                         ties=TieHandling(args.ties), coactive=args.coactive,
                          stopping=None if args.stop_when_settled is None else
                          StoppingRule(threshold=args.stop_when_settled))
     with dask_client(args.scheduler, args.workers) as client:
@@ -178,7 +182,8 @@ def run_pilot_command(args: argparse.Namespace) -> int:
                                                 for k, v in report.score_distribution.items())
               + f" (mean {report.mean_score:.2f})")
         print(f"learning used a median of {report.median_learning_interactions:g} interactions "
-              f"of {schedule.n_interactions}; mean u(θ*) {report.mean_final_distance:.3f}")
+              f"of {schedule.n_interactions}; mean u(θ*) {report.mean_final_distance:.3f}"
+              + (f"; {report.mean_hints:.1f} hints per participant" if config.coactive else ""))
         for p in report.power:
             print(f"sign test power at α = {p.alpha:g}: {p.power:.2f} [{p.ci_low:.2f}, "
                   f"{p.ci_high:.2f}] ({p.significant} of {p.studies} studies)")
@@ -201,8 +206,8 @@ def run(args: argparse.Namespace) -> int:
         for acq, q, noise in specs:
             condition = StudyCondition(acquisition=acq, q=q, noise=noise, n_unique=args.queries,
                                        n_initial=args.initial,
-                                       recommendation=RecommendationName(args.recommendation)
-                                       ).with_batch_position_noise(args.batch_position_noise
+                                       recommendation=RecommendationName(args.recommendation),
+                                       coactive=args.coactive).with_batch_position_noise(args.batch_position_noise
                                                                    ).with_ties(args.tie,
                                                                                TieHandling(args.ties))
             results.append(run_condition(condition, trials=args.trials, seed=args.seed,
@@ -222,7 +227,8 @@ def run(args: argparse.Namespace) -> int:
         for s in summaries:
             print(f"{s['condition']:>16}: N={s['trials']}, final mean distance "
                   f"{s['final_mean_distance']:.3f} [{s['final_ci'][0]:.3f}, {s['final_ci'][1]:.3f}]"
-                  f", success {s['final_success_rate']:.2f}, {s['seconds_per_trial']:.2f} s/trial")
+                  f", success {s['final_success_rate']:.2f}, {s['seconds_per_trial']:.2f} s/trial"
+                  + (f", {s['hints_per_trial']:.1f} hints/trial" if s['hints_per_trial'] else ""))
         if figure is not None:
             print(f"Fig. 3 written to {figure}")
     sys.stdout.flush()

@@ -11,7 +11,8 @@ smaller y preferred. A participant's validation score is the share of pairs won 
 II–III); the study's test is the paper's sign test of the scores against 50 % (ties dropped,
 one-sided), significant at α when p < α. Options beyond the paper: a participant who says "equal"
 (``tie``) and a learner that models ties (``ties``); learning that ends once settled
-(``stopping``, as ``[protocol] stop_when_settled``), validating the θ* of the batch it stopped at.
+(``stopping``, as ``[protocol] stop_when_settled``), validating the θ* of the batch it stopped at;
+a participant who gives coactive hints (``coactive``, :mod:`app.learning.coactive`).
 
 Over M studies: the distribution of validation scores, and the power (share of studies
 significant) at α = 0.05 and 0.001 with Clopper–Pearson 95 % CIs, also for fewer participants per
@@ -41,15 +42,15 @@ from app.learning.planner import PAPER_SESSION_SCHEDULE, BatchSchedule
 from app.learning.rng import derive_seed
 from app.learning.simulation import (
     StudyCondition,
-    best_theta,
     participant_target,
     simulate_learner,
     stop_point,
+    stopped_theta_star,
 )
 from app.learning.study import append_durably
 
 PARTICIPANT_COLUMNS = ("study", "scenario", "participant", "wins", "pairs", "score",
-                       "final_distance", "learning_interactions", "ties")
+                       "final_distance", "learning_interactions", "ties", "hints")
 ALPHAS = (0.05, 0.001)
 
 
@@ -79,13 +80,15 @@ class PilotConfig(BaseModel):
     ties: TieHandling = Field(TieHandling.DROP, description="the learner drops or models ties")
     stopping: StoppingRule | None = Field(None, description="end learning once settled "
                                           "(app.learning.settled); None: the fixed schedule")
+    coactive: bool = Field(False, description="the participant gives coactive hints "
+                           "(app.learning.coactive)")
 
     @property
     def condition(self) -> StudyCondition:
         return StudyCondition(acquisition=self.acquisition, q=self.schedule.q, noise=self.noise,
                               n_unique=self.schedule.n_unique, n_initial=self.schedule.n_initial,
-                              dim=self.dim, recommendation=self.recommendation
-                              ).with_batch_position_noise(self.batch_position_noise
+                              dim=self.dim, recommendation=self.recommendation,
+                              coactive=self.coactive).with_batch_position_noise(self.batch_position_noise
                                                           ).with_ties(self.tie, self.ties)
 
 
@@ -103,6 +106,7 @@ class ParticipantResult(BaseModel):
     learning_interactions: int = Field(0, description="interactions learning used (0: not "
                                        "recorded, a pilot from before it was)")
     ties: int = Field(0, description="ties the learner used")
+    hints: int = Field(0, description="coactive hints the participant gave")
 
     @property
     def score(self) -> float:
@@ -115,27 +119,35 @@ def simulate_participant(config: PilotConfig, study: int, scenario: int,
     target = participant_target(config.dim, config.seed, study * config.scenarios + scenario,
                                 participant, config.spread)
     key = (config.seed, study, scenario, participant)
-    trial, learner = simulate_learner(config.condition, target, derive_seed(*key, 1),
-                                      derive_seed(*key, 2), settle=config.stopping is not None)
+    trial, _ = simulate_learner(config.condition, target, derive_seed(*key, 1),
+                                derive_seed(*key, 2), derive_seed(*key, 4),
+                                settle=config.stopping is not None)
     used = (len(trial.distances) if config.stopping is None
             else stop_point(trial, config.schedule, config.stopping))
-    signal = trial.settled[used - 1] if config.stopping is not None else None
-    best = best_theta(learner) if signal is None else signal.theta
-    theta_star = np.array([best[n] for n in learner.config.box.names])
-    rng = np.random.default_rng(derive_seed(*key, 3))
-    wins = 0
-    for _ in range(config.validation_pairs):
-        reference = rng.uniform(size=config.dim)
-        star_first = bool(rng.integers(2))
-        u_star, u_ref = (float(np.linalg.norm(target - p)) for p in (theta_star, reference))
-        j_star, j_ref = (1, 2) if star_first else (2, 1)
-        y_star = u_star + j_star * rng.normal(0.0, config.noise)  # eq. (16), j within the pair
-        y_ref = u_ref + j_ref * rng.normal(0.0, config.noise)
-        wins += y_star < y_ref
+    wins = validation_wins(target, np.array(stopped_theta_star(trial, used)),
+                           config.validation_pairs, config.noise,
+                           np.random.default_rng(derive_seed(*key, 3)))
     return ParticipantResult(study=study, scenario=scenario, participant=participant, wins=wins,
                              pairs=config.validation_pairs,
                              final_distance=trial.distances[used - 1],
-                             learning_interactions=used, ties=trial.ties)
+                             learning_interactions=used, ties=trial.ties, hints=trial.hints)
+
+
+def validation_wins(target: np.ndarray, theta_star: np.ndarray, pairs: int, noise: float,
+                    rng: np.random.Generator) -> int:
+    """Of ``pairs`` validation pairs (θ* against a uniformly random θ, in random order, Sect. V-C),
+    how many the simulated participant with optimum ``target`` prefers θ* in: each handover felt
+    as y = u + j·N(0, σ²) (16), j its position within the pair, the smaller y preferred."""
+    wins = 0
+    for _ in range(pairs):
+        reference = rng.uniform(size=len(target))
+        star_first = bool(rng.integers(2))
+        u_star, u_ref = (float(np.linalg.norm(target - p)) for p in (theta_star, reference))
+        j_star, j_ref = (1, 2) if star_first else (2, 1)
+        y_star = u_star + j_star * rng.normal(0.0, noise)  # eq. (16), j within the pair
+        y_ref = u_ref + j_ref * rng.normal(0.0, noise)
+        wins += y_star < y_ref
+    return wins
 
 
 def sign_test_p(scores: list[float]) -> float:
@@ -171,6 +183,7 @@ class PilotReport(BaseModel):
     mean_score: float
     mean_final_distance: float
     median_learning_interactions: float = Field(description="interactions learning used")
+    mean_hints: float = Field(0.0, description="coactive hints per participant")
     power: list[PowerEstimate] = Field(description="at the configured N, each α")
     power_curve: list[PowerEstimate] = Field(description="first n participants per scenario")
     out_dir: str
@@ -203,6 +216,7 @@ def report(config: PilotConfig, results: list[ParticipantResult], out: Path) -> 
         mean_final_distance=float(np.mean([r.final_distance for r in results])),
         median_learning_interactions=float(np.median([r.learning_interactions
                                                       for r in results])),
+        mean_hints=float(np.mean([r.hints for r in results])),
         power=[p for p in curve if p.participants_per_scenario == config.participants],
         power_curve=curve, out_dir=str(out))
 
@@ -230,7 +244,8 @@ class PilotStore:
                                      pairs=int(r["pairs"]),
                                      final_distance=float(r["final_distance"]),
                                      learning_interactions=int(r.get("learning_interactions") or 0),
-                                     ties=int(r.get("ties") or 0)) for r in rows]
+                                     ties=int(r.get("ties") or 0),
+                                     hints=int(r.get("hints") or 0)) for r in rows]
         return {(r.study, r.scenario, r.participant): r for r in results}
 
     def append(self, result: ParticipantResult) -> None:
@@ -245,7 +260,7 @@ class PilotStore:
 
 def _row(r: ParticipantResult) -> str:
     return (f"{r.study},{r.scenario},{r.participant},{r.wins},{r.pairs},{r.score!r},"
-            f"{r.final_distance!r},{r.learning_interactions},{r.ties}\n")
+            f"{r.final_distance!r},{r.learning_interactions},{r.ties},{r.hints}\n")
 
 
 def run_pilot(config: PilotConfig, *, client: Client, out: Path,

@@ -8,7 +8,9 @@ scale at a position that decreases with y (so θ_r ≻ θ_c exactly when y(θ_r)
 comparisons come from the same scale rule as in the human study (:mod:`app.learning.scale`): the
 newest interaction against every earlier one of its batch. With a tie threshold (``tie``) the
 participant places an interaction "equal" to the earlier one of its batch whose y is closest, when
-closer than ``tie`` (as the session's simulated participant does within its ``tie_s``). The
+closer than ``tie`` (as the session's simulated participant does within its ``tie_s``). A
+coactive participant (``coactive``, :mod:`app.learning.coactive`) says after each placement which
+way the handover should have moved, if any way feels better enough (:func:`participant_hint`). The
 schedule is the paper's: 5 Sobol points, then batches of θ* + q − 1 queries until 25 unique points
 have been shown.
 
@@ -28,11 +30,12 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from app.learning.coactive import HintDirection, felt_hint, hint_observations, hinted_theta
 from app.learning.config import (
     DEFAULT_RECOMMENDATION,
     AcquisitionName,
@@ -43,6 +46,7 @@ from app.learning.config import (
 )
 from app.learning.learner import PreferenceLearner
 from app.learning.models import (
+    Comparison,
     FitReport,
     Interaction,
     ParameterBox,
@@ -60,6 +64,11 @@ from app.learning.scale import comparisons_for_newest
 
 #: u(θ*) below this counts as a success (Sect. IV).
 SUCCESS_DISTANCE = 0.1
+
+#: The coordinates of the unit cube a coactive participant hints about (0-based): the 2nd and 3rd,
+#: the analogues of δ ("come sooner/later") and k ("react more/less to me"); none about the 1st,
+#: the analogue of a, which has no hint on the tablet.
+HINTED_COORDINATES = (1, 2)
 
 
 #: The study's speed preset (see ``benchmarks/study_speed.py`` for its cost and accuracy against
@@ -92,14 +101,22 @@ class StudyCondition(BaseModel):
     tie: float = Field(0.0, ge=0.0, le=1.0, description="the participant places an interaction "
                        "\"equal\" to an earlier one of its batch whose y is closer than this "
                        "(0: never)")
+    coactive: bool = Field(False, description="after each placement the participant may give a "
+                           "coactive hint (app.learning.coactive)")
+    hint_step: float = Field(0.2, gt=0.0, le=1.0, description="how far a hint moves θ, as a "
+                             "share of the parameter's range")
+    hint_threshold: float = Field(0.05, ge=0.0, le=1.0, description="the felt gain in u a "
+                                  "direction needs for a hint (the just-noticeable difference)")
 
     @property
     def name(self) -> str:
         """Short label, e.g. ``qnei-q5-s0.05`` (``-bpn``: comparisons weighed by batch position;
-        ``-tie0.05-model``: ties within 0.05, in the likelihood)."""
+        ``-tie0.05-model``: ties within 0.05, in the likelihood; ``-coactive0.2``: hints that move
+        θ by 0.2 of the range)."""
         return (f"{self.acquisition.value}-q{self.q}-s{self.noise:g}"
                 + ("-bpn" if self.model.batch_position_noise else "")
-                + (f"-tie{self.tie:g}-{self.model.ties.value}" if self.tie else ""))
+                + (f"-tie{self.tie:g}-{self.model.ties.value}" if self.tie else "")
+                + (f"-coactive{self.hint_step:g}" if self.coactive else ""))
 
     def with_ties(self, tie: float, handling: TieHandling) -> StudyCondition:
         """The same condition with a participant who says "equal" within ``tie``, its ties
@@ -134,6 +151,10 @@ class TrialResult(BaseModel):
         default_factory=list, description="the stopping signal (app.learning.settled) after each "
         "interaction that ends a batch, None after the others; empty unless asked for")
     ties: int = Field(0, description="ties that entered the likelihood")
+    hints: int = Field(0, description="coactive hints the participant gave")
+    theta_star: list[float] = Field(
+        default_factory=list, description="the final θ* of the condition's strategy, in the unit "
+        "cube (empty in results stored before it was recorded)")
 
     @property
     def oracle_distances(self) -> list[float]:
@@ -166,9 +187,14 @@ def run_trial(condition: StudyCondition, seed: int, trial: int,
     Target and noise depend only on ``(seed, trial)``, so every condition sees the same targets and
     results do not depend on how trials are spread over processes.
     """
-    target = np.random.default_rng(derive_seed(seed, trial, 0)).uniform(size=condition.dim)
-    return simulate_learner(condition, target, derive_seed(seed, trial, 1),
-                            derive_seed(seed, trial, 2), trial=trial, settle=settle)[0]
+    return simulate_learner(condition, trial_target(condition.dim, seed, trial),
+                            derive_seed(seed, trial, 1), derive_seed(seed, trial, 2),
+                            derive_seed(seed, trial, 3), trial=trial, settle=settle)[0]
+
+
+def trial_target(dim: int, seed: int, trial: int) -> np.ndarray:
+    """The optimum θ_t ~ U[0, 1]^dim of trial ``trial`` of a study seeded with ``seed``."""
+    return np.random.default_rng(derive_seed(seed, trial, 0)).uniform(size=dim)
 
 
 def stop_point(result: TrialResult, schedule: BatchSchedule, rule: StoppingRule) -> int:
@@ -183,14 +209,43 @@ def stop_point(result: TrialResult, schedule: BatchSchedule, rule: StoppingRule)
     return len(result.distances)
 
 
+def stopped_theta_star(result: TrialResult, used: int) -> list[float]:
+    """θ* (unit cube) when learning ended after ``used`` interactions (:func:`stop_point`): the
+    θ* the stopping signal of that batch was about, or the final θ* after the whole schedule."""
+    if used == len(result.distances):
+        return result.theta_star
+    signal = result.settled[used - 1]
+    assert signal is not None, "learning stops only where a stopping signal was recorded"
+    return ParameterBox.unit_cube(len(signal.theta)).to_unit(signal.theta)
+
+
+def participant_hint(condition: StudyCondition, box: ParameterBox, theta: dict[str, float],
+                     utility: Callable[[dict[str, float]], float],
+                     rng: np.random.Generator) -> HintDirection | None:
+    """The coactive hint of a simulated participant about the handover run with ``theta``: each
+    way along :data:`HINTED_COORDINATES` that does not point past the box edge gains
+    u(θ) − u(θ') (θ' the hinted θ, u the distance of eq. (15)), felt with noise σ; the best felt,
+    if above ``condition.hint_threshold`` (:func:`~app.learning.coactive.felt_hint`)."""
+    gains: dict[HintDirection, float] = {}
+    for i in (i for i in HINTED_COORDINATES if i < box.dim):
+        for sign in (-1, 1):
+            direction = HintDirection(parameter=box.names[i], sign=sign)
+            moved = hinted_theta(theta, box, direction, condition.hint_step)
+            if moved is not None:
+                gains[direction] = utility(theta) - utility(moved)
+    return felt_hint(gains, condition.noise, condition.hint_threshold, rng)
+
+
 def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: int,
-                     learner_seed: int, *, trial: int = 0,
+                     learner_seed: int, hint_seed: int, *, trial: int = 0,
                      prior: PopulationPrior | None = None,
                      strategies: Sequence[RecommendationName] = (), settle: bool = False
                      ) -> tuple[TrialResult, PreferenceLearner]:
     """One simulated participant with optimum ``target`` through the schedule of ``condition``,
     with ``prior`` as the GP's prior mean; returns the trial and the final learner (whose
-    snapshot feeds the priors of later participants).
+    snapshot feeds the priors of later participants). Hints (``condition.coactive``) draw their
+    noise from ``hint_seed``'s generator alone, so the placements' noise is that of the same
+    participant without hints (paired).
 
     The inference curve of the condition's strategy is recorded at every interaction, those of
     ``strategies`` too (each costs a recommendation per interaction, a box search for
@@ -198,6 +253,7 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
     ``settle`` the stopping signal is recorded after every interaction that ends a batch."""
     start = time.monotonic()
     noise_rng = np.random.default_rng(noise_seed)
+    hint_rng = np.random.default_rng(hint_seed)
     box = ParameterBox.unit_cube(condition.dim)
     learner = PreferenceLearner(LearnerConfig(
         box=box, acquisition=condition.acquisition, schedule=condition.schedule,
@@ -210,6 +266,7 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
     placements: list[Placement] = []
     felt: dict[str, float] = {}  # y of each interaction of the current batch
     shown: list[float] = []
+    hints = 0
     settled: list[Settledness | None] = []
     fits: list[FitReport] = []  # every fit the learner ran, once: in observe or before a query
 
@@ -229,8 +286,15 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         iid = str(slot.index + 1)
         placements.append(_placement(iid, y, felt, condition.tie))
         felt[iid] = y
-        count(learner.observe(Interaction(interaction_id=iid, theta=suggestion.theta),
-                              comparisons_for_newest(placements, ties=True)))
+        hinted: tuple[list[Interaction], list[Comparison]] = ([], [])
+        if condition.coactive:
+            hint = participant_hint(condition, box, suggestion.theta, distance, hint_rng)
+            if hint is not None:
+                hinted = hint_observations(iid, suggestion.theta, box, hint, condition.hint_step)
+                hints += 1
+        count(learner.observe_many(
+            [Interaction(interaction_id=iid, theta=suggestion.theta), *hinted[0]],
+            [*comparisons_for_newest(placements, ties=True), *hinted[1]]))
         final = learner.next_slot().kind is SlotKind.DONE
         ends_batch = final or learner.next_slot().kind is SlotKind.BEST
         settled.append(learner.settledness() if settle and ends_batch else None)
@@ -242,7 +306,8 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
                          shown_distances=shown, strategy_distances=curves,
                          fit_failures=sum(f.fit_failed for f in fits),
                          seconds=time.monotonic() - start, settled=settled if settle else [],
-                         ties=learner.data.n_ties)
+                         ties=learner.data.n_ties, hints=hints,
+                         theta_star=box.to_unit(best_theta(learner, condition.recommendation)))
     return result, learner
 
 

@@ -7,7 +7,8 @@ Files in ``<out>/<condition name>/``:
 - ``trials.csv``: raw rows, one per (trial, interaction): the inference distance u(θ*) of the
   condition's recommendation strategy (``distance``), the distance of the point shown, the oracle
   distance (best point shown so far), the inference distance of every strategy
-  (``distance_<strategy>``) and the fit failures of the trial. A trial's rows are appended in one
+  (``distance_<strategy>``), the fit failures of the trial and the coactive hints its participant
+  gave. A trial's rows are appended in one
   ``write`` and flushed to disk when the trial is done; on resume, completed trials are read back
   and skipped, a partial trial (killed mid-write) is discarded and rerun. At the end the file is
   rewritten in trial order, so it is the same file whatever the workers and the order they
@@ -47,7 +48,7 @@ logger = logging.getLogger(__name__)
 
 STRATEGY_COLUMNS = tuple(f"distance_{s.value}" for s in RecommendationName)
 TRIAL_COLUMNS = ("trial", "interaction", "distance", "shown_distance", "oracle_distance",
-                 *STRATEGY_COLUMNS, "fit_failures")
+                 *STRATEGY_COLUMNS, "fit_failures", "hints")
 TIMING_COLUMNS = ("trial", "seconds")
 SUMMARY_COLUMNS = ("interaction", "n_trials", "mean_distance", "ci_low", "ci_high", "success_rate",
                    "mean_oracle_distance")
@@ -74,7 +75,7 @@ class ConditionSummary(BaseModel):
     ``wall_seconds_per_trial`` this run's elapsed time divided by the trials it ran (lower with
     more workers; None when every trial was resumed from disk). ``final_strategy_distances``: the
     final mean inference distance of every recommendation strategy, ``final_oracle_distance`` the
-    final mean distance of the best point shown.
+    final mean distance of the best point shown, ``hints_per_trial`` the mean coactive hints.
     """
 
     model_config = ConfigDict(frozen=True)
@@ -93,6 +94,7 @@ class ConditionSummary(BaseModel):
     seconds_per_trial: float
     wall_seconds_per_trial: float | None
     fit_failures: int
+    hints_per_trial: float
     out_dir: str
 
 
@@ -221,7 +223,7 @@ def _rows_text(result: TrialResult | None, header: bool) -> str:
                    strict=True)
         for i, (d, s, o, *by_strategy) in enumerate(rows):
             writer.writerow((result.trial, i + 1, repr(d), repr(s), repr(float(o)),
-                             *map(repr, by_strategy), result.fit_failures))
+                             *map(repr, by_strategy), result.fit_failures, result.hints))
     return buffer.getvalue()
 
 
@@ -231,7 +233,7 @@ def _result_from_rows(trial: int, rows: list[dict[str, str]], seconds: float) ->
     return TrialResult(trial=trial, distances=[float(r["distance"]) for r in rows],
                        shown_distances=[float(r["shown_distance"]) for r in rows],
                        strategy_distances=curves, fit_failures=int(rows[0]["fit_failures"]),
-                       seconds=seconds)
+                       hints=int(rows[0].get("hints") or 0), seconds=seconds)
 
 
 def write_summary(path: Path, rows: list[InteractionSummary]) -> None:
@@ -259,7 +261,8 @@ def condition_summary(condition: StudyCondition, results: list[TrialResult],
         final_oracle_distance=final.mean_oracle_distance,
         seconds_per_trial=statistics.fmean(timed) if timed else math.nan,
         wall_seconds_per_trial=wall_seconds_per_trial,
-        fit_failures=sum(r.fit_failures for r in results), out_dir=str(directory))
+        fit_failures=sum(r.fit_failures for r in results),
+        hints_per_trial=statistics.fmean(r.hints for r in results), out_dir=str(directory))
 
 
 def run_condition(condition: StudyCondition, *, trials: int, seed: int, client: Client,

@@ -21,6 +21,7 @@ from app.learning.learner import PreferenceLearner
 from app.learning.models import Comparison, Interaction, ParameterBox, RecommendationName
 from app.learning.planner import BatchSchedule
 from app.learning.preference_model import posterior_at
+from app.learning.simulation import StudyCondition, simulate_learner
 
 BOX = ParameterBox.from_bounds({"a": (1.0, 10.0), "delta": (-1.0, 1.0), "k": (0.01, 15.0)})
 
@@ -105,3 +106,46 @@ def test_the_simulated_hint_is_the_direction_felt_best_or_none_below_the_thresho
     rng = np.random.default_rng(0)
     assert felt_hint({up: 0.3, down: -0.3}, 0.01, 0.05, rng) == up
     assert felt_hint({up: 0.01, down: -0.01}, 0.001, 0.05, rng) is None
+
+
+# The simulated participant's hints (app.learning.simulation, coactive=True)
+
+COACTIVE = StudyCondition(q=3, noise=0.3, n_unique=7, n_initial=3, coactive=True)
+FAR_TARGET = np.array([0.5, 1.0, 0.0])  # up along x2 and down along x3 feel better from most θ
+
+
+def test_a_coactive_participant_hints_and_the_learner_holds_them_as_points_never_shown():
+    result, learner = simulate_learner(COACTIVE, FAR_TARGET, 11, 12, 13)
+    snapshot = learner.snapshot()
+    shown = {i.interaction_id: i.theta for i in snapshot.interactions if i.shown}
+    hinted = [i for i in snapshot.interactions if not i.shown]
+    assert result.hints == len(hinted) > 0
+    assert len(shown) == learner.n_interactions == COACTIVE.schedule.n_interactions
+    box = learner.config.box
+    for point in hinted:
+        handover = point.interaction_id.removeprefix("hint-")
+        assert Comparison(winner=point.interaction_id, loser=handover) in snapshot.comparisons
+        moved = {n for n in box.names if point.theta[n] != pytest.approx(shown[handover][n])}
+        assert len(moved) == 1 and moved <= {"x2", "x3"}  # δ and k analogues; never x1 (a)
+        (name,) = moved
+        assert abs(point.theta[name] - shown[handover][name]) <= COACTIVE.hint_step + 1e-12
+    # θ* is recorded in the unit cube: its distance to the target is the final inference distance
+    assert float(np.linalg.norm(np.array(result.theta_star) - FAR_TARGET)) == pytest.approx(
+        result.distances[-1])
+
+
+def test_hints_draw_their_own_noise_so_the_placements_are_those_of_the_arm_without_hints():
+    """Paired arms: the hints' noise comes from its own generator, so the first batch (the same
+    Sobol points) is placed exactly as by the same participant without hints."""
+    _, hinting = simulate_learner(COACTIVE, FAR_TARGET, 11, 12, 13)
+    _, plain = simulate_learner(COACTIVE.model_copy(update={"coactive": False}), FAR_TARGET,
+                                11, 12, 13)
+    first_batch = {str(n) for n in range(1, COACTIVE.n_initial + 1)}
+
+    def placed(learner: PreferenceLearner) -> list[Comparison]:
+        return [c for c in learner.snapshot().comparisons
+                if {c.winner, c.loser} <= first_batch]
+
+    assert any(i.interaction_id.removeprefix("hint-") in first_batch
+               for i in hinting.snapshot().interactions if not i.shown)  # hints were drawn there
+    assert placed(hinting) == placed(plain) and placed(plain)

@@ -84,3 +84,16 @@ def test_pilot_with_ties_modelled_and_learning_that_stops_when_settled(tmp_path,
     assert report["median_learning_interactions"] == pytest.approx(sorted(used)[1])
     assert sum(int(r["ties"]) for r in rows) > 0  # "equal" within 0.3 happens, and is modelled
     assert report["config"]["stopping"]["threshold"] == 0.5
+
+
+def test_pilot_with_coactive_hints_counts_them_per_participant(tmp_path, capsys):
+    """--coactive: each row says how many hints the participant gave; the summary their mean."""
+    out = tmp_path / "pilot"
+    assert main(["pilot", "--studies", "1", "--participants", "2", "--scenarios", "1", "--noise",
+                 "0.05", "--initial", "3", "--batches", "1", "--batch-size", "3", "--coactive",
+                 "--seed", "5", "--out", str(out), "--no-progress"]) == 0
+    with (out / "participants.csv").open() as handle:
+        hints = [int(r["hints"]) for r in csv.DictReader(handle)]
+    assert len(hints) == 2 and sum(hints) > 0  # uniform optima: some way feels better somewhere
+    assert f"; {sum(hints) / 2:.1f} hints per participant" in capsys.readouterr().out
+    assert json.loads((out / "pilot.json").read_text())["coactive"] is True

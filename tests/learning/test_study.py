@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import warnings
@@ -123,6 +124,23 @@ def test_cli_batch_position_noise_is_its_own_condition(tmp_path, capsys):
     trials = [(tmp_path / name / "trials.csv").read_text() for name in
               ("qnei-q3-s0.05", "qnei-q3-s0.05-bpn")]
     assert trials[0] != trials[1]
+
+
+def test_cli_coactive_is_its_own_condition_and_counts_the_hints(tmp_path, capsys):
+    """--coactive runs the same trials with a participant who hints, into their own folder; the
+    hints of each trial are in trials.csv and their mean in the summary."""
+    args = ["benchmark-pl", "--q", "3", "--noise", "0.05", "--trials", "2", "--queries", "5",
+            "--initial", "3", "--seed", "4", "--out", str(tmp_path), "--json", "--no-progress",
+            "--coactive"]
+    assert main(args) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["condition"] == "qnei-q3-s0.05-coactive0.2"
+    with (tmp_path / summary["condition"] / "trials.csv").open() as handle:
+        hints = {int(r["trial"]): int(r["hints"]) for r in csv.DictReader(handle)}
+    assert sum(hints.values()) > 0
+    assert summary["hints_per_trial"] == pytest.approx(sum(hints.values()) / 2)
+    assert main([*args[:-1]]) == 0  # without hints: another folder, no hints counted
+    assert json.loads(capsys.readouterr().out)["hints_per_trial"] == 0
 
 
 @pytest.mark.parametrize(("args", "message"), [
