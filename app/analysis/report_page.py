@@ -78,12 +78,13 @@ def sessions(analysis: StudyAnalysis) -> str:
 
 
 def learning(analysis: StudyAnalysis) -> str:
-    """Per participant: the interactions learning used, where and why it ended, the ties."""
-    return html.section("Learning: interactions used, why it ended, ties", html.table(
+    """Per participant: the interactions learning used, where and why it ended, ties and hints."""
+    return html.section("Learning: interactions used, why it ended, ties, hints", html.table(
         analysis.learning, {"participant": "Participant", "learning_interactions": "Interactions "
                             "learned from", "schedule_interactions": "of the schedule",
                             "learning_ended": "Learning ended", "why": "Why",
-                            "ties_placed": "\"equal\" placements", "ties": "Ties"}))
+                            "ties_placed": "\"equal\" placements", "ties": "Ties",
+                            "hints_given": "Hints given", "hints_asked": "of those asked"}))
 
 
 def validation_tables(analysis: StudyAnalysis) -> str:

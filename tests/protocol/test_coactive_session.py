@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 from support.engine import drive_until, study_config
 
+from app.analysis.report import build_report
 from app.learning.coactive import hint_id
 from app.learning.config import LearnerSnapshot
 from app.protocol.doctor import examine
@@ -145,3 +146,11 @@ def test_the_lab_file_sets_coactive_hints_and_refuses_a_step_out_of_range(tmp_pa
     path.write_text("[protocol]\nhint_step = 0.9\n")
     with pytest.raises(ValueError, match=r"protocol\.hint_step"):
         load_lab_config(path)
+
+
+def test_the_report_counts_each_participants_hints(hinted, tmp_path):
+    report = build_report(hinted.store.path.parent, tmp_path / "report", include_simulated=True)
+    row = pd.read_csv(report.tables["learning"]).iloc[0]
+    given = sum(h.hint is not None for h in hinted.store.rows("hints"))
+    assert (row["hints_given"], row["hints_asked"]) == (given, 8) and given > 0
+    assert "Hints given" in report.html.read_text()
