@@ -50,7 +50,8 @@ def _events_of(events: pd.DataFrame, code: str) -> list[Event]:
 
 
 def session_status(participants: pd.DataFrame, events: pd.DataFrame) -> pd.DataFrame:
-    """Per participant: scenario, completed / planned interactions, and where the session stands.
+    """Per participant: scenario, completed / planned interactions (without the learning ones an
+    early stop skipped), and where the session stands.
 
     The state is rebuilt from the event log by the protocol's own replay (``app.protocol.state``),
     so "complete" means exactly what the session engine means by done.
@@ -59,8 +60,12 @@ def session_status(participants: pd.DataFrame, events: pd.DataFrame) -> pd.DataF
     for code, config in study_configs(participants).items():
         state = replay(protocol_slots(config), _events_of(events, code))
         done = state.step is Step.DONE
+        # learning that stopped early (stop_when_settled) skipped the rest of its schedule
+        skipped = (0 if state.stopped_after is None else
+                   config.initial_trials + config.learning_batches * config.batch_size
+                   - state.stopped_after)
         rows.append({"participant": code, "scenario": config.scenario.value,
-                     "completed": state.completed, "planned": config.interactions,
+                     "completed": state.completed, "planned": config.interactions - skipped,
                      "phase": state.phase.value, "waiting_for": None if done else state.step.value,
                      "complete": done})
     return pd.DataFrame(rows, columns=["participant", "scenario", "completed", "planned", "phase",

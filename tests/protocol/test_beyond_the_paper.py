@@ -92,6 +92,9 @@ def test_the_report_says_per_participant_where_learning_stopped_and_why(stopped,
     assert row["why"].startswith("settled after") and row["ties"] == "drop"
     page = report.html.read_text()
     assert "Learning: interactions used, why it ended, ties" in page and "settled after" in page
+    # the session is complete: its plan lost the learning interactions the stop skipped
+    done = stopped.state.completed
+    assert done == stopped.state.stopped_after + 9 and f"<td>{done}/{done}</td>" in page
 
 
 def test_a_stop_anywhere_but_at_a_learning_batchs_opening_is_a_breach():
