@@ -34,6 +34,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import dask
 import numpy as np
 from pydantic import BaseModel
 from recommendation_study import ratio_ci
@@ -170,7 +171,10 @@ def main() -> None:
               for arm in args.arms]
     todo = [(*key, args.seed) for key in wanted if key not in done]
     start = time.monotonic()
-    with dask_client(args.scheduler, args.workers) as client:
+    # a session starts its learner in a process of its own: Dask's workers must not be daemons
+    # (on a lab's cluster, start them with --no-nanny or the same setting)
+    with dask.config.set({"distributed.worker.daemon": False}), \
+            dask_client(args.scheduler, args.workers) as client:
         run_tasks(client, run_session, todo, finished, total=len(wanted),
                   initial=len(wanted) - len(todo), desc="sessions", progress=not args.no_progress)
     wall = time.monotonic() - start
