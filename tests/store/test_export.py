@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from support.engine import drive_until, short_config
+from support.engine import SHORT_PROTOCOL, drive_until, study_config
 
 from app.cli import main
 from app.protocol.engine import SessionEngine
@@ -23,9 +23,11 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def study(tmp_path_factory) -> Path:
+    """Two participants of the short protocol, with coactive hints (so every table has rows)."""
     study = tmp_path_factory.mktemp("study")
     for code, seed, scenario in (("P01", 1, Scenario.STRAIGHTFORWARD), ("P02", 2, Scenario.PERTURBED)):
-        engine = SessionEngine.create(study, code, short_config(seed=seed, scenario=scenario))
+        engine = SessionEngine.create(study, code, study_config(seed, scenario, **SHORT_PROTOCOL,
+                                                                coactive=True))
         drive_until(engine, Step.DONE, SimulatedParticipant(seed))
         engine.close()
     return study
