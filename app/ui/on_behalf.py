@@ -1,6 +1,7 @@
 """The dashboard's "Enter for the participant": when the tablet cannot be used (it died, the
 participant cannot hold it), the experimenter enters what the participant says — the placement on
-the scale, the validation rating, an answer — and the store records it as entered by the
+the scale, the coactive hint (``[protocol] coactive``), the validation rating, an answer — and the
+store records it as entered by the
 experimenter on the participant's behalf (``Rater.EXPERIMENTER``), so the export tells it apart.
 
 Each entry is its own deliberate button and is enabled only while the session waits for that kind
@@ -18,7 +19,7 @@ from app.protocol.errors import RefusedAction
 from app.protocol.plan import Slot
 from app.protocol.state import SessionState, Step
 from app.session.runner import RunnerView, SessionRunner
-from app.ui.tablet import RATINGS, answer_options, asked_question
+from app.ui.tablet import HINTS, RATINGS, answer_options, asked_question, hint_of
 from session_store.vocabulary import Rater
 
 #: The "same as" choice that means: a position on the scale, not an earlier marker.
@@ -33,6 +34,7 @@ class OnBehalf:
     position: viser.GuiSliderHandle
     same_as: viser.GuiDropdownHandle
     place: viser.GuiButtonHandle
+    hints: list[viser.GuiButtonHandle]
     ratings: list[viser.GuiButtonHandle]
     answer: viser.GuiDropdownHandle
     store_answer: viser.GuiButtonHandle
@@ -48,6 +50,7 @@ class OnBehalf:
                                     max=1.0, step=0.01, initial_value=0.5),
             same_as=gui.add_dropdown("Or the same as", [NOT_EQUAL]),
             place=gui.add_button("Store the placement for the participant"),
+            hints=[gui.add_button(f"The robot should: {text}") for text, _ in HINTS],
             ratings=[gui.add_button(f"Second felt: {text}") for text, _ in RATINGS],
             answer=gui.add_dropdown("Answer", ["—"]),
             store_answer=gui.add_button("Store the answer for the participant"),
@@ -68,8 +71,11 @@ class OnBehalf:
         def rate(value: str) -> None:
             runner.rate(_slot(_open_state(runner.view)).interaction, value, by=by)
 
-        def rating(value: str) -> Callable[[object], None]:
-            return lambda _: act(lambda: rate(value))
+        def hint(value: str) -> None:
+            runner.hint(_slot(_open_state(runner.view)).interaction, hint_of(value), by=by)
+
+        def entering(enter: Callable[[str], None], value: str) -> Callable[[object], None]:
+            return lambda _: act(lambda: enter(value))
 
         def answer() -> None:
             question = _question(runner.view)
@@ -79,8 +85,10 @@ class OnBehalf:
             runner.answer(question, labels[entry.answer.value], by=by)
 
         entry.place.on_click(lambda _: act(place))
+        for button, (_, value) in zip(entry.hints, HINTS, strict=True):
+            button.on_click(entering(hint, value))
         for button, (_, value) in zip(entry.ratings, RATINGS, strict=True):
-            button.on_click(rating(value))
+            button.on_click(entering(rate, value))
         entry.store_answer.on_click(lambda _: act(answer))
         return entry
 
@@ -89,6 +97,8 @@ class OnBehalf:
         state = view.state
         step = None if state is None or state.paused else state.step
         self.place.disabled = self.position.disabled = self.same_as.disabled = step is not Step.PLACE
+        for button in self.hints:
+            button.disabled = step is not Step.HINT
         for button in self.ratings:
             button.disabled = step is not Step.RATE
         self.answer.disabled = self.store_answer.disabled = step is not Step.ANSWER
@@ -101,6 +111,9 @@ class OnBehalf:
             self.same_as.value = NOT_EQUAL  # type: ignore[misc]
         if placing is not None:
             self.what.content = f"The participant places **handover {_slot(placing).position}**."
+        elif step is Step.HINT:
+            self.what.content = (f"After **handover {_slot(_open_state(view)).position}**: should the robot "
+                                 "do anything differently? (the participant's hint)")
         elif step is Step.RATE:
             self.what.content = ("The participant compares the **second handover of the pair** "
                                  "with the first.")

@@ -80,6 +80,11 @@ def _status(view: RunnerView) -> str:
         assert slot is not None, "a placement is due for the slot at the cursor"
         return (f"**Waiting for the participant** to place handover {slot.position} on "
                 "the tablet.")
+    if step is Step.HINT:
+        slot = state.slot
+        assert slot is not None, "a hint is due for the slot at the cursor"
+        return (f"**Waiting for the participant's hint** about handover {slot.position} on the "
+                "tablet (sooner, later, more, less, or nothing to change).")
     if step is Step.RATE:
         return "**Waiting for the participant** to rate the pair on the tablet."
     if step is Step.ANSWER:

@@ -1,17 +1,20 @@
 """The participant's tablet: one thing at a time, rendered from the session state alone.
 
 Screens: "Please wait" (nothing to do; it says what comes next), the introduction to the validation
-pairs, "Go!" (a trial runs; with a beep), the relative scale (place the last handover), the
-validation rating (better / the same / worse than the one before), the questionnaire one question
-per screen, "Thank you". The tablet never shows θ, phase names or anything else that tells
-conditions apart, and its only actions are placing, rating and answering. Each action names the
-interaction its screen showed, so a stale screen (a reload, a double tap) cannot rate twice.
+pairs, "Go!" (a trial runs; with a beep), the relative scale (place the last handover), with
+``[protocol] coactive`` the hint after each placement (should the robot come sooner, later, react
+more or less to the hand, or was it fine), the validation rating (better / the same / worse than the
+one before), the questionnaire one question per screen, "Thank you". The tablet never shows θ,
+parameter names, phase names or anything else that tells conditions apart, and its only actions are
+placing, hinting, rating and answering. Each action names the interaction its screen showed, so a
+stale screen (a reload, a double tap) cannot rate twice.
 While the simulated participant rates (a demo, a dry run), the tablet says "Please wait" where the
 person would answer: it never offers a question that is not theirs to answer.
 
 Answers are deliberate: input counts only once a screen has been seen for
 :data:`~app.ui.deliberate.SETTLE_S`; Confirm is disabled until the handle has moved, and the handle
-never starts on an earlier marker; a rating or an answer is a choice followed by Confirm or Next.
+never starts on an earlier marker; a hint, a rating or an answer is a choice followed by Confirm or
+Next.
 
 One tablet per session (:mod:`app.session.pairing`): a page on the tablet port becomes the study's
 tablet once the pairing code shown on the dashboard is typed on it ("Connect this tablet"); the
@@ -46,19 +49,28 @@ from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
 from app.ui.stage_words import STAGE_WORDS
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
-from session_store.vocabulary import Phase, Question, question, questions
+from session_store.vocabulary import Hint, Phase, Question, question, questions
 
 log = logging.getLogger(__name__)
 
 #: Validation ratings as the participant reads them → the engine's values.
 RATINGS: tuple[tuple[str, str], ...] = (("Better", "better"), ("The same", "equal"),
                                         ("Worse", "worse"))
+#: The coactive hint's answer "nothing to change" (stored as no hint).
+NO_HINT = "none"
+#: Coactive hints as the participant reads them (the robot should …) → :class:`Hint`'s values
+#: (app/protocol/hints.py says which way each moves θ; the words never name a parameter).
+HINTS: tuple[tuple[str, str], ...] = (("Come sooner", Hint.SOONER.value),
+                                      ("Come later", Hint.LATER.value),
+                                      ("React more to my hand", Hint.MORE.value),
+                                      ("React less to my hand", Hint.LESS.value),
+                                      ("No, it was fine", NO_HINT))
 #: The first line of every screen's CSS block: the kiosk, the offline cover, the tablet's look,
 #: and the marker the offline cover looks for.
 PAGE_STYLE = style_block(KIOSK_CSS + OFFLINE_CSS + TABLET_CSS) + '<span class="hl-live"></span>'
 
-ScreenKind = Literal["wait", "pairs", "go", "back", "place", "rate", "question", "done",
-                     "unused", "pair"]
+ScreenKind = Literal["wait", "pairs", "go", "back", "place", "hint", "rate", "question",
+                     "done", "unused", "pair"]
 
 
 class Screen(BaseModel):
@@ -111,6 +123,8 @@ def screen_for(view: RunnerView) -> Screen:
         placed = _current(slot)
         return Screen(kind="place", interaction=placed.interaction, label=placed.position,
                       markers=tuple(state.markers))
+    if step is Step.HINT:
+        return Screen(kind="hint", interaction=_current(slot).interaction)
     if step is Step.RATE:
         return Screen(kind="rate", interaction=_current(slot).interaction)
     if step is Step.ANSWER:
@@ -125,6 +139,11 @@ def _current(slot: Slot | None) -> Slot:
     """The slot at the cursor while a trial runs, or is placed or rated: there is one."""
     assert slot is not None, "a trial runs, or is placed or rated, for the slot at the cursor"
     return slot
+
+
+def hint_of(value: str) -> Hint | None:
+    """The hint a choice of :data:`HINTS` stores (None: "it was fine", nothing to change)."""
+    return None if value == NO_HINT else Hint(value)
 
 
 def asked_question(question_id: str) -> Question:
@@ -202,8 +221,9 @@ class TabletClient:
             gui.reset()
             gui.add_html(PAGE_STYLE)
             build = {"wait": self._wait, "pairs": self._pairs, "go": self._go, "back": self._back,
-                     "place": self._place, "rate": self._rate, "question": self._question,
-                     "done": self._done, "unused": self._unused, "pair": self._pair}
+                     "place": self._place, "hint": self._hint, "rate": self._rate,
+                     "question": self._question, "done": self._done, "unused": self._unused,
+                     "pair": self._pair}
             build[screen.kind](gui, screen)
             # Inside atomic(): the window starts before the screen can reach the page (viser holds
             # the messages until the block ends), so no input answering this screen is judged
@@ -278,25 +298,41 @@ class TabletClient:
         confirm.on_click(lambda _: self._input(place))
         return slider, confirm
 
+    def _hint(self, gui: viser.GuiApi, screen: Screen) -> Choice:
+        gui.add_html(screen_text("Should the robot do anything differently?",
+                                 "Think of the handover you just had. Choose one, then tap "
+                                 "Confirm.", "hl-question"))
+        interaction = screen.interaction
+        assert interaction is not None, "screen_for names the handover"
+        return self._decide(gui, list(HINTS),
+                            lambda value: self.runner.hint(interaction, hint_of(value)))
+
     def _rate(self, gui: viser.GuiApi, screen: Screen) -> Choice:
         gui.add_html(screen_text("Compared with the handover before it, this one felt …",
                                  kind="hl-question"))
-        chosen: list[str] = []
         interaction = screen.interaction
         assert interaction is not None, "screen_for names the handover"
+        return self._decide(gui, list(RATINGS),
+                            lambda value: self.runner.rate(interaction, value))
+
+    def _decide(self, gui: viser.GuiApi, options: list[tuple[str, str]],
+                act: Callable[[str], None]) -> Choice:
+        """One of ``options`` to choose (changeable), then Confirm, which acts on the choice: a
+        tap on a choice alone records nothing."""
+        chosen: list[str] = []
 
         def choose(value: str) -> None:
             chosen[:] = [value]
             choice.show(value)
             confirm.disabled = False
 
-        def rate() -> None:
+        def decide() -> None:
             if chosen:
-                self.runner.rate(interaction, chosen[0])
+                act(chosen[0])
 
-        choice = Choice(gui, list(RATINGS), None, lambda value: self._input(lambda: choose(value)))
+        choice = Choice(gui, options, None, lambda value: self._input(lambda: choose(value)))
         confirm = gui.add_button("Confirm", color="green", disabled=True)
-        confirm.on_click(lambda _: self._input(rate))
+        confirm.on_click(lambda _: self._input(decide))
         return choice
 
     def _question(self, gui: viser.GuiApi, screen: Screen) -> Choice:

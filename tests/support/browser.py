@@ -289,7 +289,7 @@ def wait_function(page: Page, script: str, what: str, arg: object = None, pollin
 
 
 SCREENS = {"unused": "not in use", "pair": "Connect this tablet", "pairs": "pairs of handovers",
-           "back": "moving back", "place": "Handover",
+           "back": "moving back", "hint": "do anything differently", "place": "Handover",
            "wait": "Please wait", "rate": "Compared with", "done": "Thank you", "go": "Go!",
            **{q.id: q.text[:30] for q in QUESTIONS}}
 

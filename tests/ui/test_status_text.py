@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from app.protocol.plan import protocol_slots
+from app.protocol.plan import Rating, protocol_slots
 from app.protocol.state import SessionState
 from app.session.config import LabConfig
 from app.session.overview import ParticipantSummary, SessionStatus
@@ -45,6 +45,8 @@ def test_status_lines_say_what_to_press():
     stopped = view_at(3).model_copy(update={"stop": "stopped"})
     assert "press **Re-arm**" in status_line(stopped)
     assert "Stopping" in status_line(view_at(3).model_copy(update={"stop": "stopping"}))
+    assert status_line(view_at(3, awaiting=Rating.HINT)).startswith(
+        "**Waiting for the participant's hint** about handover 3 on the tablet")
 
 
 def test_blinding_hides_theta_and_origin_of_validation_trials_only():

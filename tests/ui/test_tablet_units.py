@@ -1,4 +1,5 @@
-"""The tablet's pure parts: where the handle starts, the settle window, the questionnaire draft."""
+"""The tablet's pure parts: where the handle starts, the settle window, the questionnaire draft, the
+screen each step shows."""
 
 from __future__ import annotations
 
@@ -7,11 +8,16 @@ from itertools import combinations
 
 import pytest
 from pydantic import ValidationError
+from support.engine import study_config
 
-from app.protocol.state import Marker
+from app.protocol.plan import Rating, protocol_slots
+from app.protocol.state import Marker, SessionState, Step
+from app.session.runner import RunnerView
 from app.ui.deliberate import Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import APART, CLEARANCE, SNAP, render_scale, snap, start_position
+from app.ui.tablet import HINTS, hint_of, screen_for
+from session_store.vocabulary import Hint
 
 
 def markers(*positions: float) -> list[Marker]:
@@ -89,3 +95,21 @@ def test_markers_closer_than_apart_stand_at_different_levels(positions, newest) 
 def test_equal_markers_stack_and_far_ones_stay_on_the_arrow() -> None:
     shown = drawn(render_scale(markers(0.2, 0.2, 0.8), 4, 0.8))  # the newest snaps to 3
     assert shown == {"1": (20.0, 0), "2": (20.0, 1), "3": (80.0, 0), "4": (80.0, 1)}
+
+
+def test_a_coactive_hint_is_asked_on_its_own_screen_unless_the_simulated_participant_answers() -> None:
+    """[protocol] coactive: after a placement the session waits at Step.HINT; the tablet asks about
+    the handover just placed, or says "Please wait" while the simulated participant answers."""
+    slots = protocol_slots(study_config(coactive=True, initial_trials=2, batch_size=2,
+                                        learning_batches=1, validation_batches=0))
+    state = SessionState(slots=slots, cursor=1, coactive=True, awaiting=Rating.HINT,
+                         completed_trial={1: 1, 2: 2})
+    assert state.step is Step.HINT
+    view = RunnerView(code="P01", state=state)
+    assert (screen_for(view).kind, screen_for(view).interaction) == ("hint", 2)
+    assert screen_for(view.model_copy(update={"auto": True})).kind == "wait"
+
+
+def test_every_hint_has_its_words_and_one_choice_means_nothing_to_change() -> None:
+    assert [hint_of(value) for _, value in HINTS] == [*Hint, None]
+    assert len({text for text, _ in HINTS}) == len(HINTS)
