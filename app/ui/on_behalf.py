@@ -50,7 +50,7 @@ class OnBehalf:
                                     max=1.0, step=0.01, initial_value=0.5),
             same_as=gui.add_dropdown("Or the same as", [NOT_EQUAL]),
             place=gui.add_button("Store the placement for the participant"),
-            hints=[gui.add_button(f"The robot should: {text}") for text, _ in HINTS],
+            hints=[gui.add_button(f"They said: {text}") for text, _ in HINTS],
             ratings=[gui.add_button(f"Second felt: {text}") for text, _ in RATINGS],
             answer=gui.add_dropdown("Answer", ["—"]),
             store_answer=gui.add_button("Store the answer for the participant"),

@@ -66,7 +66,7 @@ PARAMETER_WORDS = re.compile(r"[δθ]|\b(delta|theta|k|gain|coupling|parameters?
 #: and for some seeds at the same corner either way: 3 of seeds 1–6 differ).
 SEED = "4"
 #: The experimenter's button for "React more to my hand" (app/ui/on_behalf.py).
-ON_BEHALF_MORE = "The robot should: React more to my hand"
+ON_BEHALF_MORE = "They said: React more to my hand"
 
 
 #: Whether the choice ``t`` is the one chosen (orange: app/ui/tablet.py Choice) and Confirm enabled.
