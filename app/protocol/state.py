@@ -233,14 +233,21 @@ def _trial_ended(state: SessionState, event: ev.TrialEnded) -> None:
         _advance(state)
 
 
-def _placement_made(state: SessionState, event: ev.PlacementMade) -> None:
-    _check(state.step is Step.PLACE, f"a placement of trial {event.trial_index} while "
-                                     f"{_waiting_for(state)}")
+def _about_the_completed(state: SessionState, step: Step, what: str,
+                         event: ev.PlacementMade | ev.HintGiven) -> Slot:
+    """Check that the session waits for ``step`` and that ``event`` is about the trial that
+    completed the current interaction; that interaction's slot."""
+    _check(state.step is step, f"{what} trial {event.trial_index} while {_waiting_for(state)}")
     slot = state.slots[state.cursor]
     completed = state.completed_trial.get(slot.interaction)
     _check(event.interaction == slot.interaction and event.trial_index == completed,
-           f"a placement for trial {event.trial_index} (interaction {event.interaction}); the scale "
+           f"{what} trial {event.trial_index} (interaction {event.interaction}); the session "
            f"waits for trial {completed} (interaction {slot.interaction})")
+    return slot
+
+
+def _placement_made(state: SessionState, event: ev.PlacementMade) -> None:
+    slot = _about_the_completed(state, Step.PLACE, "a placement of", event)
     markers = {m.interaction for m in state.markers}
     _check(event.equal_to is None or event.equal_to in markers,
            f"equal_to = {event.equal_to} is not on the scale (on it: {sorted(markers)})")
@@ -253,13 +260,7 @@ def _placement_made(state: SessionState, event: ev.PlacementMade) -> None:
 
 
 def _hint_given(state: SessionState, event: ev.HintGiven) -> None:
-    _check(state.step is Step.HINT, f"a hint about trial {event.trial_index} while "
-                                    f"{_waiting_for(state)}")
-    slot = state.slots[state.cursor]
-    completed = state.completed_trial.get(slot.interaction)
-    _check(event.interaction == slot.interaction and event.trial_index == completed,
-           f"a hint about trial {event.trial_index} (interaction {event.interaction}); the session "
-           f"waits for one about trial {completed} (interaction {slot.interaction})")
+    _about_the_completed(state, Step.HINT, "a hint about", event)
     _advance(state)
 
 
