@@ -151,6 +151,13 @@ class HintRow(_Row):
     given_at: str = Field(default_factory=utc_now, description="UTC ISO-8601 time")
     actor: Rater = Field(description=RATER_DESCRIPTION.split("; empty")[0])
 
+    @property
+    def hinted(self) -> dict[str, float] | None:
+        """θ' as ``{a, delta, k}``; None without a hint or when θ stood at the edge."""
+        if self.hinted_a is None or self.hinted_delta is None or self.hinted_k is None:
+            return None
+        return {"a": self.hinted_a, "delta": self.hinted_delta, "k": self.hinted_k}
+
 
 class ValidationRating(_Row):
     """The second interaction of a validation pair rated against the first (Sect. V-C)."""

@@ -56,17 +56,15 @@ def hint_id(interaction_id: InteractionId) -> InteractionId:
     return f"hint-{interaction_id}"
 
 
-def hint_observations(interaction_id: InteractionId, theta: Mapping[str, float],
-                      box: ParameterBox, direction: HintDirection, step: float
+def hint_observations(interaction_id: InteractionId, hinted: Mapping[str, float] | None
                       ) -> tuple[list[Interaction], list[Comparison]]:
-    """What a hint about the handover ``interaction_id`` (run with ``theta``) adds to the learner:
-    the hinted point θ' (not shown) and θ' ≻ θ; nothing when θ stands at the edge."""
-    moved = hinted_theta(theta, box, direction, step)
-    if moved is None:
+    """What a hint about the handover ``interaction_id`` adds to the learner: the hinted point θ'
+    (:func:`hinted_theta`; not shown) and θ' ≻ θ; nothing without θ' (θ stood at the edge)."""
+    if hinted is None:
         return [], []
-    hinted = hint_id(interaction_id)
-    return ([Interaction(interaction_id=hinted, theta=moved, shown=False)],
-            [Comparison(winner=hinted, loser=interaction_id)])
+    point = hint_id(interaction_id)
+    return ([Interaction(interaction_id=point, theta=dict(hinted), shown=False)],
+            [Comparison(winner=point, loser=interaction_id)])
 
 
 def felt_hint(utility_gain: Mapping[HintDirection, float], noise: float, threshold: float,

@@ -290,7 +290,8 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         if condition.coactive:
             hint = participant_hint(condition, box, suggestion.theta, distance, hint_rng)
             if hint is not None:
-                hinted = hint_observations(iid, suggestion.theta, box, hint, condition.hint_step)
+                hinted = hint_observations(iid, hinted_theta(suggestion.theta, box, hint,
+                                                             condition.hint_step))
                 hints += 1
         count(learner.observe_many(
             [Interaction(interaction_id=iid, theta=suggestion.theta), *hinted[0]],

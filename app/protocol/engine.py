@@ -295,7 +295,8 @@ class SessionEngine:
         slot = self._require_slot(Step.HINT)
         theta = self.state.planned[slot.interaction].theta
         hinted = None if hint is None else hinted_theta(
-            theta.model_dump(), self._box, DIRECTIONS[hint], self.config.hint_step)
+            theta.model_dump(), ParameterBox.from_bounds(self.config.theta_bounds),
+            DIRECTIONS[hint], self.config.hint_step)
         row = HintRow(trial_index=self.state.completed_trial[slot.interaction],
                       interaction=slot.interaction, batch=slot.batch, hint=hint,
                       step=self.config.hint_step,
@@ -309,23 +310,13 @@ class SessionEngine:
         self._teach(slot, comparisons_for_newest(scale, ties=True), row)
         return row
 
-    @property
-    def _box(self) -> ParameterBox:
-        return ParameterBox.from_bounds(self.config.theta_bounds)
-
     def _observations(self, interaction: int, learned: list[LearnedComparison],
                       hint: HintRow | None) -> tuple[list[Interaction], list[LearnedComparison]]:
         """What the learner gets for a placed interaction: its θ with the placement's comparisons
-        (``learned``, ties included), and the hint's θ' ≻ θ if one was given."""
+        (``learned``, ties included), and the hint's stored θ' ≻ θ if one was given."""
         theta = self.state.planned[interaction].theta.model_dump()
-        interactions = [Interaction(interaction_id=str(interaction), theta=theta)]
-        comparisons = list(learned)
-        if hint is not None and hint.hint is not None:
-            more, hinted = hint_observations(str(interaction), theta, self._box,
-                                             DIRECTIONS[hint.hint], hint.step)
-            interactions += more
-            comparisons += hinted
-        return interactions, comparisons
+        more, hinted = hint_observations(str(interaction), None if hint is None else hint.hinted)
+        return [Interaction(interaction_id=str(interaction), theta=theta), *more], [*learned, *hinted]
 
     def _teach(self, slot: Slot, learned: list[LearnedComparison], hint: HintRow | None) -> None:
         """Send an interaction's observations to the running learner. A session resumed in a fresh

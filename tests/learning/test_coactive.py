@@ -48,8 +48,8 @@ def test_a_hint_with_an_unknown_parameter_or_step_names_the_field_and_range():
 
 
 def test_a_hint_is_a_point_not_shown_preferred_to_the_handover():
-    interactions, comparisons = hint_observations(
-        "7", {"a": 4.0, "delta": 0.0, "k": 3.0}, BOX, HintDirection(parameter="k", sign=-1), 0.1)
+    interactions, comparisons = hint_observations("7", hinted_theta(
+        {"a": 4.0, "delta": 0.0, "k": 3.0}, BOX, HintDirection(parameter="k", sign=-1), 0.1))
     (point,) = interactions
     assert (point.interaction_id, point.shown) == ("hint-7", False)
     assert point.theta == {"a": 4.0, "delta": 0.0, "k": pytest.approx(3.0 - 0.1 * 14.99)}
@@ -67,8 +67,8 @@ def _observe_with_hint(learner: PreferenceLearner) -> None:
         assert theta is not None
         comparisons = [Comparison(winner=str(number), loser=str(earlier))
                        for earlier in range(1, number)]
-        hint_points, hint_comparisons = hint_observations(
-            str(number), theta, BOX, HintDirection(parameter="k", sign=1), 0.3)
+        hint_points, hint_comparisons = hint_observations(str(number), hinted_theta(
+            theta, BOX, HintDirection(parameter="k", sign=1), 0.3))
         learner.observe_many([Interaction(interaction_id=str(number), theta=theta), *hint_points],
                              comparisons + hint_comparisons)
 
