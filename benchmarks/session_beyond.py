@@ -41,7 +41,7 @@ from recommendation_study import ratio_ci
 
 from app.learning.cluster import dask_client, run_tasks
 from app.learning.rng import derive_seed
-from app.protocol.auto import rate_once
+from app.protocol.auto import act_once
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
@@ -91,15 +91,7 @@ def run_session(arm: str, scenario: Scenario, participant: int, study_seed: int)
         engine = SessionEngine.create(Path(folder), "P01", config)
         try:
             while engine.state.step is not Step.DONE:
-                step = engine.state.step
-                if step is Step.PLAN:
-                    engine.plan_next()
-                elif step is Step.READY:
-                    plan = engine.start_trial()
-                    engine.end_trial(plan.trial.trial_index, simulate_trial(
-                        config.controller, plan.theta, scenario, plan.trial.hand_seed))
-                else:
-                    rate_once(engine, simulated)
+                act_once(engine, simulated)
             trials = [t for t in engine.store.rows("trials") if t.outcome == "completed"]
             best = next(t for t in trials if t.phase == Phase.BEST)
             ratings = [r for r in engine.store.rows("validation_ratings")

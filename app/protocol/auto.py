@@ -7,6 +7,7 @@ from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
+from robot_io.control.trial import simulate_trial
 from session_store.models import Trial
 from session_store.vocabulary import Phase, Rater
 
@@ -43,3 +44,22 @@ def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
     else:
         raise RefusedAction(f"the simulated participant has nothing to do at {step.value!r}")
 
+
+
+def act_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
+    """Do whatever the session waits for, once, in this process, as a headless session with the
+    simulated experimenter and participant would: resume a pause, plan, run a trial (one reach of
+    the mock arm and the simulated hand on simulated time, without the rig process), or let the
+    participant place, hint, rate or answer (:func:`rate_once`)."""
+    state = engine.state
+    if state.paused:
+        engine.resume_session()
+    elif state.step is Step.PLAN:
+        engine.plan_next()
+    elif state.step is Step.READY:
+        plan = engine.start_trial()
+        record = simulate_trial(engine.config.controller, plan.theta, engine.config.scenario,
+                                plan.trial.hand_seed)
+        engine.end_trial(plan.trial.trial_index, record)
+    else:
+        rate_once(engine, participant)

@@ -5,13 +5,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from app.protocol.auto import rate_once
+from app.protocol.auto import act_once as step_once
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
 from robot_io.config import ControllerConfig, LoopConfig
-from robot_io.control.trial import simulate_trial
 from robot_io.hands.simulated_hand import Scenario
 
 #: 3 initial + 1 learning batch of 3 + 1 best + 1 validation pair = 9 interactions
@@ -53,23 +52,6 @@ def brief_config(seed: int = 1) -> StudyConfig:
     """A participant's plan of :data:`BRIEF_PROTOCOL` (its lab-config switch is not the plan's)."""
     return study_config(seed, **{key: value for key, value in BRIEF_PROTOCOL.items()
                                  if key != "without_learning"})
-
-
-def step_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
-    """Do whatever the session waits for, once, in this process: a trial is one reach of the mock
-    arm on simulated time (sessions run their trials on the rig; this is the engine's own tests)."""
-    state = engine.state
-    if state.paused:
-        engine.resume_session()
-    elif state.step is Step.PLAN:
-        engine.plan_next()
-    elif state.step is Step.READY:
-        plan = engine.start_trial()
-        record = simulate_trial(engine.config.controller, plan.theta, engine.config.scenario,
-                                plan.trial.hand_seed)
-        engine.end_trial(plan.trial.trial_index, record)
-    else:
-        rate_once(engine, participant)
 
 
 def drive_until(engine: SessionEngine, step: Step, participant: SimulatedParticipant | None = None,
