@@ -104,14 +104,10 @@ class RobotFeed:
         if stream is None or self._go is None:
             return
         trial, go = self._go
-        if stream.trial_index != trial:
+        rows = stream.rows_of(trial, self._pushed)  # none once the next trial began
+        if len(rows) == 0:
             return
-        # the row being written is the last counted one; a finished trial's are all written
-        end = stream.count if stream.finished else stream.count - 1
-        rows = stream.rows[self._pushed:end].copy()
-        if stream.trial_index != trial or len(rows) == 0:
-            return  # the next trial began meanwhile: its rows are not this one's
-        self._pushed = end
+        self._pushed += len(rows)
         rows = rows[np.isfinite(rows[:, T])]
         chunk = np.column_stack([np.full(len(rows), float(trial)), rows[:, ROBOT_INDEX]])
         self._outlet.push_chunk(chunk, (go + rows[:, T]).tolist())

@@ -56,10 +56,9 @@ class TimingWatch:
     def check(self, stream: SampleStream) -> RigTiming | None:
         if stream.trial_index != self._trial:
             self._start_trial(stream.trial_index)
-        done = stream.count - 1  # the last row counted may still be being written
-        if done > self._seen:
-            rows = stream.rows[self._seen:done]
-            self._seen = done
+        rows = stream.rows_of(self._trial, self._seen)
+        if len(rows):
+            self._seen += len(rows)
             lateness = rows[:, SLICES["lateness_s"]].ravel()
             age = (rows[:, SLICES["t"]] - rows[:, SLICES["hand_t"]]).ravel()
             late = lateness[lateness > self.late_bound_s]
