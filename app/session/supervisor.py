@@ -84,6 +84,7 @@ class TrialSupervisor:
         self._plan: TrialPlan | None = None
         self._abort_reason: str | None = None
         self._abort_actor = Actor.SYSTEM
+        self._closed = False  # close() has begun: no rig opens any more
 
     # -- reading (any thread, never blocks) --------------------------------------------------------
     @property
@@ -126,8 +127,13 @@ class TrialSupervisor:
                 self._set(fault=explain(exc))
             raise RefusedAction(f"the rig could not start: {explain(exc)}") from exc
         with self._state_lock:
-            self._rig = rig
-            self._set(devices=rig.devices, fault=None, timing=None, hand_link=None)
+            closed = self._closed
+            if not closed:
+                self._rig = rig
+                self._set(devices=rig.devices, fault=None, timing=None, hand_link=None)
+        if closed:  # the session closed while this rig started: it never runs a trial
+            rig.close()
+            raise RefusedAction("the session closed while its rig started")
 
     def close_rig(self) -> None:
         """Close the rig process at the end of a session."""
@@ -227,6 +233,7 @@ class TrialSupervisor:
         """Stop the arm first (a running trial is recorded aborted with ``reason``), then close the
         rig and wait until its last reports are handed on."""
         with self._state_lock:
+            self._closed = True
             rig = self._rig
             if rig is not None and rig.running is not None:
                 self._abort_reason = self._abort_reason or reason
@@ -240,9 +247,17 @@ class TrialSupervisor:
                       "recorded aborted when the session resumes")
 
     # -- the rig's reports (its reader thread) -----------------------------------------------------
-    def _on_report(self, report: Report | RigDied) -> None:
-        if isinstance(report, StageReached):
-            self._on_stage(report)
+    def _on_report(self, rig: RigClient, report: Report | RigDied) -> None:
+        """``rig``'s report. A trial's end is recorded from whichever rig ran it; what the other
+        reports say of the arm is dropped when they come from a rig already replaced."""
+        if isinstance(report, TrialDone):
+            self._on_trial_done(rig, report)
+        elif isinstance(report, RigDied):
+            self._on_death(rig, report)
+        elif rig is not self._rig:
+            log.info("a report of a closed rig left out: %s", type(report).__name__)
+        elif isinstance(report, StageReached):
+            self._on_stage(rig, report)
         elif isinstance(report, ReadyWaiting):
             with self._state_lock:
                 self._set(ready_wait=report.why)
@@ -253,17 +268,14 @@ class TrialSupervisor:
             with self._state_lock:
                 self._set(hand_link=report.notice)
             self._recording.news(None)
-        elif isinstance(report, TrialDone):
-            with self._state_lock:
-                timing = self._status.timing
-                if timing is not None and timing.trial_index != report.trial_index:
-                    self._set(timing=None)  # this trial ran on time
-                rig = self._rig
-            assert rig is not None, "its reader reports a trial's end before the rig is closed"
-            self._flush_outlets()
-            self._finish(report.trial_index, TrialRecord(report.summary, rig.stream.columns()))
-        elif isinstance(report, RigDied):
-            self._on_death(report)
+
+    def _on_trial_done(self, rig: RigClient, report: TrialDone) -> None:
+        with self._state_lock:
+            timing = self._status.timing
+            if timing is not None and timing.trial_index != report.trial_index:
+                self._set(timing=None)  # this trial ran on time
+        self._flush_outlets()
+        self._finish(report.trial_index, TrialRecord(report.summary, rig.stream.columns()))
 
     def _on_timing(self, report: RigTiming) -> None:
         with self._state_lock:
@@ -275,13 +287,13 @@ class TrialSupervisor:
         self._recording.changed(f"trial {report.trial_index}: the rig's timing runs late (see "
                                 "Devices)" if first else None)
 
-    def _on_death(self, report: RigDied) -> None:
+    def _on_death(self, rig: RigClient, report: RigDied) -> None:
         with self._state_lock:
-            self._set(fault=report.reason)
-            rig, reason = self._rig, self._abort_reason or report.reason
+            if rig is self._rig:
+                self._set(fault=report.reason)
+            reason = self._abort_reason or report.reason
         self._flush_outlets()
         if report.trial_index is not None:
-            assert rig is not None, "a trial ran on it: the rig is closed only once none runs"
             record = not_started(rig.spec.config, self._realtime, Outcome.ERROR, report.reason)
             self._finish(report.trial_index, TrialRecord(record.summary, rig.stream.columns()),
                          reason)
@@ -295,16 +307,16 @@ class TrialSupervisor:
         if outlets is not None:
             outlets.feed.flush()
 
-    def _on_stage(self, report: StageReached) -> None:
+    def _on_stage(self, rig: RigClient, report: StageReached) -> None:
         with self._state_lock:
-            plan, rig = self._plan, self._rig
+            plan = self._plan
             if report.stage is Stage.READY:
                 self._set(ready_wait=None)
         outlets = self._recording.outlets()
         if report.stage is Stage.GO and outlets is not None:
             outlets.feed.go(report.trial_index, report.monotonic)
         if report.stage is Stage.GO and self._rehearsal is not None and plan is not None:
-            assert rig is not None and rig.spec.scenario is not None, \
+            assert rig.spec.scenario is not None, \
                 "the rig that reports its plan's trial, opened with the session's scenario"
             self._rehearsal.play(rig.spec.scenario, plan.trial.hand_seed, report.monotonic)
         self._recording.stage(report)

@@ -9,6 +9,13 @@ would end it anyway within 1/watchdog_hz), and it kills the rig process. The sam
 itself when the rig stops writing samples for ``HANG_S`` while it streams. The other way round,
 the same watchdog thread sends the rig a heartbeat during a trial: a rig that hears nothing from a
 frozen application for ``APP_SILENCE_S`` stops the arm (robot_io.rig.process.Inbox).
+
+Lifetimes (docs/architecture.md, "Shared objects and their lifetimes"): the client creates the
+sample stream, the pipe, the dashboard connection and its two threads. The pipe is closed by the
+reader alone, once the rig's end is gone. The sample stream has two holders, :meth:`RigClient.close`
+and the reader (which reads a trial's rows when it hands on the trial's end): the second of them to
+be done releases it, so no report is ever handed on with its rows unmapped, and close() never waits
+for the reader (which may itself wait for the thread that closes). The watchdog is joined by close().
 """
 
 from __future__ import annotations
@@ -77,7 +84,8 @@ class RigError(RobotIOError):
     """The rig process could not be started or is gone."""
 
 
-Listener = Callable[[Report | RigDied], None]
+#: Hears each report with the client it came from (its sample stream is readable during the call).
+Listener = Callable[["RigClient", Report | RigDied], None]
 
 
 class RigClient:
@@ -90,17 +98,18 @@ class RigClient:
         # a UR's rate (125 or 500 Hz) is known only once connected: room for the faster
         rate = spec.config.loop.rate_hz if spec.config.arm.kind == "mock" else 500
         self.stream = SampleStream(capacity_for(spec.config, rate))
+        self._holders, self._holders_lock = 1, threading.Lock()  # of the stream: see _let_go
         context = multiprocessing.get_context("spawn")
         self._conn, child = context.Pipe()
         # not a daemon: the rig starts its own child (the ur_rtde control worker)
         self.process = context.Process(target=process.main, name="handover-rig",
-                                       args=(child, spec, self.stream.name, len(self.stream.rows),
+                                       args=(child, spec, self.stream.name, self.stream.capacity,
                                              logging.getLogger().getEffectiveLevel()))
         self.process.start()
         child.close()
         self.stage: Stage | None = None
         self.running: int | None = None  # the trial index the rig is running
-        self._closing = False
+        self._closing = False  # close() has begun: the rig's end is expected, not a death
         self._stop_ack = threading.Event()
         self._recovered = threading.Event()
         self._recovery: Recovered | None = None
@@ -111,8 +120,9 @@ class RigClient:
         except BaseException:
             self.kill()
             self._conn.close()  # no reader yet
-            self.stream.close(unlink=True)
+            self._let_go()
             raise
+        self._holders = 2  # close() and the reader, which hands on each trial's rows
         self._reader = threading.Thread(target=self._read, name="rig-reader", daemon=True)
         self._reader.start()
         self._watchdog = threading.Thread(target=self._watch, name="rig-watchdog", daemon=True)
@@ -220,16 +230,30 @@ class RigClient:
         return self.process.exitcode is not None
 
     def close(self) -> None:
-        """Shut the rig down (it stops the arm and releases its devices); kill it if it hangs."""
+        """Shut the rig down (it stops the arm and releases its devices); kill it if it hangs.
+        From any thread but the watchdog; a second call does nothing."""
+        if self._closing:
+            return
         self._closing = True
         self._send(Shutdown())
         if not self._wait_reaped(CLOSE_S):
             log.error("the rig process did not exit within %g s: killing it", CLOSE_S)
             self.backstop("the rig did not shut down")
         # the pipe is not closed here: the reader closes it once the rig's end is gone (_read)
+        self._watchdog.join()  # it ends within a heartbeat of _closing (or of the rig's end)
         if self._stopper is not None:
             self._stopper.close()
-        self.stream.close(unlink=True)
+        self._let_go()
+
+    def _let_go(self) -> None:
+        """One holder of the sample stream is done with it (close(), or the reader at its end);
+        the last one releases it. A read that another thread (a screen, the LSL feed) makes after
+        that reads an empty stream (robot_io.rig.stream)."""
+        with self._holders_lock:
+            self._holders -= 1
+            last = self._holders == 0
+        if last:
+            self.stream.close(unlink=True)
 
     def reports_handed_on(self, timeout: float = CLOSE_S) -> bool:
         """After :meth:`close`: wait until every report the rig sent (a stopped trial's end among
@@ -246,19 +270,23 @@ class RigClient:
         None (the thread dies) or, had the number been reused, another file. Sends take the same
         lock, so none is under way when it closes."""
         try:
-            self._hand_on()
+            try:
+                self._hand_on()
+            finally:
+                with self._send_lock:
+                    self._conn.close()
+            self._wait_reaped()  # a killed rig is reported with its exit code
+            if not self._closing:
+                code = self.process.exitcode
+                how = (f"killed by signal {-code}" if code is not None and code < 0
+                       else f"exit code {code}")
+                stage = self.stage
+                self._notify(RigDied(trial_index=self.running, reason=(
+                    f"the rig process ended ({how})" + (f" during {stage.value}" if stage else "")
+                    + "; the arm was stopped by its control worker or the controller's watchdog")))
+                self.running = None
         finally:
-            with self._send_lock:
-                self._conn.close()
-        self._wait_reaped()  # a killed rig is reported with its exit code
-        if not self._closing:
-            code = self.process.exitcode
-            how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
-            stage = self.stage
-            self._notify(RigDied(trial_index=self.running, reason=(
-                f"the rig process ended ({how})" + (f" during {stage.value}" if stage else "")
-                + "; the arm was stopped by its control worker or the controller's watchdog")))
-            self.running = None
+            self._let_go()
 
     def _hand_on(self) -> None:
         """Every report to what waits for it and to the listener, until the pipe ends."""
@@ -280,7 +308,7 @@ class RigClient:
 
     def _notify(self, report: Report | RigDied) -> None:
         try:
-            self._listener(report)
+            self._listener(self, report)
         except Exception:
             log.exception("handling a rig report failed")
 
@@ -324,12 +352,15 @@ class RigClient:
 
 
 class DashboardStop:
-    """The UR controller's dashboard server as an independent stop path (port 29999)."""
+    """The UR controller's dashboard server as an independent stop path (port 29999). ur_rtde's
+    client is not thread-safe, and a stop may come from a screen's thread and the watchdog while
+    the client closes: every use of it is under one lock. A stop after :meth:`close` connects again."""
 
     def __init__(self, host: str) -> None:
         import dashboard_client
 
         self.host = host
+        self._lock = threading.Lock()
         self._client = dashboard_client.DashboardClient(host)
         try:
             self._client.connect(2000)
@@ -337,16 +368,18 @@ class DashboardStop:
             log.error("no dashboard connection to %s for the backstop: %s", host, exc)
 
     def stop(self) -> None:
-        try:
-            if not self._client.isConnected():
-                self._client.connect(1000)
-            self._client.stop()
-        except Exception:
-            log.critical("the dashboard stop of %s failed: use the emergency stop", self.host,
-                         exc_info=True)
+        with self._lock:
+            try:
+                if not self._client.isConnected():
+                    self._client.connect(1000)
+                self._client.stop()
+            except Exception:
+                log.critical("the dashboard stop of %s failed: use the emergency stop", self.host,
+                             exc_info=True)
 
     def close(self) -> None:
-        try:
-            self._client.disconnect()
-        except Exception:
-            log.warning("closing the dashboard connection failed", exc_info=True)
+        with self._lock:
+            try:
+                self._client.disconnect()
+            except Exception:
+                log.warning("closing the dashboard connection failed", exc_info=True)

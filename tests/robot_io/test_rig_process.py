@@ -36,7 +36,7 @@ class Reports:
         self.queue: queue.Queue = queue.Queue()
         self.seen: list = []
 
-    def __call__(self, report) -> None:
+    def __call__(self, _rig, report) -> None:
         self.queue.put(report)
 
     def until(self, predicate, what: str = "the expected report", timeout: float = 60.0):
