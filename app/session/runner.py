@@ -23,7 +23,6 @@ import itertools
 import logging
 import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TypeVar
 
@@ -39,6 +38,7 @@ from app.session.access import TABLET_BROWSER_FILE, KnownBrowsers
 from app.session.autopilot import Autopilot
 from app.session.config import LabConfig
 from app.session.engine_side import END_REASON, REOPEN_REASON, EngineSide
+from app.session.engine_thread import EngineThread, SessionClosed
 from app.session.faults import StagedFault
 from app.session.opening import rig_identity, trial_config
 from app.session.pairing import TabletPairing
@@ -87,8 +87,7 @@ class SessionRunner:
         self.lab = rehearsal.lab if rehearsal is not None else lab
         self.realtime = realtime
         self.auto_experimenter = auto_experimenter
-        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="engine")
-        self._engine_thread = self._executor.submit(threading.get_ident).result()
+        self._engine = EngineThread()  # created here, closed last by close()
         self._side = EngineSide(study, self.lab, realtime=realtime)  # on the engine thread only
         self._made = itertools.count(1)  # views, numbered as they are made (on the engine thread)
         # the experimenter's switches, from any thread under the switches' lock (one read or write)
@@ -98,7 +97,8 @@ class SessionRunner:
         self._refusing_object = False
         self._pairing: TabletPairing | None = None  # set once, by attach_tablet before serving
         self._closing = threading.Event()
-        self._publisher = Publisher(lambda: self._call(self._make_view), self._status)
+        self._publisher = Publisher(lambda: self._call(self._make_view), self._status,
+                                    self._engine.forbid)
         self._supervisor = TrialSupervisor(
             Recording(stage=self._record_stage, trial_end=self._record_trial_end,
                       outlets=lambda: self._side.outlets, changed=self._publisher.changed,
@@ -264,8 +264,8 @@ class SessionRunner:
         this)."""
         with self._switches:
             self._auto = on
-        self._executor.submit(self._side.record, "the simulated participant's switch",
-                              lambda engine: engine.switch_simulated_participant(on))
+        self._post(lambda: self._side.record("the simulated participant's switch",
+                                             lambda engine: engine.switch_simulated_participant(on)))
         self._news(f"simulated participant {'on' if on else 'off'}")
 
     def set_blinding(self, blind: bool) -> None:
@@ -274,8 +274,8 @@ class SessionRunner:
         one opened later, so each session says how its validation was run."""
         with self._switches:
             self._blind = blind
-        self._executor.submit(self._side.record, "the validation's blinding",
-                              lambda engine: engine.set_blinding(blind))
+        self._post(lambda: self._side.record("the validation's blinding",
+                                             lambda engine: engine.set_blinding(blind)))
 
     def stage_fault(self, fault: StagedFault) -> None:
         """A rehearsal stages ``fault`` now (see :mod:`app.session.faults`); refused on the rig."""
@@ -345,33 +345,52 @@ class SessionRunner:
     # -- shutdown ---------------------------------------------------------------------------------
     def close(self, reason: str = CLOSE_REASON) -> None:
         """Stop the arm first, then close the rig, the engine and its store, and the rehearsal; a
-        running trial is recorded aborted with ``reason``. Closing twice does nothing more."""
+        running trial is recorded aborted with ``reason``. Closing twice does nothing more. Not
+        from the engine thread nor from a subscriber (it waits for both).
+
+        The order is each shared object's users before its releaser (docs/architecture.md,
+        "Shared objects and their lifetimes"): the worker is told to stop and the screens get no
+        more views; the supervisor stops the arm and closes the rig, waiting until its last reports
+        (a stopped trial's end) are recorded on the engine thread; the engine thread closes the
+        outlets, the store and the writer lock, and then ends, refusing every later job
+        (:class:`~app.session.engine_thread.SessionClosed`, which the worker takes as its end);
+        the worker is joined; the rehearsal's stand-ins go last, after the rig that spoke to them."""
+        self._engine.forbid("closing the session")
         if self._closing.is_set():
             return
         self._closing.set()
         self._autopilot.stop()
         self._publisher.close()
         self._supervisor.close(reason)
-        self._call(self._side.close)
-        self._executor.shutdown()
-        self._autopilot.join(2.0)
-        if self.rehearsal is not None:
-            self.rehearsal.close()
+        try:
+            self._call(self._side.close)
+        finally:
+            self._engine.close()
+            self._autopilot.join()
+            if self.rehearsal is not None:
+                self.rehearsal.close()
 
     # -- internals: on the engine thread ----------------------------------------------------------
     def _call(self, job: Callable[[], T]) -> T:
         """Run ``job`` on the engine thread and return its result (or raise its exception; a
         failed write to the study stops the session: :meth:`EngineSide.storage_failed`, published
         here the first time)."""
-        if threading.get_ident() == self._engine_thread:
+        if self._engine.on_it():
             return job()
         try:
-            return self._executor.submit(self._guarded, job).result()
+            return self._engine.call(lambda: self._guarded(job))
         except _SessionStopped as stopped:
             if stopped.first:
                 log.error("the session stops: %s", stopped.reason)
                 self._changed(stopped.reason)
             raise RefusedAction(stopped.reason) from stopped.__cause__
+
+    def _post(self, job: Callable[[], object]) -> None:
+        """Queue ``job`` on the engine thread without waiting (nothing once the session closed)."""
+        try:
+            self._engine.post(job)
+        except SessionClosed:
+            log.info("not recorded: the session is closed")
 
     def _guarded(self, job: Callable[[], T]) -> T:
         try:
