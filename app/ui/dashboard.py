@@ -172,7 +172,8 @@ class DashboardClient:
         self.replay: Replay | None = None
         self._code: str | None = "-"
         self._error_key: tuple | None = None
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # over every change of this page's panels, and its close
+        self._closed = False  # the browser left: nothing is drawn for it any more
         if gate.recognised(client.client_id):  # unlocked in this browser before
             self.refresh(runner.view, rebuild=True)
         else:
@@ -201,8 +202,8 @@ class DashboardClient:
         """Show ``view``; ``rebuild``: build the panels anew (the first build is the unlock: the
         window is then one of the dashboard windows, and every window is told)."""
         with self._lock:
-            if self.live is None and not rebuild:
-                return  # still locked
+            if self._closed or (self.live is None and not rebuild):
+                return  # gone, or still locked
             unlocking = self.live is None
             if unlocking:
                 self.windows.opened(self.client.client_id, self.address)
@@ -231,8 +232,17 @@ class DashboardClient:
             self._on_windows()
 
     def tick(self) -> None:
-        if self.live is not None and (self.replay is None or not self.replay.running):
-            self.live.update(self.runner.live(STRIDE)[1])
+        """The live view's next frame (the ticker's thread), unless a replay draws or the page left."""
+        with self._lock:
+            if (not self._closed and self.live is not None
+                    and (self.replay is None or not self.replay.running)):
+                self.live.update(self.runner.live(STRIDE)[1])
+
+    def close(self) -> None:
+        """The browser left: no more refreshes, frames or replay for it."""
+        with self._lock:
+            self._closed = True
+        self.cancel_replay()
 
     def _build(self, view: RunnerView) -> None:
         gui = self.client.gui
@@ -460,7 +470,7 @@ class Dashboard:
         page = self.clients.pop(client.client_id, None)
         self.windows.closed(client.client_id)
         if page is not None:
-            page.cancel_replay()
+            page.close()
             self._windows_changed()
 
     def _windows_changed(self) -> None:

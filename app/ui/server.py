@@ -94,9 +94,10 @@ class HandoverServers:
                 log.exception("live view update failed")
 
     def close(self) -> None:
-        """Stop the arm and end the session cleanly, then the servers."""
-        self.runner.close()
+        """End the live view's ticker (a reader of the rig's samples), then stop the arm and end
+        the session cleanly, then the servers (the pages' STOP ARM stays until the arm is stopped)."""
         self._closed.set()
-        self._ticker.join(1.0)
+        self._ticker.join()
+        self.runner.close()
         self.tablet_server.stop()
         self.dashboard_server.stop()
