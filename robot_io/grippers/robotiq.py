@@ -223,8 +223,14 @@ class RobotiqSocketGripper:
             raise self._fault
 
     def disconnect(self) -> None:
+        """End the worker, then close its socket (never under a worker still in a request: the
+        socket's number could be reused by then); a worker that does not end keeps it (logged)."""
         self._jobs.put(None)
         self._worker.join(timeout=self.config.move_timeout_s + 2 * self.config.reply_timeout_s)
+        if self._worker.is_alive():
+            log.error("gripper: its worker did not end; its URCap socket stays open until the rig "
+                      "exits")
+            return
         self._link.close()
 
     # -- the worker --------------------------------------------------------------------------------

@@ -47,7 +47,7 @@ from robot_io.errors import HandSourceError
 from robot_io.hands.config import NatNetSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.frame_clock import FrameClock
-from robot_io.hands.tracked_hand import RECONNECT_TIMEOUT_S, TrackedHand
+from robot_io.hands.tracked_hand import RECEIVER_JOIN_S, RECONNECT_TIMEOUT_S, TrackedHand
 
 log = logging.getLogger(__name__)
 
@@ -284,6 +284,6 @@ class NatNetHand(TrackedHand):
     def close(self) -> None:
         """Stop the watchdog, then the client's threads, and close its sockets."""
         self._closing.set()
-        self._watchdog.join(RECONNECT_TIMEOUT_S + 1.0)
+        self._watchdog.join(RECEIVER_JOIN_S)
         self.client.shutdown()
         super().close()
