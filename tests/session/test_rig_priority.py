@@ -104,16 +104,23 @@ def test_a_rig_held_off_the_cpu_mid_reach_is_reported_on_the_dashboard(tmp_path)
         os.kill(rig.pid, signal.SIGSTOP)
         time.sleep(HELD_S)  # holds the rig off the CPU at least this long; nothing is measured here
         os.kill(rig.pid, signal.SIGCONT)
-        view = probe.wait(lambda v: v.timing_warning is not None, what="the timing warning")
+        # a loaded machine may make a cycle a little late before the hold: that warning comes
+        # first, the hold's figures within REPORT_AGAIN_S after it
+        view = probe.wait(lambda v: held_off(v.timing_warning), what="the timing warning of the hold")
     finally:
         runner.close()
-    late = re.search(r"(\d+) control cycles started late, by up to (\d+) ms", view.timing_warning)
-    assert late and int(late[1]) >= 1 and int(late[2]) >= HELD_S * 1e3 - 8, view.timing_warning
+    assert view.timing_warning is not None
     assert "the rig runs without real-time priority: grant it" in view.timing_warning
     devices = devices_markdown(view)
     assert ("- **timing**: no real-time priority (normal scheduling): trials may run late on a busy "
             f"machine — ⚠ **{view.timing_warning}**") in devices, devices
     assert any("the rig's timing runs late (see Devices)" in m for m in view.messages), view.messages
+
+
+def held_off(warning: str | None) -> bool:
+    """Whether ``warning`` says that control cycles started late by about HELD_S."""
+    late = re.search(r"(\d+) control cycles started late, by up to (\d+) ms", warning or "")
+    return bool(late and int(late[1]) >= 1 and int(late[2]) >= HELD_S * 1e3 - 8)
 
 
 @pytest.mark.parametrize(("text", "setting"), [("", "auto"), ('realtime_priority = "auto"', "auto"),
