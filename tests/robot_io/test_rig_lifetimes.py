@@ -11,7 +11,7 @@ from support.lifetimes import survive
 
 from robot_io.rig.stream import SampleStream
 
-pytestmark = pytest.mark.soak
+pytestmark = pytest.mark.stress
 
 
 def test_a_released_stream_reads_as_empty_and_a_second_release_does_nothing():

@@ -17,7 +17,7 @@ from app.session.engine_thread import SessionClosed, WrongThread
 from app.session.runner import SessionRunner
 from robot_io.hands.simulated_hand import Scenario
 
-pytestmark = pytest.mark.soak
+pytestmark = pytest.mark.stress
 
 
 def test_sessions_switched_shut_down_or_left_by_a_dead_rig_while_trials_end_and_screens_read():
