@@ -29,6 +29,14 @@ def test_sessions_switched_shut_down_or_left_by_a_dead_rig_while_trials_end_and_
     survive("session", 3)
 
 
+@pytest.mark.standin
+def test_rehearsed_sessions_on_the_wall_clock_switched_shut_down_or_left_by_a_dead_rig():
+    """The same on a rehearsal rig: ur_rtde's interfaces to the stand-in controller, the dashboard
+    backstop, the hand on LSL, the study's LSL outlets, all opened and released with each session.
+    About 20 CPU-s a cycle (the stand-in, the rig and the hand run in real time)."""
+    survive("rehearsal", 1)
+
+
 def test_the_study_outlets_close_while_the_feed_and_a_trials_end_push():
     survive("outlets", 30)
 

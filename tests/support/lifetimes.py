@@ -14,6 +14,10 @@ exit: threads re-raise through :func:`run_threads`.
 - ``session``: the session runner on the mock arm (simulated time, the simulated participant and
   experimenter), with screens reading its views and live rows, ended by a participant switch, a
   shutdown or the rig's death at a random moment.
+- ``serve``: ``serve``'s two servers, pages of the tablet and the dashboard opening and leaving
+  (viser's client handles) while views are published, then closed as Ctrl-C closes serve.
+- ``rehearsal``: the session on a rehearsal rig on the wall clock: ur_rtde's interfaces to the
+  stand-in controller, the dashboard backstop, the hand on NatNet or LSL, the study's LSL outlets.
 - ``outlets``: the study's LSL outlets, pushed to from the feed thread, a trial's end and the
   engine's markers, closed while the rig's stream is released.
 - ``hands``: the LSL and UDP hand sources, receiving samples, closed at a random moment.
@@ -254,6 +258,116 @@ def _outlets_cycle(rng: np.random.Generator, cycle: int) -> None:
     rig_side.close()
 
 
+# -- serve ----------------------------------------------------------------------------------------
+def serve(cycles: int) -> None:
+    rng = np.random.default_rng(SEED)
+    with tempfile.TemporaryDirectory(prefix="lifetimes-") as folder:
+        for cycle in range(cycles):
+            _serve_cycle(rng, Path(folder) / "study", cycle)
+            progress(cycle, cycles, "serve")
+    print(f"survived {cycles} cycles", flush=True)
+
+
+def _serve_cycle(rng: np.random.Generator, study: Path, cycle: int) -> None:
+    """``serve``'s servers over a session on simulated time, pages of both screens coming and going
+    (viser's websocket, as a browser opens it) while views are published and the live view ticks;
+    then the servers closed, as Ctrl-C closes serve."""
+    import viser
+    from websockets.exceptions import ConnectionClosed, InvalidStatus
+    from websockets.sync.client import connect
+
+    from app.session.config import LabConfig
+    from app.session.runner import SessionRunner
+    from app.ui.server import HandoverServers, ServeOptions
+    from robot_io.hands.simulated_hand import Scenario
+    from support.engine import BRIEF_PROTOCOL
+
+    runner = SessionRunner(study, LabConfig.model_validate({"protocol": BRIEF_PROTOCOL}),
+                           realtime=False, auto_experimenter=True)
+    try:
+        servers = HandoverServers(runner, ServeOptions(tablet_port=0, dashboard_port=0,
+                                                       token="stress-token"))
+    except BaseException:
+        runner.close()
+        raise
+    ports = [servers.tablet_server.get_port(), servers.dashboard_server.get_port()]
+
+    def pages(stop: threading.Event) -> None:
+        while not stop.is_set():
+            port = ports[int(rng.integers(2))]
+            try:
+                with connect(f"ws://127.0.0.1:{port}", origin=f"http://127.0.0.1:{port}",
+                             subprotocols=[f"viser-v{viser.__version__}"]):
+                    time.sleep(rng.uniform(0.0, 0.2))  # the page is open meanwhile
+            except (OSError, ConnectionClosed, InvalidStatus):  # the servers closed under the page
+                time.sleep(0.01)
+
+    _, join = run_threads(pages, pages)
+    try:
+        runner.set_auto(True)
+        runner.open(f"S{cycle:04d}", Scenario.PERTURBED, seed=cycle + 1)
+        time.sleep(rng.uniform(0.2, 1.0))
+    finally:
+        servers.close()
+        join()
+
+
+# -- rehearsal ------------------------------------------------------------------------------------
+def rehearsal(cycles: int) -> None:
+    rng = np.random.default_rng(SEED)
+    ends = {"switch": 0, "rig death, then switch": 0, "shutdown": 0}
+    with tempfile.TemporaryDirectory(prefix="lifetimes-") as folder:
+        study, cycle = Path(folder) / "study", 0
+        while cycle < cycles:
+            cycle = _rehearsal_cycles(rng, study, cycle, cycles, ends)
+    print(f"ends: {json.dumps(ends)}", flush=True)
+    print(f"survived {cycles} cycles", flush=True)
+
+
+def _rehearsal_cycles(rng: np.random.Generator, study: Path, cycle: int, cycles: int,
+                      ends: dict[str, int]) -> int:
+    """A rehearsal rig on the wall clock (the stand-in UR over RTDE with the dashboard backstop, the
+    hand on NatNet or LSL, the study's LSL outlets), its sessions ended as in :func:`session`."""
+    from app.protocol.errors import RefusedAction
+    from app.session.config import LabConfig
+    from app.session.rehearsal import Rehearsal
+    from app.session.runner import SessionRunner
+    from robot_io.hands.simulated_hand import Scenario
+    from support.engine import BRIEF_PROTOCOL
+
+    lab = LabConfig.model_validate({"protocol": BRIEF_PROTOCOL,
+                                    "record": {"lsl_name": f"lifetimes-{os.getpid()}"}})
+    rig = Rehearsal(lab, hand="natnet" if cycle % 2 else "lsl")
+    try:
+        runner = SessionRunner(study, lab, rehearsal=rig, auto_experimenter=True,
+                               realtime_priority=True)
+    except BaseException:
+        rig.close()
+        raise
+    _, join = run_threads(lambda stop: _read_until(stop, lambda: runner.live(4)))
+    try:
+        runner.set_auto(True)
+        for turn in range(SESSIONS_PER_RUNNER):
+            runner.open(f"R{cycle:04d}", Scenario.PERTURBED, seed=cycle + 1)
+            time.sleep(rng.uniform(0.0, 4.0))  # a trial prepares, reaches, is handed over meanwhile
+            cycle += 1
+            progress(cycle - 1, cycles, "rehearsal")
+            if turn == SESSIONS_PER_RUNNER - 1 or cycle >= cycles:
+                ends["shutdown"] += 1
+                break
+            if turn % 2 and (client := runner.rig) is not None:
+                client.kill()
+                time.sleep(rng.uniform(0.0, 0.3))
+                ends["rig death, then switch"] += 1
+            else:
+                ends["switch"] += 1
+            _end_session(runner, RefusedAction)
+    finally:
+        runner.close()
+        join()
+    return cycle
+
+
 # -- hands ----------------------------------------------------------------------------------------
 def hands(cycles: int) -> None:
     import pylsl
@@ -296,7 +410,8 @@ def hands(cycles: int) -> None:
     print(f"survived {cycles} cycles", flush=True)
 
 
-SCENARIOS = {"stream": stream, "rig": rig, "session": session, "outlets": outlets, "hands": hands}
+SCENARIOS = {"stream": stream, "rig": rig, "session": session, "serve": serve, "rehearsal": rehearsal,
+             "outlets": outlets, "hands": hands}
 #: Set by ``make soak`` (.ci/soak.py): the cycles of every scenario (the suite runs a few).
 CYCLES_VARIABLE = "HANDOVER_STRESS_CYCLES"
 
