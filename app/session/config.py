@@ -1,10 +1,10 @@
 """One configuration file for a lab (``--config lab.toml``), read by ``serve``, ``run-session``,
-``simulate-trial`` and ``check-devices``: the controller's tables (``[arm]``, ``[cycle]``, ``[dmp]``,
-``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``, ``[gripper]``,
-``[release]``, see :mod:`robot_io.config`) plus ``[protocol]`` (the study's counts, Sect. V-C),
-``[learner]`` (acquisition, θ box, recommendation, prior) and ``[record]`` (the study's LSL
-outlets). Every key has a documented default (the paper's where it has one); an unknown table or key
-is an error naming it.
+``simulate-trial`` and ``check-devices``: the controller's tables (``[arm]``, ``[cycle]``,
+``[dmp]``, ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``,
+``[gripper]``, ``[release]``, see :mod:`robot_io.config`) plus ``[protocol]`` (the study's counts,
+Sect. V-C), ``[learner]`` (acquisition, θ box, recommendation, prior), ``[record]`` (the study's LSL
+outlets) and ``[safety_record]`` (each trial's safety record and the lab's limits). Every key has a
+documented default (the paper's where it has one); an unknown table or key is an error naming it.
 ``docs/hardware.md`` has a full example.
 """
 
@@ -29,6 +29,7 @@ from pydantic import (
 )
 from pydantic.fields import FieldInfo
 
+from app.protocol.safety_record import SafetyRecordSettings
 from app.protocol.study import StudyConfig
 from robot_io.config import ControllerConfig
 from robot_io.errors import ConfigError
@@ -133,7 +134,7 @@ class RecordSettings(BaseModel):
 
 
 #: The tables of a lab config that are not the controller's.
-APPLICATION_TABLES = frozenset({"protocol", "learner", "record"})
+APPLICATION_TABLES = frozenset({"protocol", "learner", "record", "safety_record"})
 
 
 class LabConfig(ControllerConfig):
@@ -142,6 +143,7 @@ class LabConfig(ControllerConfig):
     protocol: ProtocolSettings = ProtocolSettings()
     learner: LearnerSettings = LearnerSettings()
     record: RecordSettings = RecordSettings()
+    safety_record: SafetyRecordSettings = SafetyRecordSettings()
 
     @property
     def controller(self) -> ControllerConfig:

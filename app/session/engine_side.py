@@ -20,6 +20,7 @@ from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
+from app.protocol.safety_record import over_limits
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
@@ -29,7 +30,6 @@ from app.session.learning_words import learning_line
 from app.session.lsl_outlets import StudyOutlets
 from app.session.opening import open_session, trial_config
 from app.session.overview import ParticipantSummary, StudyOverview
-from app.session.replay import stored_rows
 from app.session.view import SessionFacts, ThetaStar
 from robot_io.control.loop import TrialRecord
 from robot_io.hands.simulated_hand import Scenario
@@ -38,6 +38,7 @@ from robot_io.rig.stream import SampleStream
 from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError
 from session_store.models import Trial
+from session_store.sample_rows import stored_rows
 from session_store.vocabulary import Actor
 
 log = logging.getLogger(__name__)
@@ -106,7 +107,7 @@ class EngineSide:
             open_rig=open_rig)
         lab = self.lab.model_dump(mode="json")
         used = {**trial_config(self.lab, engine.config).model_dump(mode="json"),
-                **{table: lab[table] for table in ("protocol", "learner")}}
+                **{table: lab[table] for table in ("protocol", "learner", "safety_record")}}
         engine.record_devices(used, devices.model_dump(mode="json"), identity,
                               changed_from=changed)
         engine.switch_simulated_participant(auto)
@@ -182,7 +183,7 @@ class EngineSide:
         engine = self.engine
         if engine is None or engine.state.running_trial != trial_index:
             return None
-        ended = engine.end_trial(trial_index, record, reason, actor)
+        ended = engine.end_trial(trial_index, record, reason, actor, self.lab.safety_record)
         self._overview = None
         return ended
 
@@ -247,8 +248,18 @@ class EngineSide:
                           delta=r.theta_star_delta, k=r.theta_star_k)
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
             self._learning = learning_line(engine)
+        trials = engine.store.rows("trials", order_by="trial_index")
         return SessionFacts(
             code=engine.participant.code, scenario=engine.config.scenario, seed=engine.config.seed,
             state=state.model_copy(deep=True), interactions=engine.config.interactions,
-            trials=engine.store.rows("trials", order_by="trial_index"),
-            theta_star=self._theta_star, posterior=engine.posterior_slices, learning=self._learning)
+            trials=trials, theta_star=self._theta_star, posterior=engine.posterior_slices,
+            learning=self._learning, safety_flags=self._safety_flags(trials))
+
+    def _safety_flags(self, trials: list[Trial]) -> list[str]:
+        """Each trial over the lab's [safety_record] limits, in words (newest first)."""
+        flags = []
+        for trial in reversed(trials):
+            over = over_limits(trial.model_dump(), self.lab.safety_record)
+            if over:
+                flags.append(f"trial {trial.trial_index}: {'; '.join(over)}")
+        return flags

@@ -69,6 +69,7 @@ class RunnerView(BaseModel):
     theta_star: list[ThetaStar] = []
     posterior: list[PosteriorSlice] = []  # posterior utility through θ*, per parameter
     learning: str | None = None  # how settled the learner's θ* is, in words (after a learning batch)
+    safety_flags: list[str] = []  # the trials over the lab's [safety_record] limits, in words
 
     @property
     def step(self) -> Step | None:
@@ -118,6 +119,7 @@ class SessionFacts(NamedTuple):
     theta_star: list[ThetaStar]
     posterior: list[PosteriorSlice]
     learning: str | None  # app.session.learning_words.learning_line
+    safety_flags: list[str]  # the trials over the lab's limits (app.protocol.safety_record)
 
 
 def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
@@ -168,7 +170,7 @@ def build_view(version: int, status: Status, overview: list[ParticipantSummary],
         state=session.state, interactions=session.interactions, preparing=status.preparing,
         waiting_for=waiting_for(session.state, status.auto or auto_experimenter),
         trials=session.trials, theta_star=session.theta_star, posterior=session.posterior,
-        learning=session.learning, **fields)
+        learning=session.learning, safety_flags=session.safety_flags, **fields)
 
 
 def with_news(view: RunnerView, status: Status) -> RunnerView:

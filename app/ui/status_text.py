@@ -147,13 +147,15 @@ def tablet_markdown(view: RunnerView) -> str:
 
 
 def safety_markdown(view: RunnerView) -> str:
-    """The arm's stop state, updated the moment the stop completes."""
+    """The arm's stop state, updated the moment the stop completes, and every trial of the session
+    over the lab's safety limits (the moment it is stored)."""
+    flags = "".join(f"  \n⚠ **over the lab's safety limit**: {flag}" for flag in view.safety_flags)
     if view.stop == "stopping":
-        return "### Arm: stopping …"
+        return f"### Arm: stopping …{flags}"
     if view.stop == "stopped":
-        return "### Arm: STOPPED\nCheck the scene is safe, then **Re-arm**."
+        return f"### Arm: STOPPED\nCheck the scene is safe, then **Re-arm**.{flags}"
     fault = f" — ⚠ {view.arm_fault}" if view.arm_fault else ""
-    return f"**Arm: armed**{fault}"
+    return f"**Arm: armed**{fault}{flags}"
 
 
 def devices_markdown(view: RunnerView) -> str:
