@@ -30,6 +30,8 @@ from app.session.learning_words import learning_line
 from app.session.lsl_outlets import StudyOutlets
 from app.session.opening import open_session, trial_config
 from app.session.overview import ParticipantSummary, StudyOverview
+from app.session.rcs_client import RecorderError
+from app.session.recording import RecordingStatus, SessionRecording
 from app.session.view import SessionFacts, ThetaStar
 from robot_io.control.loop import TrialRecord
 from robot_io.hands.simulated_hand import Scenario
@@ -56,6 +58,7 @@ class EngineSide:
         self.study, self.lab, self.realtime = study, lab, realtime
         self.engine: SessionEngine | None = None
         self.outlets: StudyOutlets | None = None  # the open session's LSL outlets ([record])
+        self.recording: SessionRecording | None = None  # its XDF recording ([recording])
         self.failed: str | None = None  # storing failed, or the simulated experimenter gave up
         self._participant: SimulatedParticipant | None = None
         self._lock: writer_lock.WriterLock | None = None
@@ -94,10 +97,12 @@ class EngineSide:
     def open(self, code: str, scenario: Scenario | None, seed: int | None, *, identity: dict,
              confirm_rig_change: bool, confirm_seed_reuse: bool,
              open_rig: Callable[[StudyConfig], DeviceReport], auto: bool, blind: bool | None,
-             stream: Callable[[], SampleStream | None]) -> None:
+             stream: Callable[[], SampleStream | None],
+             notify: Callable[[str], None] = log.warning) -> None:
         """Open ``code``'s session (:func:`~app.session.opening.open_session`) and record the
         devices it runs on, the simulated participant's switch (``auto``) and the validation's
-        blinding (``blind``; None: no dashboard). ``stream``: the rig's samples, for the outlets."""
+        blinding (``blind``; None: no dashboard). ``stream``: the rig's samples, for the outlets;
+        ``notify``: where the recording's warnings go (any thread)."""
         if self.engine is not None:
             raise RefusedAction(f"participant {self.engine.participant.code!r} is open: end "
                                 "that session first (End session)")
@@ -117,6 +122,7 @@ class EngineSide:
             engine.resume_session(REOPEN_REASON)
         self.engine = engine
         self._open_outlets(engine, devices.rate_hz, stream)
+        self._open_recording(engine, notify)
         self._participant = SimulatedParticipant(engine.config.seed)
         if engine.state.step is not Step.DONE:
             warm_up()  # the learner's imports run while the experimenter pairs the tablet
@@ -139,6 +145,30 @@ class EngineSide:
             return
         engine.listeners.append(self.outlets.on_event)
 
+    def _open_recording(self, engine: SessionEngine, notify: Callable[[str], None]) -> None:
+        """The session's recording, when the lab has one ([recording]): it starts before the first
+        trial, or the session does not open (its file must appear); on simulated time there are
+        no outlets and no LSL time to record."""
+        if self.lab.recording.kind == "none":
+            return
+        if self.outlets is None:
+            log.warning("[recording] kind = %r: nothing is recorded, the session has no LSL "
+                        "outlets (simulated time, or they could not open)", self.lab.recording.kind)
+            return
+        try:
+            self.recording = SessionRecording(self.lab.recording, self.study,
+                                              engine.participant.code, self.outlets.source_ids,
+                                              notify)
+        except RecorderError as exc:
+            self.close()
+            raise RefusedAction(f"the session's recording did not start: {exc}") from exc
+        engine.listeners.append(self.recording.on_event)
+
+    def recording_status(self) -> RecordingStatus | None:
+        """The recording now (any thread: a single reference, its status immutable)."""
+        recording = self.recording
+        return None if recording is None else recording.status()
+
     def end(self, trial_running: bool, close_rig: Callable[[], None]) -> str:
         """End the open session (paused if not complete) and close its rig; its code."""
         engine = self.require()
@@ -155,7 +185,11 @@ class EngineSide:
         return code
 
     def close(self) -> None:
-        """Close the outlets, the engine and its store, and release the writer lock."""
+        """Stop the recording (it takes the last markers first), close the outlets, the engine and
+        its store, and release the writer lock."""
+        if self.recording is not None:
+            self.recording.close()
+            self.recording = None
         if self.outlets is not None:
             self.outlets.close()
             self.outlets = None
