@@ -73,8 +73,9 @@ def test_a_session_records_its_streams_and_the_labs_and_a_resume_records_a_new_r
     """A session of two handovers on the mock arm on the wall clock, recorded by LabRecorder's
     engine: the file holds the session's two streams and the lab's named one (a named but absent
     one is a warning before Start), a ``go`` marker for every trial, and its footers; opening the
-    participant again records run 2. About 60 s (90 s with another run beside it): two trials on the wall clock, and the engine
-    closes each file only after its clock-offset threads end (up to 5 s)."""
+    participant again records run 2. About 60 s (90 s with another run beside it): two trials on
+    the wall clock, and the engine closes each file only after its clock-offset threads end (up to
+    5 s)."""
     name, mocap, absent = unique("rec"), unique("Mocap"), unique("Absent")
     lab_stream = LabStream(mocap)
     lab = LabConfig.model_validate({"protocol": TWO_HANDOVERS, "record": {"lsl_name": name},
