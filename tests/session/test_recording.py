@@ -22,6 +22,7 @@ from support.recorded_session import PROTOCOL as TWO_HANDOVERS
 from support.runner import Probe
 from support.waiting import wait_for
 
+from app.analysis.report import build_report
 from app.analysis.xdf import load_recording
 from app.protocol import events as ev
 from app.protocol.errors import RefusedAction
@@ -112,6 +113,13 @@ def test_a_session_records_its_streams_and_the_labs_and_a_resume_records_a_new_r
     assert gos == trials and markers[-1]["event"] == "answer"  # the last marker is in the file
     ended = [m for m in markers if m["event"] == "trial_end"]
     assert all(m["safety"]["min_distance_m"] is not None for m in ended)
+    # the report finds the runs itself and matches every stored Go; without run 1 it names them
+    report = build_report(study, tmp_path / "report")
+    assert report.gos_not_recorded == {}
+    assert "every stored trial's Go marker is in the recording" in report.html.read_text()
+    first.rename(first.with_suffix(".moved"))
+    report = build_report(study, tmp_path / "report")
+    assert report.gos_not_recorded == {"R01": ", ".join(map(str, trials))}
 
 
 def _engine_recording(tmp_path: Path, stream: LabStream, **settings) -> tuple[SessionRecording, list]:
