@@ -1,7 +1,7 @@
-"""The report's safety record (issue 47): each trial's figures (docs/data.md, "The safety record")
-summarised per participant and for the study — the median, the extreme (the closest distance, the
-largest of the rest) and the trial it happened in, whose replay (the tool–hand distance, the tool's
-speed and the pull over the trial) is drawn below the table and linked from it."""
+"""The report's safety record (issue 47): each trial's figures (docs/data.md, "The safety record of
+every trial") summarised per participant and for the study — the median, the extreme (the closest
+distance, the largest of the rest) and the trial it happened in, whose replay (the tool–hand
+distance, the tool's speed and the pull over the trial) is drawn below the table and linked from it."""
 
 from __future__ import annotations
 
@@ -104,5 +104,6 @@ def safety_section(summary: pd.DataFrame, figures: dict[str, FigureFiles]) -> st
         "Safety record", html.paragraph(
             "Every trial's closest tool–hand distance, tool speed and closing speed with the hand "
             "near, peak pull, pull to open and longest contact (docs/data.md, \"The safety "
-            "record\"), per participant and for the study; the trials of the study's extremes are "
-            "replayed below (the dashboard replays any trial)."), table, links, *replays)
+            "record of every trial\"), per participant and for the study; the trials of the "
+            "study's extremes are replayed below (the dashboard replays any trial)."), table,
+        links, *replays)

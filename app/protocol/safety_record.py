@@ -20,7 +20,7 @@ computed from the trial's stored sample rows (one per control cycle, :mod:`robot
 
 The limits a trial is judged by are the lab's (``[safety_record]``): none is built in, since the
 figures of ISO/TS 15066 (and a lab's risk assessment) are the lab's to take from the standard itself
-(docs/data.md, "The safety record").
+(docs/data.md, "The safety record of every trial").
 """
 
 from __future__ import annotations
