@@ -24,10 +24,14 @@ def _go_trials(stream: dict) -> set[int]:
             if (marker := decode(text[0]))["event"] == "go"}
 
 
-def _ours(stream: dict) -> bool:
+def _ours(stream: dict, code: str) -> bool:
+    """Whether ``stream`` is the study's marker stream of participant ``code`` (a LabRecorder told
+    to ``select all`` records every session's streams it sees)."""
     desc = stream["info"].get("desc") or [None]
-    software = desc[0].get("software", [None])[0] if isinstance(desc[0], dict) else None
-    return stream["info"]["type"][0] == MARKER_TYPE and software == SOFTWARE
+    described = desc[0] if isinstance(desc[0], dict) else {}
+    return stream["info"]["type"][0] == MARKER_TYPE and \
+        described.get("software", [None])[0] == SOFTWARE and \
+        described.get("participant", [None])[0] == code
 
 
 def recorded_runs(study_dir: Path, codes: list[str]) -> tuple[pd.DataFrame, dict[str, set[int]],
@@ -60,7 +64,7 @@ def recorded_runs(study_dir: Path, codes: list[str]) -> tuple[pd.DataFrame, dict
                              "type": stream["info"]["type"][0],
                              "samples": len(stream["time_stamps"]),
                              "footer": bool(stream.get("footer"))})
-                if _ours(stream):
+                if _ours(stream, code):
                     found[code] |= _go_trials(stream)
     return pd.DataFrame(rows, columns=COLUMNS), found, problems
 
