@@ -7,6 +7,8 @@ run that was never recorded)."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import pandas as pd
@@ -17,6 +19,10 @@ from app.protocol.markers import MARKER_TYPE, SOFTWARE, decode
 from session_store.recordings import recordings_of
 
 COLUMNS = ["participant", "file", "bytes", "stream", "type", "samples", "footer"]
+
+
+def _load(load_xdf: Callable[..., tuple[list[dict], dict]], path: Path) -> list[dict]:
+    return load_xdf(str(path))[0]
 
 
 def _go_trials(stream: dict) -> set[int]:
@@ -54,7 +60,7 @@ def recorded_runs(study_dir: Path, codes: list[str]) -> tuple[pd.DataFrame, dict
         found[code] = set()
         for path in paths:
             try:
-                streams = _readable(path, lambda p=path: pyxdf.load_xdf(str(p))[0])
+                streams: list[dict] = _readable(path, partial(_load, pyxdf.load_xdf, path))
             except XDFError as exc:
                 problems.append(str(exc))
                 continue

@@ -146,15 +146,15 @@ class SessionRecording:
         self._engine: _EngineProcess | None = None
         self._remote: RemoteLabRecorder | None = None
         started = time.monotonic()
-        if settings.kind == "labrecorder":
-            self._engine = _EngineProcess(self.path, streams)
-        else:
-            self._remote = RemoteLabRecorder(settings.rcs_host, settings.rcs_port)
-            self._remote.start(recordings_root(study).resolve(), code, settings.task, run)
         try:
+            if settings.kind == "labrecorder":
+                self._engine = _EngineProcess(self.path, streams)
+            else:
+                self._remote = RemoteLabRecorder(settings.rcs_host, settings.rcs_port)
+                self._remote.start(recordings_root(study).resolve(), code, settings.task, run)
             self._await_file(started)
         except RecorderError:
-            self._stop_recorder()
+            self._stop_recorder()  # whatever of it started: a file it makes later is not this run's
             raise
         self._streaming = False  # a trial is streaming (set by the engine thread's listener)
         self._last_event = time.monotonic()  # when the last marker was pushed (engine thread)
