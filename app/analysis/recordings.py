@@ -14,7 +14,7 @@ from pathlib import Path
 import pandas as pd
 
 from app.analysis import html
-from app.analysis.xdf import XDFError, _readable
+from app.analysis.xdf import XDFError, readable
 from app.protocol.markers import MARKER_TYPE, SOFTWARE, decode
 from session_store.recordings import recordings_of
 
@@ -60,7 +60,7 @@ def recorded_runs(study_dir: Path, codes: list[str]) -> tuple[pd.DataFrame, dict
         found[code] = set()
         for path in paths:
             try:
-                streams: list[dict] = _readable(path, partial(_load, pyxdf.load_xdf, path))
+                streams: list[dict] = readable(path, partial(_load, pyxdf.load_xdf, path))
             except XDFError as exc:
                 problems.append(str(exc))
                 continue
