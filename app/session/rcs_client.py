@@ -15,8 +15,12 @@ from pathlib import Path
 
 from session_store.recordings import MODALITY, SESSION, TEMPLATE
 
-#: How long a connection and each answer may take [s].
+#: How long a connection and an answer may take [s].
 ANSWER_S = 2.0
+#: LabRecorder answers a command only once it has carried it out, on its GUI's thread: ``start``
+#: first looks for the streams on the network (1 s), ``stop`` closes the file (its threads join: up
+#: to ~5 s, more on a loaded machine) [s].
+ANSWER_AFTER_S = {"start": 10.0, "stop": 30.0}
 
 
 class RecorderError(RuntimeError):
@@ -41,7 +45,9 @@ class RemoteLabRecorder:
 
     def command(self, line: str) -> None:
         """Send one command and read LabRecorder's ``OK`` (which it sends whatever the command)."""
+        patience = ANSWER_AFTER_S.get(line, ANSWER_S)
         try:
+            self._socket.settimeout(patience)
             self._socket.sendall(line.encode() + b"\n")
             answer = b""
             while len(answer) < 2:
@@ -50,7 +56,7 @@ class RemoteLabRecorder:
                     raise RecorderError(f"{self.where} closed the connection after {line!r}")
                 answer += chunk
         except TimeoutError as exc:
-            raise RecorderError(f"{self.where} did not answer {line!r} within {ANSWER_S:g} s") from exc
+            raise RecorderError(f"{self.where} did not answer {line!r} within {patience:g} s") from exc
         except OSError as exc:
             raise RecorderError(f"{self.where} failed on {line!r}: {exc}") from exc
         if answer != b"OK":
@@ -59,10 +65,13 @@ class RemoteLabRecorder:
 
     def start(self, root: Path, code: str, task: str, run: int) -> None:
         """Record every stream LabRecorder sees (``select all``) into ``root`` under the study's
-        BIDS-style name (:func:`session_store.recordings.recording_path`)."""
+        BIDS-style name (:func:`session_store.recordings.recording_path`). A ``stop`` first: a
+        LabRecorder still recording ignores ``start`` (and the new file name), and it still records
+        the run of a session that crashed (a stop while it records nothing does nothing)."""
         if "}" in str(root):
             raise RecorderError(f"the recordings folder {root} holds '}}', which LabRecorder's "
                                 "filename command cannot carry")
+        self.command("stop")
         self.command("select all")
         self.command(f"filename {{root:{root}}} {{template:{TEMPLATE}}} {{participant:{code}}} "
                      f"{{session:{SESSION}}} {{task:{task}}} {{modality:{MODALITY}}} {{run:{run}}}")

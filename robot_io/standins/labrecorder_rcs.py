@@ -21,6 +21,7 @@ import argparse
 import re
 import socketserver
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -34,8 +35,8 @@ BIDS_TEMPLATE = "sub-%p/ses-%s/%m/sub-%p_ses-%s_task-%b[_acq-%a]_run-%r_%m.xdf"
 class StandInLabRecorder:
     """LabRecorder's state behind its remote control (the GUI's fields)."""
 
-    def __init__(self, silent: bool = False) -> None:
-        self.silent = silent
+    def __init__(self, silent: bool = False, echo: bool = False) -> None:
+        self.silent, self.echo = silent, echo  # echo: print each command with its Unix time
         self.fields = {"root": "", "template": BIDS_TEMPLATE, "task": "Default", "run": "1",
                        "participant": "P001", "session": "S001", "acquisition": "", "modality": "eeg"}
         self.bids = True
@@ -47,6 +48,8 @@ class StandInLabRecorder:
     def handle(self, line: str) -> None:
         with self._lock:
             self.lines.append(line)
+            if self.echo:
+                print(f"{time.time():.3f} {line}", flush=True)
             if line == "start":
                 self._start()
             elif line == "stop":
@@ -123,7 +126,7 @@ def main() -> None:
     parser.add_argument("--port", type=int, default=22345)
     parser.add_argument("--silent", action="store_true", help="answer OK and record nothing")
     args = parser.parse_args()
-    server = RemoteControl(StandInLabRecorder(args.silent), args.port)
+    server = RemoteControl(StandInLabRecorder(args.silent, echo=True), args.port)
     print(f"LabRecorder stand-in: remote control on 127.0.0.1:{server.port}"
           + (" (silent: records nothing)" if args.silent else ""), flush=True)
     try:

@@ -195,12 +195,24 @@ def test_labrecorder_over_its_remote_control_records_the_study_file(tmp_path, st
     stream.push(50)
     recording.close()
     lines = server.recorder.lines
-    assert lines[:2] == ["select all", f"filename {{root:{(tmp_path / 'recordings').resolve()}}} "
+    assert lines[:3] == ["stop", "select all", f"filename {{root:{(tmp_path / 'recordings').resolve()}}} "
                          "{template:sub-%p/ses-%s/%m/sub-%p_ses-%s_task-%b_run-%n_%m.xdf} "
                          "{participant:C01} {session:01} {task:handover} {modality:beh} {run:1}"]
-    assert lines[2:] == ["start", "stop"]
+    assert lines[3:] == ["start", "stop"]
     assert server.recorder.path == recording.path  # LabRecorder named it as the study does
     assert stream.outlet.get_info().name() in streams_in(recording.path)
+
+
+def test_a_labrecorder_left_recording_by_a_crashed_session_records_the_next_run(tmp_path, stand_in):
+    """A session killed leaves the lab's LabRecorder recording its run (nobody sent stop), and a
+    LabRecorder that records ignores start: the next run's start stops it first."""
+    server, stream = stand_in(), LabStream(unique("Crashed"))
+    first = _rcs(server.port, tmp_path, stream)
+    first._stopping.set()  # the session dies: its recording is never closed
+    second = _rcs(server.port, tmp_path, stream)
+    second.close()
+    assert first.path.name.endswith("_run-001_beh.xdf") and second.path.name.endswith("_run-002_beh.xdf")
+    assert server.recorder.path == second.path and first.path.exists()
 
 
 def test_a_recorder_that_answers_ok_and_writes_nothing_is_caught_at_the_start(tmp_path, stand_in):
