@@ -15,7 +15,7 @@ import pandas as pd
 
 from app.analysis import html
 from app.analysis.xdf import XDFError, readable
-from app.protocol.markers import MARKER_TYPE, SOFTWARE, decode
+from app.protocol.markers import MARKER_TYPE, decode
 from session_store.recordings import recordings_of
 
 COLUMNS = ["participant", "file", "bytes", "stream", "type", "samples", "footer"]
@@ -30,25 +30,25 @@ def _go_trials(stream: dict) -> set[int]:
             if (marker := decode(text[0]))["event"] == "go"}
 
 
-def _ours(stream: dict, code: str) -> bool:
-    """Whether ``stream`` is the study's marker stream of participant ``code`` (a LabRecorder told
-    to ``select all`` records every session's streams it sees)."""
-    desc = stream["info"].get("desc") or [None]
-    described = desc[0] if isinstance(desc[0], dict) else {}
-    return stream["info"]["type"][0] == MARKER_TYPE and \
-        described.get("software", [None])[0] == SOFTWARE and \
-        described.get("participant", [None])[0] == code
+def _ours(stream: dict, code: str, created_at: str) -> bool:
+    """Whether ``stream`` is the marker stream of participant ``code``'s session created at
+    ``created_at``: its ``source_id`` names both (app/session/lsl_outlets.py). A LabRecorder told to
+    ``select all`` records every session's streams it sees, another study's P01 too."""
+    info = stream["info"]
+    return info["type"][0] == MARKER_TYPE and \
+        info["source_id"][0].endswith(f":{code}:{created_at}")
 
 
-def recorded_runs(study_dir: Path, codes: list[str]) -> tuple[pd.DataFrame, dict[str, set[int]],
-                                                                list[str]]:
-    """Every stream of every run of ``codes`` (participant, run file, stream, type, samples,
-    footer: whether the recorder closed it), the trials whose ``go`` marker each participant's runs
-    hold, and the files that could not be read (in words)."""
+def recorded_runs(study_dir: Path, sessions: dict[str, str]) -> tuple[pd.DataFrame,
+                                                                     dict[str, set[int]], list[str]]:
+    """Every stream of every run of the participants ``sessions`` (code → when their session was
+    created): participant, run file, stream, type, samples, footer (whether the recorder closed
+    it); the trials whose ``go`` marker each participant's runs hold, and the files that could not
+    be read (in words)."""
     rows: list[dict] = []
     found: dict[str, set[int]] = {}
     problems: list[str] = []
-    runs = {code: recordings_of(study_dir, code) for code in codes}
+    runs = {code: recordings_of(study_dir, code) for code in sessions}
     if not any(runs.values()):
         return pd.DataFrame(rows, columns=COLUMNS), found, problems
     try:
@@ -70,7 +70,7 @@ def recorded_runs(study_dir: Path, codes: list[str]) -> tuple[pd.DataFrame, dict
                              "type": stream["info"]["type"][0],
                              "samples": len(stream["time_stamps"]),
                              "footer": bool(stream.get("footer"))})
-                if _ours(stream, code):
+                if _ours(stream, code, sessions[code]):
                     found[code] |= _go_trials(stream)
     return pd.DataFrame(rows, columns=COLUMNS), found, problems
 

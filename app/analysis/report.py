@@ -150,8 +150,10 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
     tables["safety"] = out_dir / "tables" / "safety.csv"
     summary.to_csv(tables["safety"], index=False)
     figures |= draw_replays(Path(study_dir), summary, out_dir / "figures")
-    runs, found, unreadable_runs = recorded_runs(Path(study_dir),
-                                                 sorted(analysis.status["participant"]))
+    participants = loaded.tables["participants"]
+    runs, found, unreadable_runs = recorded_runs(
+        Path(study_dir), dict(zip(participants["participant"], participants["created_at"],
+                                  strict=True)))
     check = go_check(stored_gos(loaded.tables["events"]),
                      {code: gos for code, gos in found.items()
                       if (runs["participant"] == code).any()})
