@@ -5,6 +5,7 @@ file, a file that stops growing, and every way the remote control can fail."""
 
 from __future__ import annotations
 
+import html
 import json
 import os
 import signal
@@ -116,7 +117,8 @@ def test_a_session_records_its_streams_and_the_labs_and_a_resume_records_a_new_r
     # the report finds the runs itself and matches every stored Go; without run 1 it names them
     report = build_report(study, tmp_path / "report")
     assert report.gos_not_recorded == {}
-    assert "every stored trial's Go marker is in the recording" in report.html.read_text()
+    assert "R01: every stored trial's Go marker is in the recording" in \
+        html.unescape(report.html.read_text())
     first.rename(first.with_suffix(".moved"))
     report = build_report(study, tmp_path / "report")
     assert report.gos_not_recorded == {"R01": ", ".join(map(str, trials))}
