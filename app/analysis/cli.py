@@ -56,6 +56,9 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     for code, shown in report.not_blind.items():
         print(f"warning: {code}: validation {shown}", file=sys.stderr)
+    for code, missing in report.gos_not_recorded.items():
+        print(f"warning: {code}: trials {missing} have no go marker in the study's recordings",
+              file=sys.stderr)
     for test in report.tests:
         print(f"{test.name}: {test.summary()}")
     print(f"report: {report.html} ({len(report.tables)} tables, {len(report.figures)} figures)")

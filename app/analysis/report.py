@@ -21,7 +21,9 @@ from pydantic import BaseModel
 
 from app.analysis import figures as fig
 from app.analysis.provenance import counted_ratings, not_blind
+from app.analysis.recordings import go_check, recorded_runs, recordings_section, stored_gos
 from app.analysis.report_page import render_page
+from app.analysis.safety import draw_replays, safety_section, safety_summary
 from app.analysis.stats import StatTest
 from app.analysis.study_analysis import StudyAnalysis
 from app.analysis.tables import study_configs
@@ -49,6 +51,8 @@ class Report(BaseModel):
     ratings_counted: str
     not_blind: dict[str, str]  # participant → how their validation was shown, where not "blind"
     recording_cut_short: list[str] = []  # the XDF recording's streams that end early, in words
+    #: participant → the stored trials whose Go marker none of the study's own recordings holds
+    gos_not_recorded: dict[str, str] = {}
 
 
 def tests_frame(tests: list[StatTest]) -> pd.DataFrame:
@@ -142,17 +146,35 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
     if recording is not None:
         tables["xdf_around_go"], drawn = draw_recording_figures(recording, aligned, out_dir)
         figures |= drawn
+    summary = safety_summary(loaded.tables["trials"])
+    tables["safety"] = out_dir / "tables" / "safety.csv"
+    summary.to_csv(tables["safety"], index=False)
+    figures |= draw_replays(Path(study_dir), summary, out_dir / "figures")
+    participants = loaded.tables["participants"]
+    runs, found, unreadable_runs = recorded_runs(
+        Path(study_dir), dict(zip(participants["participant"], participants["created_at"],
+                                  strict=True)))
+    check = go_check(stored_gos(loaded.tables["events"]),
+                     {code: gos for code, gos in found.items()
+                      if (runs["participant"] == code).any()})
+    if not runs.empty:
+        tables["recordings"] = out_dir / "tables" / "recordings.csv"
+        runs.to_csv(tables["recordings"], index=False)
     unreadable = {str(path): reason for path, reason in loaded.unreadable.items()}
     html = out_dir / "report.html"
     html.write_text(render_page(analysis, figures, study_dir=Path(study_dir), unreadable=unreadable,
                                 generated=datetime.now(UTC).isoformat(timespec="seconds"),
                                 ratings_counted=counted.text(),
-                                recording_cut_short=[] if recording is None else recording.cut_short))
+                                recording_cut_short=[] if recording is None else recording.cut_short,
+                                extra=[safety_section(summary, figures),
+                                       recordings_section(runs, check, unreadable_runs)]))
     incomplete = analysis.status.loc[~analysis.status["complete"], "participant"].tolist()
     if incomplete:
         log.info("incomplete sessions (reported, left out of the tests): %s", incomplete)
     return Report(html=html, tables=tables, figures=figures, tests=analysis.tests,
                   incomplete=incomplete, unreadable=unreadable, ratings_counted=counted.text(),
                   not_blind=not_blind(analysis.status),
-                  recording_cut_short=[] if recording is None else recording.cut_short)
+                  recording_cut_short=[] if recording is None else recording.cut_short,
+                  gos_not_recorded={row.participant: row.missing for row in check.itertuples()
+                                    if row.missing})
 

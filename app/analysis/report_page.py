@@ -153,9 +153,10 @@ def left_out(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], prefix
 
 def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, study_dir: Path,
                 unreadable: Mapping[str, str], generated: str, ratings_counted: str,
-                recording_cut_short: Sequence[str] = ()) -> str:
+                recording_cut_short: Sequence[str] = (), extra: Sequence[str] = ()) -> str:
     """The whole report as one HTML string (figures embedded); ``ratings_counted`` says whose
-    ratings it counts, ``recording_cut_short`` which streams of the XDF recording end early."""
+    ratings it counts, ``recording_cut_short`` which streams of the XDF recording end early;
+    ``extra``: sections after the learning curves (the safety record, the recordings)."""
     counts = analysis.status["scenario"].value_counts()
     intro = html.paragraph(
         f"Study folder {study_dir}, {len(analysis.status)} participants ("
@@ -172,7 +173,7 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
              html.section("Learning curves", *curves,
                           *left_out(analysis, figures, "learning-",
                                     "no completed handover before the validation, or no learner "
-                                    "update"))]
+                                    "update")), *extra]
     recorded = figure_list(figures, "xdf-", "A stream of the lab's XDF recording around each trial's "
                            "Go, by θ origin; black: the mean of the completed trials:")
     if recorded:

@@ -82,7 +82,7 @@ def _name(stream: dict) -> str:
     return stream["info"]["name"][0]
 
 
-def _readable(path: Path, read: Callable[[], T]) -> T:
+def readable(path: Path, read: Callable[[], T]) -> T:
     """``read()``, or an :class:`XDFError` saying that ``path`` is not a readable XDF file (a file
     cut short ends in a chunk's XML or binary header: ParseError, struct.error, KeyError)."""
     try:
@@ -123,7 +123,7 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
         import pyxdf
     except ImportError as exc:
         raise XDFError("reading XDF needs pyxdf: pip install 'handover-lab[xdf]'") from exc
-    headers = _readable(path, lambda: pyxdf.resolve_streams(str(path)))
+    headers = readable(path, lambda: pyxdf.resolve_streams(str(path)))
     found = sorted(h["name"] for h in headers)
     missing = [name for name in names if name not in found]
     if missing:
@@ -134,7 +134,7 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
                        "holds (Fig. 4 draws them): name the lab's own streams")
     chosen = [h["stream_id"] for h in headers if h["type"] == MARKER_TYPE or (
         h["name"] in names if names else h["type"] != ROBOT_TYPE and h["channel_format"] != "string")]
-    streams = _readable(path, lambda: pyxdf.load_xdf(str(path), select_streams=chosen)[0]) if chosen else []
+    streams = readable(path, lambda: pyxdf.load_xdf(str(path), select_streams=chosen)[0]) if chosen else []
     ours = [s for s in streams if _desc(s, "software") == SOFTWARE and s["info"]["type"][0] == MARKER_TYPE]
     if len(ours) != 1:
         raise XDFError(f"{path}: {len(ours)} study marker streams (type Markers from {SOFTWARE}), "

@@ -37,6 +37,7 @@ from app.protocol.earlier import earlier_participants_prior
 from app.protocol.errors import RefusedAction
 from app.protocol.hints import DIRECTIONS
 from app.protocol.plan import Slot, protocol_slots
+from app.protocol.safety_record import DEFAULT_SAFETY, SafetyRecordSettings, safety_record
 from app.protocol.session_inputs import hand_seed, learner_config, validation_sobol
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
 from app.protocol.study import StudyConfig
@@ -180,10 +181,12 @@ class SessionEngine:
         return TrialPlan(trial=trial, theta=theta)
 
     def end_trial(self, trial_index: int, record: TrialRecord | None,
-                  abort_reason: str | None = None, actor: Actor = Actor.SYSTEM) -> Trial:
-        """Record the end of the running trial with its samples. It counts as completed only if the
-        controller completed the handover and nobody aborted it; otherwise it will be repeated.
-        ``actor``: who ended it (the experimenter for Abort and Stop, else the system)."""
+                  abort_reason: str | None = None, actor: Actor = Actor.SYSTEM,
+                  safety: SafetyRecordSettings = DEFAULT_SAFETY) -> Trial:
+        """Record the end of the running trial with its samples and their safety record (taken
+        with the lab's ``safety`` settings). It counts as completed only if the controller completed
+        the handover and nobody aborted it; otherwise it will be repeated. ``actor``: who ended it
+        (the experimenter for Abort and Stop, else the system)."""
         if self.state.running_trial != trial_index:
             raise RefusedAction(f"end of trial {trial_index} refused: the running trial is "
                                 f"{self.state.running_trial}")
@@ -204,6 +207,10 @@ class SessionEngine:
                                                   "arrival_gap_s", "peak_speed_mps", "max_tau",
                                                   "deadline_misses", "hold_s", "release_s",
                                                   "retract_end_s", "peak_pull_n"})
+        figures = None if record is None or not len(record.samples["t"]) else \
+            safety_record(record.samples, safety)
+        if figures is not None:
+            update |= figures.model_dump()
         ended = trial.model_copy(update=update)
 
         def write() -> None:
@@ -212,7 +219,7 @@ class SessionEngine:
                 self.store.add_samples(trial_index, record.samples)
 
         self._commit(ev.TrialEnded(actor=actor, trial_index=trial_index, outcome=ended.outcome,
-                                   reason=reason), write)
+                                   reason=reason, safety=figures), write)
         return ended
 
     def record_stage(self, trial_index: int, stage: Stage, t: float | None,

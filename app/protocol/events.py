@@ -16,7 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
 
 from app.protocol.errors import EventLogError
 from robot_io.stages import Stage
-from session_store.models import Event, TrialOutcome, utc_now
+from session_store.models import Event, SafetyRecord, TrialOutcome, utc_now
 from session_store.vocabulary import Actor, Hint, Rater, ThetaOrigin
 
 #: The envelope's fields: stored as columns of the events table, not in the payload.
@@ -101,6 +101,9 @@ class TrialEnded(_Event):
     trial_index: int = Field(ge=1)
     outcome: TrialOutcome
     reason: str | None = None
+    #: the trial's safety record from its samples (app/protocol/safety_record.py); None for a trial
+    #: that ended without samples, and in logs written before it existed
+    safety: SafetyRecord | None = None
 
 
 class PlacementMade(_Rated):

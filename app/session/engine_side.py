@@ -20,6 +20,7 @@ from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
+from app.protocol.safety_record import over_limits
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
@@ -29,7 +30,8 @@ from app.session.learning_words import learning_line
 from app.session.lsl_outlets import StudyOutlets
 from app.session.opening import open_session, trial_config
 from app.session.overview import ParticipantSummary, StudyOverview
-from app.session.replay import stored_rows
+from app.session.rcs_client import RecorderError
+from app.session.recording import RecordingStatus, SessionRecording
 from app.session.view import SessionFacts, ThetaStar
 from robot_io.control.loop import TrialRecord
 from robot_io.hands.simulated_hand import Scenario
@@ -38,6 +40,7 @@ from robot_io.rig.stream import SampleStream
 from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError
 from session_store.models import Trial
+from session_store.sample_rows import stored_rows
 from session_store.vocabulary import Actor
 
 log = logging.getLogger(__name__)
@@ -55,6 +58,7 @@ class EngineSide:
         self.study, self.lab, self.realtime = study, lab, realtime
         self.engine: SessionEngine | None = None
         self.outlets: StudyOutlets | None = None  # the open session's LSL outlets ([record])
+        self.recording: SessionRecording | None = None  # its XDF recording ([recording])
         self.failed: str | None = None  # storing failed, or the simulated experimenter gave up
         self._participant: SimulatedParticipant | None = None
         self._lock: writer_lock.WriterLock | None = None
@@ -93,10 +97,12 @@ class EngineSide:
     def open(self, code: str, scenario: Scenario | None, seed: int | None, *, identity: dict,
              confirm_rig_change: bool, confirm_seed_reuse: bool,
              open_rig: Callable[[StudyConfig], DeviceReport], auto: bool, blind: bool | None,
-             stream: Callable[[], SampleStream | None]) -> None:
+             stream: Callable[[], SampleStream | None],
+             notify: Callable[[str], None] = log.warning) -> None:
         """Open ``code``'s session (:func:`~app.session.opening.open_session`) and record the
         devices it runs on, the simulated participant's switch (``auto``) and the validation's
-        blinding (``blind``; None: no dashboard). ``stream``: the rig's samples, for the outlets."""
+        blinding (``blind``; None: no dashboard). ``stream``: the rig's samples, for the outlets;
+        ``notify``: where the recording's warnings go (any thread)."""
         if self.engine is not None:
             raise RefusedAction(f"participant {self.engine.participant.code!r} is open: end "
                                 "that session first (End session)")
@@ -106,7 +112,7 @@ class EngineSide:
             open_rig=open_rig)
         lab = self.lab.model_dump(mode="json")
         used = {**trial_config(self.lab, engine.config).model_dump(mode="json"),
-                **{table: lab[table] for table in ("protocol", "learner")}}
+                **{table: lab[table] for table in ("protocol", "learner", "safety_record")}}
         engine.record_devices(used, devices.model_dump(mode="json"), identity,
                               changed_from=changed)
         engine.switch_simulated_participant(auto)
@@ -116,6 +122,7 @@ class EngineSide:
             engine.resume_session(REOPEN_REASON)
         self.engine = engine
         self._open_outlets(engine, devices.rate_hz, stream)
+        self._open_recording(engine, notify)
         self._participant = SimulatedParticipant(engine.config.seed)
         if engine.state.step is not Step.DONE:
             warm_up()  # the learner's imports run while the experimenter pairs the tablet
@@ -138,6 +145,30 @@ class EngineSide:
             return
         engine.listeners.append(self.outlets.on_event)
 
+    def _open_recording(self, engine: SessionEngine, notify: Callable[[str], None]) -> None:
+        """The session's recording, when the lab has one ([recording]): it starts before the first
+        trial, or the session does not open (its file must appear); on simulated time there are
+        no outlets and no LSL time to record."""
+        if self.lab.recording.kind == "none":
+            return
+        if self.outlets is None:
+            log.warning("[recording] kind = %r: nothing is recorded, the session has no LSL "
+                        "outlets (simulated time, or they could not open)", self.lab.recording.kind)
+            return
+        try:
+            self.recording = SessionRecording(self.lab.recording, self.study,
+                                              engine.participant.code, self.outlets.source_ids,
+                                              notify)
+        except RecorderError as exc:
+            self.close()
+            raise RefusedAction(f"the session's recording did not start: {exc}") from exc
+        engine.listeners.append(self.recording.on_event)
+
+    def recording_status(self) -> RecordingStatus | None:
+        """The recording now (any thread: a single reference, its status immutable)."""
+        recording = self.recording
+        return None if recording is None else recording.status()
+
     def end(self, trial_running: bool, close_rig: Callable[[], None]) -> str:
         """End the open session (paused if not complete) and close its rig; its code."""
         engine = self.require()
@@ -154,7 +185,11 @@ class EngineSide:
         return code
 
     def close(self) -> None:
-        """Close the outlets, the engine and its store, and release the writer lock."""
+        """Stop the recording (it takes the last markers first), close the outlets, the engine and
+        its store, and release the writer lock."""
+        if self.recording is not None:
+            self.recording.close()
+            self.recording = None
         if self.outlets is not None:
             self.outlets.close()
             self.outlets = None
@@ -182,7 +217,7 @@ class EngineSide:
         engine = self.engine
         if engine is None or engine.state.running_trial != trial_index:
             return None
-        ended = engine.end_trial(trial_index, record, reason, actor)
+        ended = engine.end_trial(trial_index, record, reason, actor, self.lab.safety_record)
         self._overview = None
         return ended
 
@@ -247,8 +282,18 @@ class EngineSide:
                           delta=r.theta_star_delta, k=r.theta_star_k)
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
             self._learning = learning_line(engine)
+        trials = engine.store.rows("trials", order_by="trial_index")
         return SessionFacts(
             code=engine.participant.code, scenario=engine.config.scenario, seed=engine.config.seed,
             state=state.model_copy(deep=True), interactions=engine.config.interactions,
-            trials=engine.store.rows("trials", order_by="trial_index"),
-            theta_star=self._theta_star, posterior=engine.posterior_slices, learning=self._learning)
+            trials=trials, theta_star=self._theta_star, posterior=engine.posterior_slices,
+            learning=self._learning, safety_flags=self._safety_flags(trials))
+
+    def _safety_flags(self, trials: list[Trial]) -> list[str]:
+        """Each trial over the lab's [safety_record] limits, in words (newest first)."""
+        flags = []
+        for trial in reversed(trials):
+            over = over_limits(trial.model_dump(), self.lab.safety_record)
+            if over:
+                flags.append(f"trial {trial.trial_index}: {'; '.join(over)}")
+        return flags

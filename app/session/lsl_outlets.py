@@ -120,12 +120,14 @@ class StudyOutlets:
                  samples: Callable[[], SampleStream | None]) -> None:
         session = f"{code}:{created_at}"
         self.robot_name, self.markers_name = f"{settings.lsl_name}-robot", f"{settings.lsl_name}-markers"
+        #: the streams' source_ids, which name this session (the session's recording finds them by it)
+        self.source_ids = [f"{self.markers_name}:{session}", f"{self.robot_name}:{session}"]
         self._markers = pylsl.StreamOutlet(stream_info(
             self.markers_name, MARKER_TYPE, (("marker", "JSON"),), pylsl.IRREGULAR_RATE, pylsl.cf_string,
-            f"{self.markers_name}:{session}", code))
+            self.source_ids[0], code))
         self._robot = pylsl.StreamOutlet(stream_info(
             self.robot_name, ROBOT_TYPE, ROBOT_CHANNELS, rate_hz, pylsl.cf_double64,
-            f"{self.robot_name}:{session}", code))
+            self.source_ids[1], code))
         self.feed = RobotFeed(self._robot, samples)
         log.info("LSL outlets %r and %r for participant %s (%d Hz)", self.robot_name,
                  self.markers_name, code, rate_hz)

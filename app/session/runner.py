@@ -410,7 +410,7 @@ class SessionRunner:
         identity = rig_identity(self.lab, self.rehearsal is not None)
         self._side.open(code, scenario, seed, identity=identity, confirm_rig_change=confirm,
                         confirm_seed_reuse=confirm_seed, open_rig=self._open_rig, auto=auto,
-                        blind=blind, stream=self._stream)
+                        blind=blind, stream=self._stream, notify=self._news)
 
     def _stream(self) -> SampleStream | None:
         """The open rig's samples (for the study's LSL outlets)."""
@@ -482,7 +482,7 @@ class SessionRunner:
                       preparing=preparing, learner_fault=learner_fault, failed=self._side.failed,
                       tablet=None if self._pairing is None else self._pairing.status(),
                       tablet_required=self.tablet_required, messages=self._publisher.messages(),
-                      auto=auto)
+                      auto=auto, recording=self._side.recording_status())
 
 
 class _SessionStopped(Exception):

@@ -15,6 +15,7 @@ from app.learning.models import PosteriorSlice
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary
 from app.session.pairing import TabletStatus
+from app.session.recording import RecordingStatus
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.messages import DeviceReport, RigTiming
 from robot_io.stages import AWAITS, Stage
@@ -69,6 +70,8 @@ class RunnerView(BaseModel):
     theta_star: list[ThetaStar] = []
     posterior: list[PosteriorSlice] = []  # posterior utility through θ*, per parameter
     learning: str | None = None  # how settled the learner's θ* is, in words (after a learning batch)
+    safety_flags: list[str] = []  # the trials over the lab's [safety_record] limits, in words
+    recording: RecordingStatus | None = None  # the session's XDF recording ([recording]; None: none)
 
     @property
     def step(self) -> Step | None:
@@ -104,6 +107,7 @@ class Status(NamedTuple):
     tablet_required: bool
     messages: list[str]
     auto: bool
+    recording: RecordingStatus | None = None
 
 
 class SessionFacts(NamedTuple):
@@ -118,6 +122,7 @@ class SessionFacts(NamedTuple):
     theta_star: list[ThetaStar]
     posterior: list[PosteriorSlice]
     learning: str | None  # app.session.learning_words.learning_line
+    safety_flags: list[str]  # the trials over the lab's limits (app.protocol.safety_record)
 
 
 def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
@@ -152,7 +157,7 @@ def status_fields(status: Status) -> dict:
             "learner_fault": status.learner_fault, "failed": status.failed,
             "ready_wait": rig.ready_wait, "stop": rig.stop, "tablet": status.tablet,
             "tablet_required": status.tablet_required, "messages": list(status.messages),
-            "auto": status.auto}
+            "auto": status.auto, "recording": status.recording}
 
 
 def build_view(version: int, status: Status, overview: list[ParticipantSummary],
@@ -168,7 +173,7 @@ def build_view(version: int, status: Status, overview: list[ParticipantSummary],
         state=session.state, interactions=session.interactions, preparing=status.preparing,
         waiting_for=waiting_for(session.state, status.auto or auto_experimenter),
         trials=session.trials, theta_star=session.theta_star, posterior=session.posterior,
-        learning=session.learning, **fields)
+        learning=session.learning, safety_flags=session.safety_flags, **fields)
 
 
 def with_news(view: RunnerView, status: Status) -> RunnerView:

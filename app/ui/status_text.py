@@ -8,6 +8,7 @@ experimenter cannot tell which trial of a pair is the learned θ*.
 from __future__ import annotations
 
 from datetime import datetime
+from pathlib import Path
 
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary, SessionStatus
@@ -147,13 +148,15 @@ def tablet_markdown(view: RunnerView) -> str:
 
 
 def safety_markdown(view: RunnerView) -> str:
-    """The arm's stop state, updated the moment the stop completes."""
+    """The arm's stop state, updated the moment the stop completes, and every trial of the session
+    over the lab's safety limits (the moment it is stored)."""
+    flags = "".join(f"  \n⚠ **over the lab's safety limit**: {flag}" for flag in view.safety_flags)
     if view.stop == "stopping":
-        return "### Arm: stopping …"
+        return f"### Arm: stopping …{flags}"
     if view.stop == "stopped":
-        return "### Arm: STOPPED\nCheck the scene is safe, then **Re-arm**."
+        return f"### Arm: STOPPED\nCheck the scene is safe, then **Re-arm**.{flags}"
     fault = f" — ⚠ {view.arm_fault}" if view.arm_fault else ""
-    return f"**Arm: armed**{fault}"
+    return f"**Arm: armed**{fault}{flags}"
 
 
 def devices_markdown(view: RunnerView) -> str:
@@ -165,10 +168,27 @@ def devices_markdown(view: RunnerView) -> str:
            "stopped": f"stopped, waiting for Re-arm ({view.arm})"}[view.stop]
     timing = [line("timing", view.timing, view.timing_warning)] if view.timing else []
     return "\n".join([*rig, line("arm", arm, view.arm_fault), line("hand", view.hand, view.hand_link),
-                      line("gripper", view.gripper, None), *timing,
+                      line("gripper", view.gripper, None), *timing, *recording_lines(view),
                       line("learner", view.learner, view.learner_fault),
                       *([f"- **learning**: {view.learning}"] if view.learning else []),
                       "", "Recent events:", *[f"- {m}" for m in view.messages]])
+
+
+def recording_lines(view: RunnerView) -> list[str]:
+    """The session's recording: its file, size and streams, a stream named but not found, and a
+    file that stopped growing (nothing without a recording)."""
+    recording = view.recording
+    if recording is None:
+        return []
+    state = "stopped" if recording.stopped else "recording"
+    lines = [f"- **recording** ({recording.kind}, run {recording.run}): {state} "
+             f"`{Path(recording.path).name}`, {recording.size / 1000:,.1f} kB"
+             + (f" — ⚠ **{recording.warning}**" if recording.warning else ""),
+             f"  - streams: {', '.join(recording.streams)}"]
+    if recording.missing:
+        lines.append(f"  - ⚠ **not found, not recorded**: {', '.join(recording.missing)} "
+                     "(named in [recording] streams: start them and open the participant again)")
+    return lines
 
 
 def _local_time(at: str | None) -> str:

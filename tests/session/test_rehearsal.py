@@ -19,11 +19,11 @@ from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
 from app.session.faults import StagedFault
 from app.session.rehearsal import Rehearsal
-from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from robot_io.arms.ur_kinematics import forward
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.stages import SAMPLE_CODE, Stage
+from session_store.sample_rows import stored_rows
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak, pytest.mark.standin]

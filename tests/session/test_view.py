@@ -42,7 +42,8 @@ def facts(running: int | None, stage: Stage | None) -> SessionFacts:
     return SessionFacts(code="M01", scenario=Scenario.PERTURBED, seed=7, state=state,
                         interactions=len(state.slots), trials=[],
                         theta_star=[ThetaStar(after_interaction=3, a=1.0, delta=0.5, k=2.0)],
-                        posterior=[], learning="the learner's first choice; 45% sure")
+                        posterior=[], learning="the learner's first choice; 45% sure",
+                        safety_flags=[])
 
 
 @pytest.mark.parametrize(("stage", "auto", "auto_experimenter", "expected"), [

@@ -36,11 +36,11 @@ from support.waiting import CEILING_S, wait_for
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
 from app.session.rehearsal import Rehearsal
-from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from app.ui.server import HandoverServers, ServeOptions
 from robot_io.arms.ur_kinematics import link_points
 from robot_io.hands.simulated_hand import Scenario
+from session_store.sample_rows import stored_rows
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
