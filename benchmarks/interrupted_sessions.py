@@ -29,6 +29,8 @@ import numpy as np
 
 #: What a close may print, and what it must not.
 CRASH_WORDS = ("Traceback", "Fatal Python error", "Segmentation fault")
+#: What is counted of each run.
+KINDS = ("crashed", "traceback", "hung", "other exit")
 
 
 def one_run(study: Path, mode: str, delay: float, hang_after: float, env: dict[str, str]) -> dict:
@@ -47,11 +49,11 @@ def one_run(study: Path, mode: str, delay: float, hang_after: float, env: dict[s
         hung = True
         process.kill()
         out, err = process.communicate()
-    text = out + err
-    return {"rc": process.returncode, "hung": hung,
-            "crashed": process.returncode is not None and (process.returncode < 0
-                                                           or process.returncode == 139),
+    text, rc = out + err, process.returncode
+    return {"rc": rc, "hung": hung, "crashed": not hung and (rc < 0 or rc == 139),
             "traceback": any(word in text for word in CRASH_WORDS),
+            # neither Ctrl-C's 130 nor a session that ended (0) before the signal came
+            "other exit": not hung and rc not in (0, 128 + signal.SIGINT, 139) and rc >= 0,
             "tail": text[-1500:]}
 
 
@@ -78,12 +80,11 @@ def main() -> int:
             delay = float(rng.uniform(args.earliest, args.latest))
             with tempfile.TemporaryDirectory(prefix="interrupted-") as folder:
                 result = one_run(Path(folder) / "study", args.mode, delay, args.hang_after, env)
-            for key in ("crashed", "traceback", "hung"):
+            for key in KINDS:
                 counts[key] += result[key]
             print(f"run {run + 1:3d}: SIGINT at {delay:5.1f} s -> rc {result['rc']}"
-                  + "".join(f", {key}" for key in ("crashed", "traceback", "hung") if result[key]),
-                  flush=True)
-            if result["crashed"] or result["traceback"] or result["hung"]:
+                  + "".join(f", {key}" for key in KINDS if result[key]), flush=True)
+            if any(result[key] for key in KINDS):
                 print("    " + result["tail"].replace("\n", "\n    "), flush=True)
     finally:
         for hog in hogs:
@@ -92,7 +93,7 @@ def main() -> int:
     print(f"\n{source} ({args.mode}, {args.runs} runs, SIGINT in [{args.earliest:g}, "
           f"{args.latest:g}] s, {args.hogs} CPU hog(s), {time.monotonic() - began:.0f} s): "
           f"{counts['crashed']} crashed, {counts['traceback']} printed a traceback, "
-          f"{counts['hung']} hung")
+          f"{counts['hung']} hung, {counts['other exit']} ended with another exit code")
     return 0
 
 
