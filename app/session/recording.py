@@ -45,6 +45,8 @@ log = logging.getLogger(__name__)
 
 #: How often the watch thread reads the file's size [s].
 WATCH_S = 0.25
+#: How long the close waits for the watch thread's end [s] (a look and a published warning).
+WATCH_JOIN_S = 2.0
 #: How long the session's own outlets are looked for (they were opened just before) [s].
 OWN_STREAMS_S = 5.0
 #: LabRecorder pulls its streams every 500 ms and not again when stopped: the recording stops no
@@ -197,7 +199,10 @@ class SessionRecording:
         the recorder has pulled the session's last marker."""
         time.sleep(max(0.0, self._last_event + LAST_PULL_S - time.monotonic()))
         self._stopping.set()
-        self._watch.join()
+        # bounded: the watch publishes news (the publishing lock), and this runs on the engine
+        # thread, which a screen holding that lock may wait for; it only reads the file's size, so
+        # the recorder may stop under it
+        self._watch.join(WATCH_JOIN_S)
         self._stop_recorder()
         self._status = self._status.model_copy(update={"stopped": True,
                                                        "size": self._size()})
