@@ -16,8 +16,8 @@ from hypothesis import HealthCheck, settings
 from robot_io.config import ControllerConfig
 
 #: With HANDOVER_TEST_CPU=1, the CPU time of each test (with the processes it started), the most
-#: CPU-hungry listed at the end of the run.
-pytest_plugins = ["support.cpu"]
+#: CPU-hungry listed at the end of the run; a watchdog ends a run that hangs, with every stack.
+pytest_plugins = ["support.cpu", "support.watchdog"]
 
 
 @pytest.fixture
