@@ -16,8 +16,9 @@ from hypothesis import HealthCheck, settings
 from robot_io.config import ControllerConfig
 
 #: With HANDOVER_TEST_CPU=1, the CPU time of each test (with the processes it started), the most
-#: CPU-hungry listed at the end of the run; a watchdog ends a run that hangs, with every stack.
-pytest_plugins = ["support.cpu", "support.watchdog"]
+#: CPU-hungry listed at the end of the run; a watchdog ends a run that hangs, with every stack; the
+#: tests that took over 20 s without a docstring saying why are named at the end.
+pytest_plugins = ["support.cpu", "support.watchdog", "support.slow_tests"]
 
 
 @pytest.fixture

@@ -91,3 +91,29 @@ def test_a_run_ends_non_zero_naming_the_test(tmp_path: Path, case: str) -> None:
     assert code != 0, f"the run passed: {tail(output)}"
     missing = [text for text in expected if text not in output]
     assert not missing, f"the run's output lacks {missing}: {tail(output, 4000)}"
+
+
+def test_a_slow_test_without_a_docstring_is_named_at_the_end(tmp_path: Path) -> None:
+    """With the threshold at 0.2 s: a test that waits 0.3 s without a docstring is named, one with
+    a docstring and a quick one are not (tests/support/slow_tests.py)."""
+    (tmp_path / "test_case.py").write_text('''
+import time
+
+
+def test_slow_and_silent():
+    time.sleep(0.3)
+
+
+def test_slow_and_says_why():
+    """Waits 0.3 s: the point of this test."""
+    time.sleep(0.3)
+
+
+def test_quick():
+    pass
+''')
+    code, output = run_pytest(tmp_path, ["-o", "slow_test_s=0.2", "-p", "support.slow_tests"])
+    assert code == 0, tail(output)
+    named = [line for line in output.splitlines() if line.strip().endswith(("_silent", "_why", "quick"))]
+    assert "tests over 0.2 s without a docstring saying why: 1" in output, tail(output)
+    assert [line.split()[-1] for line in named] == ["test_case.py::test_slow_and_silent"], named
