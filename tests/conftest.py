@@ -52,15 +52,24 @@ settings.load_profile("handover")
 STANDIN_GROUP = "ur-standin"
 
 
+#: The ceiling of a test not marked ``slow`` [s]: a hung one ends the run within minutes (the slow
+#: ones, whole sessions on the wall clock, have pyproject's ``timeout``, 900 s; the slowest took
+#: 153 s alone and 432 s at a load of 20). A ceiling for a hung test, not a measurement.
+QUICK_TIMEOUT_S = 300
+
+
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Tests marked ``standin`` share the :data:`STANDIN_GROUP` worker. Tests that use a
+    """Tests not marked ``slow`` get the ceiling :data:`QUICK_TIMEOUT_S`. Tests marked ``standin``
+    share the :data:`STANDIN_GROUP` worker. Tests that use a
     module-scoped fixture (a whole session run once, a study folder, a learner worker) share one
     xdist worker, so the fixture is built once, not once per worker that happens to draw one of them
     (``make test`` runs ``--dist loadgroup``). Slow tests go first. Runs before xdist reads the
     groups."""
     for item in items:
         info = getattr(item, "_fixtureinfo", None)
+        if not item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(QUICK_TIMEOUT_S))
         if item.get_closest_marker("standin"):
             item.add_marker(pytest.mark.xdist_group(STANDIN_GROUP))
             continue
