@@ -2,8 +2,8 @@
 a worker hangs outside any test (issue 44; tests/support/watchdog.py).
 
 Each case runs pytest in a subprocess on a small generated test folder, with the suite's own
-configuration (pyproject's ``addopts``, timeout) and plugin, on two xdist workers with ``--dist
-loadgroup`` as ``make test`` runs them. Before the fix, the crash and the hung worker each left the
+configuration (pyproject's pytest table) and plugin, on two xdist workers with ``--dist loadgroup``
+as ``make test`` runs them. Before the fix, the crash and the hung worker each left the
 run waiting for good: the ceiling of the wait below is what failed, printing what the run had said.
 """
 

@@ -4,8 +4,8 @@ Three ways a run stopped making progress, and what ends each (issue 44):
 
 - **A test kills its xdist worker** (``os.abort()``, a segmentation fault): xdist replaced the worker
   and, under ``--dist loadgroup``, put the crashed test's group back in a queue that no worker took:
-  the run waited for good. ``--max-worker-restart=0`` (pyproject's ``addopts``) ends the run at the
-  first crash instead; xdist reports the test ("worker 'gw1' crashed while running '…'").
+  the run waited for good. Here ``--max-worker-restart`` is 0 unless given: the first crash ends
+  the run; xdist reports the test ("worker 'gw1' crashed while running '…'").
 - **A hung test**: pytest-timeout's ceiling (pyproject's ``timeout``) ends its worker: a crash, as
   above. In an xdist worker the stacks that pytest-timeout prints went nowhere (a worker's terminal
   is not the run's), so there the timer is faulthandler's: at the ceiling it prints every thread's
@@ -162,16 +162,20 @@ def _stderr() -> TextIO:
     return os.fdopen(os.dup(2), "w", buffering=1)
 
 
-@pytest.hookimpl(trylast=True)
+@pytest.hookimpl(tryfirst=True)
 def pytest_configure(config: pytest.Config) -> None:
     """Watches the run in an xdist controller (not in its workers, not in a run without xdist,
-    where pytest-timeout ends a hung test and nothing else is shared)."""
+    where pytest-timeout ends a hung test and nothing else is shared); there a crashed worker is
+    not replaced unless ``--max-worker-restart`` says so (set before xdist's own configure reads
+    it)."""
     global _current, _worker_stderr
     if hasattr(config, "workerinput"):
         _worker_stderr = _stderr()
         return
     if not getattr(config.option, "numprocesses", None):
         return
+    if config.option.maxworkerrestart is None:
+        config.option.maxworkerrestart = "0"
     # pytest-timeout's ceiling for one test (0: none): a test may run that long without an event
     timeout = float(config.getoption("timeout", None) or config.getini("timeout") or 0)
     idle = float(config.getini("watchdog_idle"))
@@ -190,7 +194,7 @@ def pytest_unconfigure() -> None:
         _worker_stderr = None
 
 
-@pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(tryfirst=True, optionalhook=True)  # pytest-timeout's hook
 def pytest_timeout_set_timer(item: pytest.Item, settings) -> bool | None:
     """In an xdist worker: at pytest-timeout's ceiling, every thread's stack to the run's stderr and
     the worker's end (xdist then reports the test as the one its worker crashed in)."""
@@ -200,7 +204,7 @@ def pytest_timeout_set_timer(item: pytest.Item, settings) -> bool | None:
     return True
 
 
-@pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(tryfirst=True, optionalhook=True)
 def pytest_timeout_cancel_timer(item: pytest.Item) -> bool | None:
     if _worker_stderr is None:
         return None
@@ -224,16 +228,19 @@ def pytest_runtest_logreport(report: pytest.TestReport) -> None:
         _current.event(f"{report.nodeid} {report.when} {report.outcome}")
 
 
+@pytest.hookimpl(optionalhook=True)  # xdist's hook
 def pytest_handlecrashitem(crashitem: str) -> None:
     if _current is not None:
         _current.event(f"the worker running {crashitem} crashed", finished=crashitem)
 
 
+@pytest.hookimpl(optionalhook=True)  # xdist's hook
 def pytest_testnodedown(node, error) -> None:
     if _current is not None:
         _current.event(f"worker {node.gateway.id} down" + (f": {error}" if error else ""))
 
 
+@pytest.hookimpl(optionalhook=True)  # xdist's hook
 def pytest_xdist_node_collection_finished(node, ids: list[str]) -> None:
     if _current is not None:
         _current.collected = _current.collected or list(ids)
