@@ -7,7 +7,9 @@ BIN := $(VENV)/bin
 .PHONY: install bytecode demo typecheck test soak chromium bench clean
 
 # The suite runs on PYTEST_WORKERS xdist workers (`--dist loadgroup`: tests marked
-# xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run.
+# xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run,
+# then its wall and CPU time. A crashed worker, a hung test or a hung worker ends the run
+# (tests/support/watchdog.py).
 PYTEST_WORKERS ?= 3
 PYTEST_ARGS ?=
 # `make soak`: the browser, rehearsal, rig-process and kill tests SOAK_RUNS times beside
@@ -64,10 +66,13 @@ bytecode: install
 typecheck: install
 	$(BIN)/mypy
 
+# pytest runs through .ci/timed.py, which prints its wall and CPU time at the end, with the
+# calibration loop's CPU time (how fast the machine was at the time).
 test: install chromium bytecode
 	$(BIN)/ruff check .
 	$(MAKE) --no-print-directory typecheck
-	PYTHONDONTWRITEBYTECODE= $(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=25 $(PYTEST_ARGS)
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python .ci/timed.py \
+		$(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=25 $(PYTEST_ARGS)
 
 soak: install chromium bytecode
 	PYTHONDONTWRITEBYTECODE= $(BIN)/python .ci/soak.py --runs $(SOAK_RUNS) --hogs $(SOAK_HOGS) --workers $(PYTEST_WORKERS)

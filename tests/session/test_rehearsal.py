@@ -165,6 +165,8 @@ def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(re
 
 
 def test_a_protective_stop_during_hold_aborts_and_the_trial_completes_after_recovery(rehearsed):
+    """Slow (about 25 s): two trials on the wall clock, and Recover waits out the controller's 5 s
+    rule before the protective stop may be unlocked, as a UR's does."""
     runner, probe = rehearsed
     runner.open("F02", Scenario.STRAIGHTFORWARD, seed=2)
     start_until(runner, probe, Stage.HOLD)
@@ -224,6 +226,8 @@ def test_a_controller_that_stalls_mid_reach_ends_the_trial_and_the_rig_lives_thr
 
 
 def test_no_pull_ends_the_trial_not_taken_and_it_is_repeated_not_rated(rehearsed):
+    """Slow (30-60 s): the hold waits out the product's release timeout (10 s) on the wall clock, and
+    a second whole trial follows; the timeout is the product's default on purpose (``rehearsed``)."""
     runner, probe = rehearsed
     runner.refuse_object(True)  # this participant never takes the object
     runner.open("F03", Scenario.STRAIGHTFORWARD, seed=3)
@@ -241,6 +245,8 @@ def test_no_pull_ends_the_trial_not_taken_and_it_is_repeated_not_rated(rehearsed
 
 
 def test_the_rig_process_killed_mid_reach_stops_the_arm_and_the_next_trial_completes(rehearsed):
+    """Slow (about 30 s): two trials on the wall clock on the rehearsal rig, and a fresh rig process
+    started and connected to the stand-in UR between them."""
     runner, probe = rehearsed
     runner.open("F04", Scenario.STRAIGHTFORWARD, seed=4)
     start_until(runner, probe, Stage.REACH)
@@ -292,6 +298,8 @@ def test_a_resume_on_a_different_arm_is_refused_until_the_experimenter_confirms(
     ("natnet", "NatNet rigid body 'hand' (id 1) from Motive (NatNet 3.1"),
 ])
 def test_the_rehearsal_plays_the_hand_over_udp_and_natnet_too(tmp_path, hand, shown):
+    """Slow (about 20 s each): a rehearsal of its own (stand-in UR, the hand over UDP or a stand-in
+    Motive) and a whole trial on the wall clock."""
     lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
     rehearsal = Rehearsal(lab, hand=hand)
     runner = SessionRunner(tmp_path / "study", lab, rehearsal=rehearsal, realtime_priority=True)
