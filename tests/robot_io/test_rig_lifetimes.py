@@ -6,12 +6,11 @@ beside a CPU hog, the suite a few."""
 
 from __future__ import annotations
 
-import pytest
-from support.lifetimes import survive
+from support.lifetimes import stress_marks, survive
 
 from robot_io.rig.stream import SampleStream
 
-pytestmark = pytest.mark.stress
+pytestmark = stress_marks()
 
 
 def test_a_released_stream_reads_as_empty_and_a_second_release_does_nothing():

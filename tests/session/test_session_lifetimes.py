@@ -10,14 +10,14 @@ import threading
 
 import pytest
 from support.engine import BRIEF_PROTOCOL
-from support.lifetimes import survive
+from support.lifetimes import stress_marks, survive
 
 from app.session.config import LabConfig
 from app.session.engine_thread import SessionClosed, WrongThread
 from app.session.runner import SessionRunner
 from robot_io.hands.simulated_hand import Scenario
 
-pytestmark = pytest.mark.stress
+pytestmark = stress_marks()
 
 
 def test_sessions_switched_shut_down_or_left_by_a_dead_rig_while_trials_end_and_screens_read():

@@ -37,6 +37,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 #: The generator of every random moment (a failing cycle can be found again).
 SEED = 20261128
@@ -414,9 +415,21 @@ SCENARIOS = {"stream": stream, "rig": rig, "session": session, "serve": serve, "
              "outlets": outlets, "hands": hands}
 #: Set by ``make soak`` (.ci/soak.py): the cycles of every scenario (the suite runs a few).
 CYCLES_VARIABLE = "HANDOVER_STRESS_CYCLES"
+#: The ceiling of one scenario of many cycles (``make soak``; its run passes --timeout=0): the
+#: rehearsal's 500 cycles take about 20 CPU-s each.
+SOAK_CEILING_S = 6 * 3600.0
 
 
-def survive(scenario: str, cycles: int, ceiling_s: float = 3600.0) -> str:
+def stress_marks() -> list[pytest.MarkDecorator]:
+    """The marks of a stress test module: ``stress``, and for ``make soak``'s many cycles a ceiling
+    above the suite's (a test not marked slow has 300 s, tests/conftest.py)."""
+    marks = [pytest.mark.stress]
+    if os.environ.get(CYCLES_VARIABLE):
+        marks.append(pytest.mark.timeout(SOAK_CEILING_S))
+    return marks
+
+
+def survive(scenario: str, cycles: int, ceiling_s: float = SOAK_CEILING_S) -> str:
     """Run ``scenario`` for ``cycles`` cycles (``$HANDOVER_STRESS_CYCLES`` instead, when set) in a
     child process; its output. Fails with the child's exit (a signal: the interpreter crashed) and
     the end of its output when it does not end well; ``ceiling_s`` is a ceiling for a hung child."""

@@ -5,10 +5,9 @@ test with its signal; ``make soak`` runs 500 cycles beside a CPU hog."""
 
 from __future__ import annotations
 
-import pytest
-from support.lifetimes import survive
+from support.lifetimes import stress_marks, survive
 
-pytestmark = pytest.mark.stress
+pytestmark = stress_marks()
 
 
 def test_serve_closed_while_pages_come_and_go():
