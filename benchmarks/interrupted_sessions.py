@@ -73,6 +73,9 @@ def main() -> int:
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(source), env.get("PYTHONPATH")]))
     rng = np.random.default_rng(args.seed)
     counts: Counter[str] = Counter()
+    # stopped with SIGTERM (kill, pkill), it ends its hogs too: on Python's default action they
+    # outlived it
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
     hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(args.hogs)]
     began = time.monotonic()
     try:
