@@ -54,6 +54,9 @@ class LabStream:
                                                           self.source_id))
 
     def push(self, count: int) -> None:
+        """``count`` samples, once the recorder's inlet has subscribed (an outlet sends a consumer
+        only what is pushed after it connects)."""
+        wait_for(self.outlet.have_consumers, "the recorder's inlet on the lab's stream")
         self.outlet.push_chunk([[0.1, 0.2, 0.3]] * count)
 
 
