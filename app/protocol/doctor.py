@@ -89,7 +89,7 @@ def examine(path: Path) -> Verdict:
     verdict.contradictions += differences(found.tables, found.events)
     where = "complete" if state.step is Step.DONE else f"waiting for '{state.step.value}'"
     verdict.notes.append(f"seed {config.seed}, {config.scenario.value}; {state.completed} of "
-                         f"{config.interactions} interactions completed, {where}; "
+                         f"{state.interactions} interactions completed, {where}; "
                          f"{len(found.events)} events replayed")
     return verdict
 

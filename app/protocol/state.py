@@ -128,6 +128,15 @@ class SessionState(BaseModel):
     def completed(self) -> int:
         return len(self.completed_trial)
 
+    @property
+    def interactions(self) -> int:
+        """The interactions of the plan as it stands now: every slot but the learning ones an
+        early stop skipped (``stop_when_settled``); 34 with the paper's counts and no stop."""
+        if self.stopped_after is None:
+            return len(self.slots)
+        return sum(s.learner_index is None or s.interaction <= self.stopped_after
+                   for s in self.slots)
+
 
 def _advance(state: SessionState) -> None:
     previous = state.slots[state.cursor]

@@ -20,12 +20,12 @@ from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
+from app.protocol.learning_words import learning_line, recorded_stop, stop_headline
 from app.protocol.simulated_participant import SimulatedParticipant
-from app.protocol.state import Step
+from app.protocol.state import PlannedTheta, Step
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig
 from app.session.drawing import with_links
-from app.session.learning_words import learning_line
 from app.session.lsl_outlets import StudyOutlets
 from app.session.opening import open_session, trial_config
 from app.session.overview import ParticipantSummary, StudyOverview
@@ -192,6 +192,17 @@ class EngineSide:
             assert self._participant is not None, "opened with the engine, dropped when it ends"
             rate_once(self.engine, self._participant)
 
+    def plan(self, timeout: float) -> tuple[PlannedTheta, str | None]:
+        """Plan the current interaction's θ (:meth:`SessionEngine.plan_next`), and the news it
+        brings for the experimenter: that learning stopped early, and why (None: no news)."""
+        engine = self.require()
+        before = engine.state.stopped_after
+        planned = engine.plan_next(timeout)
+        headline = stop_headline(engine.state)
+        if before is not None or headline is None:
+            return planned, None
+        return planned, f"{headline}: {recorded_stop(engine.store.events())}"
+
     def planning(self, preparing: bool, fault: str | None) -> None:
         self._learner = (preparing, fault)
 
@@ -246,9 +257,11 @@ class EngineSide:
                 ThetaStar(after_interaction=r.after_interaction, a=r.theta_star_a,
                           delta=r.theta_star_delta, k=r.theta_star_k)
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
-            self._learning = learning_line(engine)
+            self._learning = learning_line(
+                state, engine.config, engine.settledness, recorded_stop(engine.store.events()),
+                engine.store.rows("learner_snapshots", order_by="after_interaction"))
         return SessionFacts(
             code=engine.participant.code, scenario=engine.config.scenario, seed=engine.config.seed,
-            state=state.model_copy(deep=True), interactions=engine.config.interactions,
+            state=state.model_copy(deep=True),
             trials=engine.store.rows("trials", order_by="trial_index"),
             theta_star=self._theta_star, posterior=engine.posterior_slices, learning=self._learning)

@@ -38,7 +38,7 @@ class ParticipantSummary(BaseModel):
     code: str
     scenario: Scenario | None = None
     completed: int = 0  # handovers completed
-    interactions: int = 0  # handovers in the plan
+    interactions: int = 0  # handovers in the plan as it stands (an early stop skips some)
     status: SessionStatus
     last_activity: str | None = None  # UTC ISO-8601 time of the last event
     detail: str = ""  # why it is unreadable, or the pause's reason
@@ -65,7 +65,7 @@ def summary_of(store: ParticipantStore, code: str, open_code: str | None = None)
               SessionStatus.PAUSED if state.paused else SessionStatus.INTERRUPTED)
     return ParticipantSummary(
         code=code, scenario=config.scenario, completed=state.completed,
-        interactions=config.interactions, status=status,
+        interactions=state.interactions, status=status,
         last_activity=events[-1].at if events else None,
         detail=paused[-1].payload.get("reason", "") if state.paused and paused else "")
 

@@ -313,19 +313,19 @@ class SessionRunner:
     # -- the background worker's actions (app.session.autopilot) ----------------------------------
     def plan_next(self) -> None:
         """The learner plans the next θ (the view says "fitting the next θ" meanwhile, and then
-        whether the learner was late or failed)."""
+        whether the learner was late or failed, or that learning stopped early)."""
         self._call(lambda: self._side.planning(True, self._side.learner()[1]))
         self._changed()
-        fault = None
+        fault = news = None
         try:
-            planned = self._call(lambda: self._side.require().plan_next(PLAN_TIMEOUT_S))
+            planned, news = self._call(lambda: self._side.plan(PLAN_TIMEOUT_S))
             fault = "the learner was late: a Sobol point was used (fallback)" if planned.fallback else None
         except (LearningError, RefusedAction, StoreError) as exc:
             log.exception("planning the next θ failed")
             fault = f"{type(exc).__name__}: {exc}"
         finally:
             self._call(lambda: self._side.planning(False, fault))
-            self._changed(None)
+            self._changed(news)
 
     def simulated_turn(self, step: Step) -> None:
         """The simulated participant places, rates or answers, if it is on and the session still

@@ -43,7 +43,6 @@ class RunnerView(BaseModel):
     scenario: Scenario | None = None
     seed: int | None = None
     state: SessionState | None = None
-    interactions: int = 0
     preparing: bool = False
     auto: bool = False
     rehearsal: bool = False
@@ -73,6 +72,11 @@ class RunnerView(BaseModel):
     @property
     def step(self) -> Step | None:
         return None if self.state is None else self.state.step
+
+    @property
+    def interactions(self) -> int:
+        """The interactions of the open session's plan as it stands now (0: none open)."""
+        return 0 if self.state is None else self.state.interactions
 
     @property
     def stage(self) -> Stage | None:
@@ -113,11 +117,10 @@ class SessionFacts(NamedTuple):
     scenario: Scenario
     seed: int
     state: SessionState  # a copy: the engine goes on changing its own
-    interactions: int
     trials: list[Trial]
     theta_star: list[ThetaStar]
     posterior: list[PosteriorSlice]
-    learning: str | None  # app.session.learning_words.learning_line
+    learning: str | None  # app.protocol.learning_words.learning_line
 
 
 def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
@@ -165,7 +168,7 @@ def build_view(version: int, status: Status, overview: list[ParticipantSummary],
         return RunnerView(version=version, **fields)
     return RunnerView(
         version=version, code=session.code, scenario=session.scenario, seed=session.seed,
-        state=session.state, interactions=session.interactions, preparing=status.preparing,
+        state=session.state, preparing=status.preparing,
         waiting_for=waiting_for(session.state, status.auto or auto_experimenter),
         trials=session.trials, theta_star=session.theta_star, posterior=session.posterior,
         learning=session.learning, **fields)

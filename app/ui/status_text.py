@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from datetime import datetime
 
+from app.protocol.learning_words import stop_headline
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
@@ -51,10 +52,25 @@ def start_blocker(view: RunnerView) -> str | None:
 
 def status_line(view: RunnerView) -> str:
     """One line: what the session waits for and what to do, e.g. "Paused — press Resume"; led by
-    what the experimenter must notice about the tablet (a take-over, wrong pairing codes)."""
+    what the experimenter must notice about the tablet (a take-over, wrong pairing codes), then by
+    news of the protocol (learning stopped early) until the next trial."""
     alert = view.tablet.alert() if view.tablet is not None else None
     line = _status(view)
+    news = _news(view)
+    if news:
+        line = f"**{news}.** · {line}"
     return f"⚠ **{alert}** · {line}" if alert else line
+
+
+def _news(view: RunnerView) -> str | None:
+    """Learning stopped early, between the stop and the next trial (then the Session panel keeps
+    saying so)."""
+    state = view.state
+    if state is None or state.step not in (Step.PLAN, Step.READY) or state.stopped_after is None:
+        return None
+    if any(interaction > state.stopped_after for interaction in state.completed_trial):
+        return None
+    return stop_headline(state)
 
 
 def _status(view: RunnerView) -> str:
@@ -118,6 +134,8 @@ def progress_markdown(view: RunnerView) -> str:
         if attempt > 1:
             where += f" · attempt {attempt}"
         lines.append(where)
+    if (stopped := stop_headline(state)) is not None:
+        lines.append(stopped)
     if state.step is Step.RUNNING:
         lines.append(cycle_markdown(view))
     return "  \n".join(lines)
