@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 from app.learning.models import Settledness
-from app.protocol.state import SessionState
+from app.protocol.state import SessionState, Step
 from app.protocol.study import StudyConfig
 from session_store.models import Event, LearnerSnapshotRow
 from session_store.vocabulary import Phase
@@ -72,6 +72,35 @@ def stop_headline(state: SessionState) -> str | None:
     return (f"Learning stopped early after batch {last.batch} of "
             f"{max((s.batch for s in learning), default=0)}: the learner is sure enough of the "
             f"best handover, {_handovers(skipped)} fewer")
+
+
+#: What a stopped session was waiting for, in the report's words.
+WAITING = {Step.PLAN: "waiting for the learner's next handover", Step.READY: "waiting for Start",
+           Step.RUNNING: "during a trial", Step.PLACE: "waiting for a placement",
+           Step.HINT: "waiting for a hint", Step.RATE: "waiting for a rating",
+           Step.ANSWER: "waiting for the questionnaire", Step.DONE: "complete"}
+
+
+def learning_end(state: SessionState, config: StudyConfig, stopped: str | None,
+                 paused: str | None) -> tuple[str, str]:
+    """How a session's learning ended and why, for the report: "early" (``stopped``: the recorded
+    reason), "at the schedule's end", "interrupted after 4 of 25" or "not started" (``paused``:
+    the pause's reason, when the session is paused)."""
+    if stopped is not None:
+        return "early", stopped
+    slot = state.slot
+    if slot is None or slot.learner_index is None:
+        return "at the schedule's end", ("the fixed schedule (stop_when_settled off)"
+                                         if config.stopping_rule() is None else
+                                         "the fixed schedule: the learner was never sure enough "
+                                         f"to stop ({_percent(config.settled_threshold)})")
+    where = WAITING[state.step] + ("" if paused is None else f"; paused: {paused}")
+    if state.completed == 0:
+        return "not started", f"no handover was completed ({where})"
+    learned = sum(s.learner_index is not None for s in state.slots)
+    return (f"interrupted after {state.completed} of {learned}",
+            f"the session stopped before learning ended, at handover {slot.interaction} of "
+            f"{state.interactions} ({where})")
 
 
 def recorded_stop(events: list[Event]) -> str | None:
