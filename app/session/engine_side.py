@@ -201,6 +201,7 @@ class EngineSide:
         headline = stop_headline(engine.state)
         if before is not None or headline is None:
             return planned, None
+        self._overview = None  # the Study table's count follows the shortened plan
         return planned, f"{headline}: {recorded_stop(engine.store.events())}"
 
     def planning(self, preparing: bool, fault: str | None) -> None:

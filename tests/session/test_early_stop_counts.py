@@ -64,6 +64,7 @@ def test_the_stop_is_news_where_the_experimenter_looks(session):
                           f"{m.split('the learner was ')[1]}") for m in ready.messages
                if "the learner was " in m), ready.messages
     assert "6 of 9 handovers completed" in progress_markdown(ready)
+    assert "| E01 | straightforward | 6 of 9 | open now |" in overview_markdown(ready.overview)
     assert HEADLINE in progress_markdown(done)  # the Session panel keeps it
     assert not status_line(done).startswith("**Learning")  # the status line moved on
     assert done.learning.startswith(f"{HEADLINE} (after learning batch 1 of 4 the learner was ")
