@@ -52,6 +52,8 @@ def run(args: argparse.Namespace) -> int:
     print(report.ratings_counted)
     for code in report.counting.marked:
         print(f"warning: {code}: {report.counting.problem(code)}", file=sys.stderr)
+    for line in report.answers_not_used:
+        print(f"warning: {line}", file=sys.stderr)
     for name, reason in report.unreadable.items():
         print(f"warning: {unreadable_text(name, reason)}", file=sys.stderr)
     for why in report.recording_cut_short:

@@ -24,6 +24,8 @@ from collections.abc import Mapping
 import pandas as pd
 from pydantic import BaseModel
 
+from app.protocol import events as ev
+from app.protocol.entries import not_used_words
 from session_store.vocabulary import Rater
 
 #: The kinds of answer a participant gives: the table that stores them → the name of their columns.
@@ -79,6 +81,15 @@ def _simulated_words(row: pd.Series) -> str:
             given = sum(int(row[f"{kind}_{c}"]) for c in RATER_COLUMNS.values())
             parts.append(f"{simulated} of {given} {kind} by the simulated participant")
     return ", ".join(parts)
+
+
+def answers_not_used(events: pd.DataFrame) -> list[str]:
+    """Every answer recorded as not used (two at once: :mod:`app.protocol.entries`), as "P03:
+    Not used: the participant's hint about handover 7 (sooner) came after …"."""
+    rows = events[events["kind"] == "entry_not_used"].sort_values(["participant", "seq"])
+    return [f"{row.participant}: " + not_used_words(ev.EntryNotUsed.model_validate(
+        {**json.loads(row.payload), "seq": int(row.seq), "at": row.at, "actor": row.actor}))
+        for row in rows.itertuples()]
 
 
 class Counting(BaseModel):

@@ -20,7 +20,7 @@ import pandas as pd
 from pydantic import BaseModel
 
 from app.analysis import figures as fig
-from app.analysis.provenance import SIMULATED_MARK, Counting, not_blind
+from app.analysis.provenance import SIMULATED_MARK, Counting, answers_not_used, not_blind
 from app.analysis.report_page import render_page
 from app.analysis.stats import StatTest
 from app.analysis.study_analysis import StudyAnalysis
@@ -48,6 +48,7 @@ class Report(BaseModel):
     unreadable: dict[str, str]
     ratings_counted: str  # whose answers were counted, in words
     counting: Counting  # … and which participants were left out or marked, and why
+    answers_not_used: list[str]  # answers recorded as not used (two at once), per participant
     not_blind: dict[str, str]  # participant → how their validation was shown, where not "blind"
     recording_cut_short: list[str] = []  # the XDF recording's streams that end early, in words
 
@@ -156,7 +157,7 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
         log.info("incomplete sessions (reported, left out of the tests): %s", incomplete)
     return Report(html=html, tables=tables, figures=figures, tests=analysis.tests,
                   incomplete=incomplete, unreadable=unreadable, ratings_counted=counted.text(),
-                  counting=counted,
+                  counting=counted, answers_not_used=answers_not_used(analysis.tables["events"]),
                   not_blind=not_blind(analysis.status),
                   recording_cut_short=[] if recording is None else recording.cut_short)
 

@@ -11,7 +11,13 @@ import pandas as pd
 
 from app.analysis import html
 from app.analysis.figures import FigureFiles
-from app.analysis.provenance import ANSWER_KINDS, SIMULATED_MARK, answers_text, not_blind
+from app.analysis.provenance import (
+    ANSWER_KINDS,
+    SIMULATED_MARK,
+    answers_not_used,
+    answers_text,
+    not_blind,
+)
 from app.analysis.stats import MWU_METHOD, SIGN_TIE_RULE, StatTest
 from app.analysis.study_analysis import StudyAnalysis
 from app.analysis.tables import INDISTINCT_ARRIVAL_S, SCENARIOS
@@ -70,6 +76,7 @@ def problems(analysis: StudyAnalysis, unreadable: Mapping[str, str],
     lines += [f"{code}: validation {text}: the dashboard showed the experimenter which trial of a "
               "pair was θ*" for code, text in not_blind(analysis.status).items()]
     counting = analysis.counting
+    lines += answers_not_used(analysis.tables["events"])
     lines += [f"{code} {SIMULATED_MARK}: {counting.problem(code)}" for code in counting.marked]
     if not lines:
         return html.paragraph("No problems: every database was read and every session is complete.")
@@ -204,7 +211,8 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
                          marked)
     banner = ([html.paragraph(ratings_counted, "banner")] if analysis.counting.simulated_study
               else [])
-    parts = [*banner, intro, *([] if banner else [html.paragraph(ratings_counted)]),
+    parts = [*banner, intro,
+             *([] if banner else [html.paragraph(ratings_counted)]),
              problems(analysis, unreadable, recording_cut_short),
              sessions(analysis), who_answered(analysis), learning(analysis),
              validation_tables(analysis),

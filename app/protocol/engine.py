@@ -351,6 +351,11 @@ class SessionEngine:
                      lambda: self.store.add(row))
         return row
 
+    def record_not_used(self, event: ev.EntryNotUsed) -> None:
+        """An answer that came after another for the same prompt: recorded, not used
+        (:mod:`app.protocol.entries`)."""
+        self._commit(event)
+
     def pause(self, reason: str = "") -> None:
         if self.state.paused:
             raise RefusedAction("pause refused: the session is already paused")

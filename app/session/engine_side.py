@@ -79,17 +79,6 @@ class EngineSide:
             raise RefusedAction("no participant is open: create or resume one first")
         return self.engine
 
-    def require_current(self, interaction: int, step: Step) -> SessionEngine:
-        """The engine, if it still waits for ``step`` of ``interaction`` (a stale screen's action
-        is refused, so a reload or a double tap never rates twice)."""
-        engine = self.require()
-        slot = engine.state.slot
-        if engine.state.step is not step or slot is None or slot.interaction != interaction:
-            raise RefusedAction(f"refused: interaction {interaction} is not waiting for "
-                                f"'{step.value}' (the session waits for "
-                                f"'{engine.state.step.value}')")
-        return engine
-
     def open(self, code: str, scenario: Scenario | None, seed: int | None, *, identity: dict,
              confirm_rig_change: bool, confirm_seed_reuse: bool,
              open_rig: Callable[[StudyConfig], DeviceReport], auto: bool, blind: bool | None,

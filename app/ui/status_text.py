@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from datetime import datetime
 
+from app.protocol.entries import not_used_words
 from app.protocol.learning_words import stop_headline
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary, SessionStatus
@@ -53,12 +54,16 @@ def start_blocker(view: RunnerView) -> str | None:
 def status_line(view: RunnerView) -> str:
     """One line: what the session waits for and what to do, e.g. "Paused — press Resume"; led by
     what the experimenter must notice about the tablet (a take-over, wrong pairing codes), then by
-    news of the protocol (learning stopped early) until the next trial."""
+    an answer not used (two at once) and news of the protocol (learning stopped early), until the
+    next trial."""
     alert = view.tablet.alert() if view.tablet is not None else None
     line = _status(view)
     news = _news(view)
     if news:
         line = f"**{news}.** · {line}"
+    not_used = view.state.not_used if view.state is not None else None
+    if not_used is not None:
+        line = f"⚠ **{not_used_words(not_used)}.** · {line}"
     return f"⚠ **{alert}** · {line}" if alert else line
 
 
