@@ -49,7 +49,10 @@ def run(args: argparse.Namespace) -> int:
                           include_simulated=args.include_simulated,
                           exclude=None if args.force else bad, xdf=args.xdf,
                           xdf_streams=args.xdf_stream)
+    print(report.design.line)
     print(report.ratings_counted)
+    for deviation in report.design.deviations:
+        print(f"warning: study plan: {deviation}", file=sys.stderr)
     for code in report.counting.marked:
         print(f"warning: {code}: {report.counting.problem(code)}", file=sys.stderr)
     for line in report.answers_not_used:

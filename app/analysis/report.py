@@ -24,6 +24,7 @@ from app.analysis.provenance import SIMULATED_MARK, Counting, answers_not_used, 
 from app.analysis.report_page import render_page
 from app.analysis.stats import StatTest
 from app.analysis.study_analysis import StudyAnalysis
+from app.analysis.study_design import StudyDesign
 from app.analysis.tables import study_configs, theta_star
 from app.analysis.xdf import Recording, around_go, load_recording
 from session_store.export import load_study
@@ -49,6 +50,7 @@ class Report(BaseModel):
     ratings_counted: str  # whose answers were counted, in words
     counting: Counting  # … and which participants were left out or marked, and why
     answers_not_used: list[str]  # answers recorded as not used (two at once), per participant
+    design: StudyDesign  # the study plan's line and the deviations from it
     not_blind: dict[str, str]  # participant → how their validation was shown, where not "blind"
     recording_cut_short: list[str] = []  # the XDF recording's streams that end early, in words
 
@@ -158,6 +160,7 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
     return Report(html=html, tables=tables, figures=figures, tests=analysis.tests,
                   incomplete=incomplete, unreadable=unreadable, ratings_counted=counted.text(),
                   counting=counted, answers_not_used=answers_not_used(analysis.tables["events"]),
+                  design=analysis.design,
                   not_blind=not_blind(analysis.status),
                   recording_cut_short=[] if recording is None else recording.cut_short)
 

@@ -77,6 +77,7 @@ def problems(analysis: StudyAnalysis, unreadable: Mapping[str, str],
               "pair was θ*" for code, text in not_blind(analysis.status).items()]
     counting = analysis.counting
     lines += answers_not_used(analysis.tables["events"])
+    lines += [f"study plan: {deviation}" for deviation in analysis.design.deviations]
     lines += [f"{code} {SIMULATED_MARK}: {counting.problem(code)}" for code in counting.marked]
     if not lines:
         return html.paragraph("No problems: every database was read and every session is complete.")
@@ -211,7 +212,7 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
                          marked)
     banner = ([html.paragraph(ratings_counted, "banner")] if analysis.counting.simulated_study
               else [])
-    parts = [*banner, intro,
+    parts = [*banner, intro, html.paragraph(analysis.design.line),
              *([] if banner else [html.paragraph(ratings_counted)]),
              problems(analysis, unreadable, recording_cut_short),
              sessions(analysis), who_answered(analysis), learning(analysis),

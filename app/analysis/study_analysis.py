@@ -12,6 +12,7 @@ import pandas as pd
 from app.analysis.learning_stop import learning_table
 from app.analysis.provenance import Counting, answers_by, counted_answers, validation_blinding
 from app.analysis.stats import StatTest, paper_tests
+from app.analysis.study_design import StudyDesign, study_design
 from app.analysis.tables import (
     session_status,
     survey_table,
@@ -28,6 +29,7 @@ class StudyAnalysis:
 
     tables: dict[str, pd.DataFrame]  # as counted (the simulated answers left out, unless counted)
     counting: Counting
+    design: StudyDesign  # the study plan, the groups as they ran, the deviations
     status: pd.DataFrame
     pairs: pd.DataFrame
     scores: pd.DataFrame
@@ -60,5 +62,5 @@ class StudyAnalysis:
         distances = validation_distances(tables["participants"], tables["trials"], tables["samples"])
         learning = learning_table(tables["participants"], tables["trials"], tables["events"]).merge(
             answered, on="participant")
-        return cls(tables, counting, status, pairs, scores, survey, paper_tests(scores, survey),
-                   distances, learning)
+        return cls(tables, counting, study_design(tables["participants"]), status, pairs, scores,
+                   survey, paper_tests(scores, survey), distances, learning)

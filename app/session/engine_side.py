@@ -18,6 +18,7 @@ import numpy as np
 
 from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
+from app.protocol.design import Participant, PlanStatus
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.learning_words import learning_line, recorded_stop, stop_headline
@@ -234,6 +235,15 @@ class EngineSide:
             self._overview = (self._study_overview.lines() if engine is None else
                               self._study_overview.lines(engine.store, engine.participant.code))
         return self._overview
+
+    def plan_status(self) -> PlanStatus | None:
+        """The study against its plan (``[study]``): the groups' counts, the next proposal, the
+        deviations (None: the lab has no plan)."""
+        if self.lab.study is None:
+            return None
+        return PlanStatus.of(self.lab.study, [
+            Participant(code=line.code, scenario=line.scenario, assignment=line.assignment)
+            for line in self.overview() if line.scenario is not None])
 
     def facts(self) -> SessionFacts | None:
         """The open session's part of the view (None: none open)."""

@@ -458,7 +458,7 @@ class SessionRunner:
     def _make_view(self) -> RunnerView:
         """A new view, numbered (on the engine thread)."""
         return build_view(next(self._made), self._status(), self._side.overview(),
-                          self._side.facts(), self.auto_experimenter)
+                          self._side.facts(), self.auto_experimenter, self._side.plan_status())
 
     def _status(self) -> Status:
         """The view's fields that do not come from the engine (read without its thread)."""

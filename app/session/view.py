@@ -12,6 +12,7 @@ from typing import Literal, NamedTuple
 from pydantic import BaseModel, ConfigDict
 
 from app.learning.models import PosteriorSlice
+from app.protocol.design import PlanStatus
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary
 from app.session.pairing import TabletStatus
@@ -63,6 +64,7 @@ class RunnerView(BaseModel):
     tablet: TabletStatus | None = None  # None: no tablet screen (headless)
     tablet_required: bool = True  # exactly one paired tablet before a trial may start
     overview: list[ParticipantSummary] = []  # every participant of the study folder
+    plan: PlanStatus | None = None  # the study against its plan ([study]; None: no plan)
     messages: list[str] = []  # the latest events, newest last
     trials: list[Trial] = []
     theta_star: list[ThetaStar] = []
@@ -159,11 +161,13 @@ def status_fields(status: Status) -> dict:
 
 
 def build_view(version: int, status: Status, overview: list[ParticipantSummary],
-               session: SessionFacts | None, auto_experimenter: bool) -> RunnerView:
-    """The view numbered ``version``: the open ``session`` (None: none open) beside ``status``.
+               session: SessionFacts | None, auto_experimenter: bool,
+               plan: PlanStatus | None = None) -> RunnerView:
+    """The view numbered ``version``: the open ``session`` (None: none open) beside ``status``,
+    the study's ``overview`` and where it stands against its ``plan``.
     The cycle waits for the experimenter only when neither the simulated participant
     (``status.auto``) nor the simulated experimenter (``auto_experimenter``) confirms it."""
-    fields = {**status_fields(status), "overview": overview}
+    fields = {**status_fields(status), "overview": overview, "plan": plan}
     if session is None:
         return RunnerView(version=version, **fields)
     return RunnerView(

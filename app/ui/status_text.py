@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from datetime import datetime
 
+from app.protocol.design import PlanStatus
 from app.protocol.entries import not_used_words
 from app.protocol.learning_words import stop_headline
 from app.protocol.state import SessionState, Step
@@ -221,6 +222,16 @@ def overview_markdown(rows: list[ParticipantSummary]) -> str:
               for r in rows]
     unreadable = [f"- {r.code}: {r.detail}" for r in rows if r.status is SessionStatus.UNREADABLE]
     return "\n".join(table + (["", "Unreadable:", *unreadable] if unreadable else []))
+
+
+def plan_markdown(plan: PlanStatus) -> str:
+    """The study plan above the new participant's form: the design, the groups so far, what it
+    proposes next, and the deviations on record."""
+    lines = [f"**Study plan** ({plan.plan.words()}): so far {plan.counts_words()}.",
+             f"**{plan.next_words()[0].upper()}{plan.next_words()[1:]}**."]
+    if plan.deviations:
+        lines.append("⚠ Deviations: " + "; ".join(plan.deviations) + ".")
+    return "  \n".join(lines)
 
 
 def learner_markdown(view: RunnerView, blind: bool, rows: int = 10) -> str:
