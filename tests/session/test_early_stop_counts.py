@@ -11,12 +11,11 @@ becomes 9. It takes about 30 s: 9 trials on simulated time and 3 learner fits.
 from __future__ import annotations
 
 import pytest
-from support.engine import SESSION_CONTROLLER, STOPPING_PROTOCOL
-from support.runner import Probe
+from support.engine import STOPPING_PROTOCOL
+from support.runner import headless_runner
 
 from app.protocol.state import Step
-from app.session.config import LabConfig
-from app.session.runner import RunnerView, SessionRunner
+from app.session.runner import RunnerView
 from app.ui.status_text import overview_markdown, progress_markdown, status_line
 from robot_io.hands.simulated_hand import Scenario
 
@@ -28,10 +27,7 @@ HEADLINE = "Learning stopped early after batch 1 of 4: the learner is sure enoug
 def session(tmp_path_factory) -> tuple[list[RunnerView], RunnerView, RunnerView]:
     """Every view published, the last one of the open session, and the view after End session."""
     study = tmp_path_factory.mktemp("study")
-    lab = LabConfig.model_validate({"protocol": STOPPING_PROTOCOL,
-                                    "loop": {"rate_hz": SESSION_CONTROLLER.loop.rate_hz}})
-    runner = SessionRunner(study, lab, realtime=False, auto_experimenter=True)
-    probe = Probe(runner)
+    runner, probe = headless_runner(study, STOPPING_PROTOCOL)
     try:
         runner.set_auto(True)
         runner.open("E01", Scenario.STRAIGHTFORWARD, seed=1)

@@ -9,13 +9,11 @@ import html
 
 import pandas as pd
 import pytest
-from support.engine import SESSION_CONTROLLER, SHORT_PROTOCOL
-from support.runner import Probe
+from support.engine import SHORT_PROTOCOL
+from support.runner import headless_runner
 
 from app.analysis.report import build_report
 from app.protocol.state import Step
-from app.session.config import LabConfig
-from app.session.runner import SessionRunner
 from robot_io.hands.simulated_hand import Scenario
 from session_store.export import export_study, read_table
 
@@ -23,10 +21,7 @@ from session_store.export import export_study, read_table
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     study = tmp_path_factory.mktemp("study")
-    lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL,
-                                    "loop": {"rate_hz": SESSION_CONTROLLER.loop.rate_hz}})
-    runner = SessionRunner(study, lab, realtime=False, auto_experimenter=True)
-    probe = Probe(runner)
+    runner, probe = headless_runner(study, SHORT_PROTOCOL)
     # The waits' ceilings are for a hung session (a rig process to start, learner fits on a loaded
     # machine), not measurements.
     try:

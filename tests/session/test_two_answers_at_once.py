@@ -16,15 +16,13 @@ import html
 import re
 
 import pytest
-from support.engine import SESSION_CONTROLLER, SHORT_PROTOCOL
-from support.runner import Probe
+from support.engine import SHORT_PROTOCOL
+from support.runner import headless_runner
 
 from app.analysis.report import build_report
 from app.protocol.entries import EntryNotUsed
 from app.protocol.errors import RefusedAction
 from app.protocol.state import Step
-from app.session.config import LabConfig
-from app.session.runner import SessionRunner
 from app.ui.status_text import status_line
 from robot_io.hands.simulated_hand import Scenario
 from session_store.reading import reading
@@ -39,10 +37,7 @@ PLACEMENT_NOT_USED = ("Not used: the experimenter's placement of handover 2 (at 
 @pytest.fixture(scope="module")
 def session(tmp_path_factory):
     study = tmp_path_factory.mktemp("study")
-    lab = LabConfig.model_validate({"protocol": {**SHORT_PROTOCOL, "coactive": True},
-                                    "loop": {"rate_hz": SESSION_CONTROLLER.loop.rate_hz}})
-    runner = SessionRunner(study, lab, realtime=False, auto_experimenter=True)
-    probe = Probe(runner)
+    runner, probe = headless_runner(study, {**SHORT_PROTOCOL, "coactive": True})
     try:
         runner.open("T01", Scenario.PERTURBED, seed=3)
         probe.wait(lambda v: v.step is Step.PLACE, timeout=300, what="handover 1's placement")
