@@ -44,7 +44,8 @@ PARTICIPANT_COLUMNS: dict[str, tuple[str, str]] = {
     "seed": ("Int64", "seed of the session"),
     "created_at": ("string", "UTC ISO-8601 time the session was created"),
     "completed": ("Int64", "completed interactions (34 for a whole session with the defaults)"),
-    "config": ("string", "the study configuration as JSON (counts, bounds, controller)"),
+    "config": ("string", "the study configuration as JSON (counts, bounds, controller; "
+                         "assignment: what the [study] plan proposed for the participant)"),
 }
 SNAPSHOT_EXCLUDED = {"state"}  # the learner's own JSON stays in the .sqlite file
 

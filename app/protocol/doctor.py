@@ -96,7 +96,7 @@ def examine(path: Path) -> Verdict:
     verdict.contradictions += rebuilt_differences(records, read_samples(path, list(records)))
     where = "complete" if state.step is Step.DONE else f"waiting for '{state.step.value}'"
     verdict.notes.append(f"seed {config.seed}, {config.scenario.value}; {state.completed} of "
-                         f"{config.interactions} interactions completed, {where}; "
+                         f"{state.interactions} interactions completed, {where}; "
                          f"{len(found.events)} events replayed")
     return verdict
 

@@ -36,6 +36,7 @@ from app.protocol import events as ev
 from app.protocol.earlier import earlier_participants_prior
 from app.protocol.errors import RefusedAction
 from app.protocol.hints import DIRECTIONS
+from app.protocol.learning_words import stop_reason
 from app.protocol.plan import Slot, protocol_slots
 from app.protocol.safety_record import DEFAULT_SAFETY, SafetyRecordSettings, safety_record
 from app.protocol.session_inputs import hand_seed, learner_config, validation_sobol
@@ -357,6 +358,11 @@ class SessionEngine:
                      lambda: self.store.add(row))
         return row
 
+    def record_not_used(self, event: ev.EntryNotUsed) -> None:
+        """An answer that came after another for the same prompt: recorded, not used
+        (:mod:`app.protocol.entries`)."""
+        self._commit(event)
+
     def pause(self, reason: str = "") -> None:
         if self.state.paused:
             raise RefusedAction("pause refused: the session is already paused")
@@ -505,10 +511,7 @@ class SessionEngine:
                 or suggestion.fallback or not rule.stops(slot.batch - 1, signal)):
             return False
         probability = signal.probability_within(rule.epsilon)
-        reason = (f"settled after {slot.batch - 1} learning batches: {probability:.0%} sure that "
-                  f"the best handover would be preferred to θ* at most "
-                  f"{self.config.settled_preference:.0%} of the time (stops at "
-                  f"{rule.threshold:.0%}, after at least {rule.min_batches} batches)")
+        reason = stop_reason(self.config, slot.batch - 1, probability)
         self._commit(ev.LearningStopped(
             actor=Actor.LEARNER, after_interaction=slot.interaction - 1, batches=slot.batch - 1,
             probability=probability, epsilon=rule.epsilon, threshold=rule.threshold,

@@ -139,6 +139,22 @@ class AnswerGiven(_Rated):
     value: str
 
 
+class EntryNotUsed(_Rated):
+    """An answer for the participant that came after another one for the same handover or question
+    had been stored — the tablet and the dashboard at once (docs/protocol.md, "Two answers at
+    once"): recorded, not used; the one stored first (``counted_seq``) counts."""
+
+    kind: Literal["entry_not_used"] = "entry_not_used"
+    entry: Literal["placement", "hint", "rating", "answer"] = Field(description="what it was")
+    interaction: int | None = Field(None, ge=1, description="the handover it was about (placement, "
+                                    "hint, rating)")
+    question: str | None = Field(None, description="the question it answered (answer)")
+    value: str = Field(description="what it said, in words")
+    counted_seq: int = Field(ge=1, description="the event of the answer that counts")
+    counted_actor: Actor = Field(description="who gave the answer that counts")
+    counted_value: str = Field(description="what that answer said, in words")
+
+
 class Paused(_Event):
     kind: Literal["paused"] = "paused"
     reason: str = ""
@@ -179,7 +195,8 @@ class ValidationBlindingSet(_Event):
 
 ProtocolEvent = Annotated[
     SessionCreated | SessionResumed | ThetaPlanned | LearningStopped | TrialStarted | TrialStage | TrialEnded
-    | PlacementMade | HintGiven | ValidationRated | AnswerGiven | Paused | Resumed | DevicesRecorded
+    | PlacementMade | HintGiven | ValidationRated | AnswerGiven | EntryNotUsed | Paused | Resumed
+    | DevicesRecorded
     | RigChangeConfirmed | SimulatedParticipantSwitched | ValidationBlindingSet,
     Field(discriminator="kind")]
 _ADAPTER: TypeAdapter[ProtocolEvent] = TypeAdapter(ProtocolEvent)

@@ -80,6 +80,8 @@ class SessionState(BaseModel):
     coactive: bool = False
     #: the last interaction learned from when learning stopped early (stop_when_settled), else None
     stopped_after: int | None = None
+    #: the latest answer recorded as not used (two answers at once), until the next trial starts
+    not_used: ev.EntryNotUsed | None = None
     last_event: int = 0
 
     @property
@@ -127,6 +129,15 @@ class SessionState(BaseModel):
     @property
     def completed(self) -> int:
         return len(self.completed_trial)
+
+    @property
+    def interactions(self) -> int:
+        """The interactions of the plan as it stands now: every slot but the learning ones an
+        early stop skipped (``stop_when_settled``); 34 with the paper's counts and no stop."""
+        if self.stopped_after is None:
+            return len(self.slots)
+        return sum(s.learner_index is None or s.interaction <= self.stopped_after
+                   for s in self.slots)
 
 
 def _advance(state: SessionState) -> None:
@@ -199,6 +210,7 @@ def _trial_started(state: SessionState, event: ev.TrialStarted) -> None:
     _check(event.attempt == expected, f"attempt {event.attempt} of interaction "
                                       f"{event.interaction}; the next is {expected}")
     state.running_trial = event.trial_index
+    state.not_used = None
     state.attempts[event.interaction] = event.attempt
     state.next_trial_index = event.trial_index + 1
     state.stage = state.go_at = None
@@ -284,6 +296,12 @@ def _answer_given(state: SessionState, event: ev.AnswerGiven) -> None:
     state.answers[event.question] = event.value
 
 
+def _not_used(state: SessionState, event: ev.EntryNotUsed) -> None:
+    _check(event.counted_seq <= state.last_event, f"an answer not used in favour of event "
+                                                  f"{event.counted_seq}, which is not stored before it")
+    state.not_used = event
+
+
 def _paused(state: SessionState, event: ev.Paused) -> None:
     _check(not state.paused, "paused twice")
     _check(state.running_trial is None, f"paused while trial {state.running_trial} runs")
@@ -314,7 +332,7 @@ HANDLERS: dict[type, Callable[[SessionState, Any], None]] = {
     ev.TrialStarted: _trial_started, ev.TrialStage: _trial_stage, ev.TrialEnded: _trial_ended,
     ev.PlacementMade: _placement_made, ev.HintGiven: _hint_given,
     ev.ValidationRated: _validation_rated,
-    ev.AnswerGiven: _answer_given, ev.Paused: _paused, ev.Resumed: _resumed,
+    ev.AnswerGiven: _answer_given, ev.EntryNotUsed: _not_used, ev.Paused: _paused, ev.Resumed: _resumed,
     ev.DevicesRecorded: _recorded, ev.RigChangeConfirmed: _recorded,
     ev.SimulatedParticipantSwitched: _switched, ev.ValidationBlindingSet: _blinding_set,
 }

@@ -10,6 +10,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from app.learning.config import StoppingRule
+from app.protocol.design import Assignment
 from app.protocol.seeds import Seed
 from robot_io.config import ControllerConfig
 from robot_io.hands.simulated_hand import Scenario
@@ -71,6 +72,9 @@ class StudyConfig(BaseModel):
     prior_sources: list[str] = Field(
         default_factory=list, description="the participants whose data formed the prior, fixed "
         "when the session was created (empty: no prior)")
+    assignment: Assignment | None = Field(
+        None, description="what the study plan ([study]) proposed for this participant, recorded "
+        "when it was created (None: no plan; the scenario was chosen by hand)")
     theta_bounds: dict[str, tuple[float, float]] = Field(
         default_factory=lambda: dict(THETA_BOUNDS), description="Θ of Table I")
     controller: ControllerConfig = ControllerConfig()

@@ -3,9 +3,10 @@
 ``[dmp]``, ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``,
 ``[gripper]``, ``[release]``, see :mod:`robot_io.config`) plus ``[protocol]`` (the study's counts,
 Sect. V-C), ``[learner]`` (acquisition, θ box, recommendation, prior), ``[record]`` (the study's LSL
-outlets), ``[recording]`` (the session's own XDF recording) and ``[safety_record]`` (each trial's
-safety record and the lab's limits). Every key has a documented default (the paper's where it has
-one); an unknown table or key is an error naming it.
+outlets), ``[recording]`` (the session's own XDF recording), ``[safety_record]`` (each trial's
+safety record and the lab's limits) and ``[study]`` (the design and counterbalancing of new
+participants). Every key has a documented default (the paper's where it has one; ``[study]`` has
+none: without it there is no plan); an unknown table or key is an error naming it.
 ``docs/hardware.md`` has a full example.
 """
 
@@ -30,6 +31,7 @@ from pydantic import (
 )
 from pydantic.fields import FieldInfo
 
+from app.protocol.design import Assignment, StudyPlan
 from app.protocol.safety_record import SafetyRecordSettings
 from app.protocol.study import StudyConfig
 from robot_io.config import ControllerConfig
@@ -172,7 +174,8 @@ class RecordingSettings(BaseModel):
 
 
 #: The tables of a lab config that are not the controller's.
-APPLICATION_TABLES = frozenset({"protocol", "learner", "record", "recording", "safety_record"})
+APPLICATION_TABLES = frozenset({"protocol", "learner", "record", "recording", "safety_record",
+                                "study"})
 
 
 class LabConfig(ControllerConfig):
@@ -181,6 +184,9 @@ class LabConfig(ControllerConfig):
     protocol: ProtocolSettings = ProtocolSettings()
     learner: LearnerSettings = LearnerSettings()
     record: RecordSettings = RecordSettings()
+    #: [study]: the design and the counterbalanced assignment of new participants (None: no plan,
+    #: the experimenter chooses every scenario; app.protocol.design)
+    study: StudyPlan | None = None
     recording: RecordingSettings = RecordingSettings()
     safety_record: SafetyRecordSettings = SafetyRecordSettings()
 
@@ -197,10 +203,13 @@ class LabConfig(ControllerConfig):
     def controller(self) -> ControllerConfig:
         return ControllerConfig.model_validate(self.model_dump(exclude=set(APPLICATION_TABLES)))
 
-    def study_config(self, scenario: Scenario, seed: int) -> StudyConfig:
-        """A new participant's session plan under this configuration."""
+    def study_config(self, scenario: Scenario, seed: int,
+                     assignment: Assignment | None = None) -> StudyConfig:
+        """A new participant's session plan under this configuration (``assignment``: what the
+        study plan proposed for it)."""
         return StudyConfig(scenario=scenario, seed=seed, controller=self.controller,
-                           **self.protocol.counts(), **self.learner.model_dump())
+                           assignment=assignment, **self.protocol.counts(),
+                           **self.learner.model_dump())
 
     def with_rig(self, **tables: BaseModel) -> LabConfig:
         """A copy with some controller tables replaced (rehearsal, ``--ur-host``)."""

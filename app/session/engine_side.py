@@ -18,15 +18,16 @@ import numpy as np
 
 from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
+from app.protocol.design import Participant, PlanStatus
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
+from app.protocol.learning_words import learning_line, recorded_stop, stop_headline
 from app.protocol.safety_record import over_limits
 from app.protocol.simulated_participant import SimulatedParticipant
-from app.protocol.state import Step
+from app.protocol.state import PlannedTheta, Step
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig
 from app.session.drawing import with_links
-from app.session.learning_words import learning_line
 from app.session.lsl_outlets import StudyOutlets
 from app.session.opening import open_session, trial_config
 from app.session.overview import ParticipantSummary, StudyOverview
@@ -82,17 +83,6 @@ class EngineSide:
         if self.engine is None:
             raise RefusedAction("no participant is open: create or resume one first")
         return self.engine
-
-    def require_current(self, interaction: int, step: Step) -> SessionEngine:
-        """The engine, if it still waits for ``step`` of ``interaction`` (a stale screen's action
-        is refused, so a reload or a double tap never rates twice)."""
-        engine = self.require()
-        slot = engine.state.slot
-        if engine.state.step is not step or slot is None or slot.interaction != interaction:
-            raise RefusedAction(f"refused: interaction {interaction} is not waiting for "
-                                f"'{step.value}' (the session waits for "
-                                f"'{engine.state.step.value}')")
-        return engine
 
     def open(self, code: str, scenario: Scenario | None, seed: int | None, *, identity: dict,
              confirm_rig_change: bool, confirm_seed_reuse: bool,
@@ -227,6 +217,18 @@ class EngineSide:
             assert self._participant is not None, "opened with the engine, dropped when it ends"
             rate_once(self.engine, self._participant)
 
+    def plan(self, timeout: float) -> tuple[PlannedTheta, str | None]:
+        """Plan the current interaction's θ (:meth:`SessionEngine.plan_next`), and the news it
+        brings for the experimenter: that learning stopped early, and why (None: no news)."""
+        engine = self.require()
+        before = engine.state.stopped_after
+        planned = engine.plan_next(timeout)
+        headline = stop_headline(engine.state)
+        if before is not None or headline is None:
+            return planned, None
+        self._overview = None  # the Study table's count follows the shortened plan
+        return planned, f"{headline}: {recorded_stop(engine.store.events())}"
+
     def planning(self, preparing: bool, fault: str | None) -> None:
         self._learner = (preparing, fault)
 
@@ -269,6 +271,15 @@ class EngineSide:
                               self._study_overview.lines(engine.store, engine.participant.code))
         return self._overview
 
+    def plan_status(self) -> PlanStatus | None:
+        """The study against its plan (``[study]``): the groups' counts, the next proposal, the
+        deviations (None: the lab has no plan)."""
+        if self.lab.study is None:
+            return None
+        return PlanStatus.of(self.lab.study, [
+            Participant(code=line.code, scenario=line.scenario, assignment=line.assignment)
+            for line in self.overview() if line.scenario is not None])
+
     def facts(self) -> SessionFacts | None:
         """The open session's part of the view (None: none open)."""
         engine = self.engine
@@ -281,13 +292,15 @@ class EngineSide:
                 ThetaStar(after_interaction=r.after_interaction, a=r.theta_star_a,
                           delta=r.theta_star_delta, k=r.theta_star_k)
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
-            self._learning = learning_line(engine)
+            self._learning = learning_line(
+                state, engine.config, engine.settledness, recorded_stop(engine.store.events()),
+                engine.store.rows("learner_snapshots", order_by="after_interaction"))
         trials = engine.store.rows("trials", order_by="trial_index")
         return SessionFacts(
             code=engine.participant.code, scenario=engine.config.scenario, seed=engine.config.seed,
-            state=state.model_copy(deep=True), interactions=engine.config.interactions,
-            trials=trials, theta_star=self._theta_star, posterior=engine.posterior_slices,
-            learning=self._learning, safety_flags=self._safety_flags(trials))
+            state=state.model_copy(deep=True), trials=trials, theta_star=self._theta_star,
+            posterior=engine.posterior_slices, learning=self._learning,
+            safety_flags=self._safety_flags(trials))
 
     def _safety_flags(self, trials: list[Trial]) -> list[str]:
         """Each trial over the lab's [safety_record] limits, in words (newest first)."""

@@ -30,6 +30,7 @@ import numpy as np
 
 from app.learning.errors import LearningError
 from app.protocol.engine import TrialPlan
+from app.protocol.entries import Entry, EntryNotUsed, enter
 from app.protocol.errors import RefusedAction
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
@@ -289,43 +290,49 @@ class SessionRunner:
         self._news(message)
 
     # -- the participant's actions (each names the interaction its screen showed) -----------------
-    # ``by``: the participant on the tablet, or the experimenter entering it for them (dashboard)
+    # ``by``: the participant on the tablet, or the experimenter entering it for them (dashboard);
+    # an answer after another for the same prompt is recorded as not used (app.protocol.entries)
     def place(self, interaction: int, position: float | None = None,
               equal_to: int | None = None, by: Rater = Rater.PARTICIPANT) -> None:
-        self._call(lambda: self._side.require_current(interaction, Step.PLACE).place(
-            position=position, equal_to=equal_to, by=by))
-        self._changed(None)
+        self._enter(Entry(kind="placement", interaction=interaction, position=position,
+                          equal_to=equal_to, by=by))
 
     def hint(self, interaction: int, hint: Hint | None, by: Rater = Rater.PARTICIPANT) -> None:
         """A coactive hint about ``interaction`` (None: nothing to change)."""
-        self._call(lambda: self._side.require_current(interaction, Step.HINT).hint(hint, by=by))
-        self._changed(None)
+        self._enter(Entry(kind="hint", interaction=interaction, hint=hint, by=by))
 
     def rate(self, interaction: int, rating: str, by: Rater = Rater.PARTICIPANT) -> None:
-        self._call(lambda: self._side.require_current(interaction, Step.RATE).rate_validation(
-            rating, by=by))
-        self._changed(None)
+        self._enter(Entry(kind="rating", interaction=interaction, rating=rating, by=by))
 
     def answer(self, question: str, value: str, by: Rater = Rater.PARTICIPANT) -> None:
-        self._call(lambda: self._side.require().answer(question, value, by=by))
+        self._enter(Entry(kind="answer", question=question, value=value, by=by))
+
+    def _enter(self, entry: Entry) -> None:
+        """Take the participant's answer; one that came after another's for the same prompt is
+        news for the experimenter (and refused, with what counts instead)."""
+        try:
+            self._call(lambda: enter(self._side.require(), entry))
+        except EntryNotUsed as exc:
+            self._changed(f"⚠ {exc}")
+            raise
         self._changed(None)
 
     # -- the background worker's actions (app.session.autopilot) ----------------------------------
     def plan_next(self) -> None:
         """The learner plans the next θ (the view says "fitting the next θ" meanwhile, and then
-        whether the learner was late or failed)."""
+        whether the learner was late or failed, or that learning stopped early)."""
         self._call(lambda: self._side.planning(True, self._side.learner()[1]))
         self._changed()
-        fault = None
+        fault = news = None
         try:
-            planned = self._call(lambda: self._side.require().plan_next(PLAN_TIMEOUT_S))
+            planned, news = self._call(lambda: self._side.plan(PLAN_TIMEOUT_S))
             fault = "the learner was late: a Sobol point was used (fallback)" if planned.fallback else None
         except (LearningError, RefusedAction, StoreError) as exc:
             log.exception("planning the next θ failed")
             fault = f"{type(exc).__name__}: {exc}"
         finally:
             self._call(lambda: self._side.planning(False, fault))
-            self._changed(None)
+            self._changed(news)
 
     def simulated_turn(self, step: Step) -> None:
         """The simulated participant places, rates or answers, if it is on and the session still
@@ -470,7 +477,7 @@ class SessionRunner:
     def _make_view(self) -> RunnerView:
         """A new view, numbered (on the engine thread)."""
         return build_view(next(self._made), self._status(), self._side.overview(),
-                          self._side.facts(), self.auto_experimenter)
+                          self._side.facts(), self.auto_experimenter, self._side.plan_status())
 
     def _status(self) -> Status:
         """The view's fields that do not come from the engine (read without its thread)."""

@@ -12,6 +12,7 @@ from typing import Literal, NamedTuple
 from pydantic import BaseModel, ConfigDict
 
 from app.learning.models import PosteriorSlice
+from app.protocol.design import PlanStatus
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary
 from app.session.pairing import TabletStatus
@@ -44,7 +45,6 @@ class RunnerView(BaseModel):
     scenario: Scenario | None = None
     seed: int | None = None
     state: SessionState | None = None
-    interactions: int = 0
     preparing: bool = False
     auto: bool = False
     rehearsal: bool = False
@@ -65,6 +65,7 @@ class RunnerView(BaseModel):
     tablet: TabletStatus | None = None  # None: no tablet screen (headless)
     tablet_required: bool = True  # exactly one paired tablet before a trial may start
     overview: list[ParticipantSummary] = []  # every participant of the study folder
+    plan: PlanStatus | None = None  # the study against its plan ([study]; None: no plan)
     messages: list[str] = []  # the latest events, newest last
     trials: list[Trial] = []
     theta_star: list[ThetaStar] = []
@@ -76,6 +77,11 @@ class RunnerView(BaseModel):
     @property
     def step(self) -> Step | None:
         return None if self.state is None else self.state.step
+
+    @property
+    def interactions(self) -> int:
+        """The interactions of the open session's plan as it stands now (0: none open)."""
+        return 0 if self.state is None else self.state.interactions
 
     @property
     def stage(self) -> Stage | None:
@@ -117,11 +123,10 @@ class SessionFacts(NamedTuple):
     scenario: Scenario
     seed: int
     state: SessionState  # a copy: the engine goes on changing its own
-    interactions: int
     trials: list[Trial]
     theta_star: list[ThetaStar]
     posterior: list[PosteriorSlice]
-    learning: str | None  # app.session.learning_words.learning_line
+    learning: str | None  # app.protocol.learning_words.learning_line
     safety_flags: list[str]  # the trials over the lab's limits (app.protocol.safety_record)
 
 
@@ -161,16 +166,18 @@ def status_fields(status: Status) -> dict:
 
 
 def build_view(version: int, status: Status, overview: list[ParticipantSummary],
-               session: SessionFacts | None, auto_experimenter: bool) -> RunnerView:
-    """The view numbered ``version``: the open ``session`` (None: none open) beside ``status``.
+               session: SessionFacts | None, auto_experimenter: bool,
+               plan: PlanStatus | None = None) -> RunnerView:
+    """The view numbered ``version``: the open ``session`` (None: none open) beside ``status``,
+    the study's ``overview`` and where it stands against its ``plan``.
     The cycle waits for the experimenter only when neither the simulated participant
     (``status.auto``) nor the simulated experimenter (``auto_experimenter``) confirms it."""
-    fields = {**status_fields(status), "overview": overview}
+    fields = {**status_fields(status), "overview": overview, "plan": plan}
     if session is None:
         return RunnerView(version=version, **fields)
     return RunnerView(
         version=version, code=session.code, scenario=session.scenario, seed=session.seed,
-        state=session.state, interactions=session.interactions, preparing=status.preparing,
+        state=session.state, preparing=status.preparing,
         waiting_for=waiting_for(session.state, status.auto or auto_experimenter),
         trials=session.trials, theta_star=session.theta_star, posterior=session.posterior,
         learning=session.learning, safety_flags=session.safety_flags, **fields)

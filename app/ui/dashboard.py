@@ -35,7 +35,6 @@ import viser
 import viser.uplot
 
 from app.learning.models import PosteriorSlice
-from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
 from app.session.faults import StagedFault
 from app.session.runner import RunnerView, SessionRunner
@@ -43,6 +42,7 @@ from app.session.windows import DashboardWindows
 from app.ui.guard import TokenGate
 from app.ui.live_view import STRIDE, LiveView
 from app.ui.on_behalf import OnBehalf
+from app.ui.participant_form import build_participant_form
 from app.ui.replay import SPEEDS, Replay
 from app.ui.status_text import (
     devices_markdown,
@@ -56,9 +56,7 @@ from app.ui.status_text import (
 )
 from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, STOP_LABEL, style_block
 from robot_io.errors import RobotIOError
-from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
-from session_store.models import check_participant_code
 
 log = logging.getLogger(__name__)
 
@@ -260,7 +258,7 @@ class DashboardClient:
             self.error = gui.add_markdown("")
             with gui.add_folder("Study"):
                 self.overview = gui.add_markdown("")
-                self._participant(gui, view)
+                build_participant_form(gui, view, self.runner, self._act)
             if view.state is not None:
                 with gui.add_folder("Session"):
                     self.progress = gui.add_markdown("")
@@ -301,47 +299,6 @@ class DashboardClient:
                                   icon=viser.Icon.HAND_STOP)
         command.on_trigger(lambda _: self._act(self.runner.stop, control=False))
         return safety
-
-    def _participant(self, gui: viser.GuiApi, view: RunnerView) -> None:
-        if view.code is not None:
-            assert view.scenario is not None, "an open session's view has its scenario"
-            gui.add_markdown(f"Open: **{view.code}** ({view.scenario.value}, seed {view.seed}). "
-                             "End the session to open or create another participant.")
-            return
-        gui.add_markdown("A known code resumes its session; a new code creates one.")
-        code = gui.add_text("Code", "")
-        code_error = gui.add_markdown("")
-        scenario = gui.add_dropdown("Scenario", [s.value for s in Scenario],
-                                    initial_value=Scenario.PERTURBED.value)
-        seed = gui.add_text("Seed (empty: a fresh random one)", "")
-        reuse = gui.add_checkbox("Reuse a seed already used in this study", False)
-        rig_change = gui.add_checkbox("Confirm a rig change (resume on other devices)", False)
-        open_button = gui.add_button("Create or resume")
-
-        def check_code() -> bool:
-            """The code's error under its field while it is wrong (cleared once it is right)."""
-            try:
-                check_participant_code(code.value.strip())
-            except ValueError as exc:
-                code_error.content = f"⚠ {exc}" if code.value.strip() else ""
-                return False
-            code_error.content = ""
-            return True
-
-        @code.on_update
-        def _(_: viser.GuiEvent) -> None:
-            check_code()
-
-        def open_session() -> None:
-            if not check_code():
-                code_error.content = code_error.content or "⚠ enter the participant's code"
-                return
-            self._act(lambda: self.runner.open(
-                code.value.strip(), Scenario(scenario.value),
-                parse_seed(seed.value) if seed.value.strip() else None,
-                confirm_rig_change=rig_change.value, confirm_seed_reuse=reuse.value))
-
-        open_button.on_click(lambda _: open_session())
 
     def _controls(self, gui: viser.GuiApi) -> Controls:
         controls = Controls(

@@ -10,6 +10,9 @@ from __future__ import annotations
 from datetime import datetime
 from pathlib import Path
 
+from app.protocol.design import PlanStatus
+from app.protocol.entries import not_used_words
+from app.protocol.learning_words import stop_headline
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
@@ -52,10 +55,29 @@ def start_blocker(view: RunnerView) -> str | None:
 
 def status_line(view: RunnerView) -> str:
     """One line: what the session waits for and what to do, e.g. "Paused — press Resume"; led by
-    what the experimenter must notice about the tablet (a take-over, wrong pairing codes)."""
+    what the experimenter must notice about the tablet (a take-over, wrong pairing codes), then by
+    an answer not used (two at once) and news of the protocol (learning stopped early), until the
+    next trial."""
     alert = view.tablet.alert() if view.tablet is not None else None
     line = _status(view)
+    news = _news(view)
+    if news:
+        line = f"**{news}.** · {line}"
+    not_used = view.state.not_used if view.state is not None else None
+    if not_used is not None:
+        line = f"⚠ **{not_used_words(not_used)}.** · {line}"
     return f"⚠ **{alert}** · {line}" if alert else line
+
+
+def _news(view: RunnerView) -> str | None:
+    """Learning stopped early, between the stop and the next trial (then the Session panel keeps
+    saying so)."""
+    state = view.state
+    if state is None or state.step not in (Step.PLAN, Step.READY) or state.stopped_after is None:
+        return None
+    if any(interaction > state.stopped_after for interaction in state.completed_trial):
+        return None
+    return stop_headline(state)
 
 
 def _status(view: RunnerView) -> str:
@@ -119,6 +141,8 @@ def progress_markdown(view: RunnerView) -> str:
         if attempt > 1:
             where += f" · attempt {attempt}"
         lines.append(where)
+    if (stopped := stop_headline(state)) is not None:
+        lines.append(stopped)
     if state.step is Step.RUNNING:
         lines.append(cycle_markdown(view))
     return "  \n".join(lines)
@@ -218,6 +242,16 @@ def overview_markdown(rows: list[ParticipantSummary]) -> str:
               for r in rows]
     unreadable = [f"- {r.code}: {r.detail}" for r in rows if r.status is SessionStatus.UNREADABLE]
     return "\n".join(table + (["", "Unreadable:", *unreadable] if unreadable else []))
+
+
+def plan_markdown(plan: PlanStatus) -> str:
+    """The study plan above the new participant's form: the design, the groups so far, what it
+    proposes next, and the deviations on record."""
+    lines = [f"**Study plan** ({plan.plan.words()}): so far {plan.counts_words()}.",
+             f"**{plan.next_words()[0].upper()}{plan.next_words()[1:]}**."]
+    if plan.deviations:
+        lines.append("⚠ Deviations: " + "; ".join(plan.deviations) + ".")
+    return "  \n".join(lines)
 
 
 def learner_markdown(view: RunnerView, blind: bool, rows: int = 10) -> str:

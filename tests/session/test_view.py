@@ -40,7 +40,7 @@ def facts(running: int | None, stage: Stage | None) -> SessionFacts:
     config = LabConfig().study_config(Scenario.PERTURBED, 7)
     state = SessionState(slots=protocol_slots(config), running_trial=running, stage=stage)
     return SessionFacts(code="M01", scenario=Scenario.PERTURBED, seed=7, state=state,
-                        interactions=len(state.slots), trials=[],
+                        trials=[],
                         theta_star=[ThetaStar(after_interaction=3, a=1.0, delta=0.5, k=2.0)],
                         posterior=[], learning="the learner's first choice; 45% sure",
                         safety_flags=[])

@@ -43,7 +43,7 @@ def controls() -> Iterator[Controls]:
 
 def view(auto: bool, version: int) -> RunnerView:
     return RunnerView(version=version, code="P01", scenario=Scenario.PERTURBED,
-                      interactions=len(SLOTS), auto=auto,
+                      auto=auto,
                       state=SessionState(slots=SLOTS, cursor=0))
 
 

@@ -21,7 +21,7 @@ SLOTS = protocol_slots(LabConfig().study_config(Scenario.PERTURBED, 0))
 
 def running(stage: Stage) -> RunnerView:
     """The first trial of a session, in ``stage``."""
-    return RunnerView(code="P07", scenario=Scenario.PERTURBED, interactions=len(SLOTS),
+    return RunnerView(code="P07", scenario=Scenario.PERTURBED,
                       state=SessionState(slots=SLOTS, running_trial=1, stage=stage))
 
 

@@ -25,7 +25,7 @@ SLOTS = protocol_slots(CONFIG)
 
 
 def view_at(interaction: int, **state) -> RunnerView:
-    return RunnerView(code="P07", scenario=Scenario.PERTURBED, interactions=len(SLOTS),
+    return RunnerView(code="P07", scenario=Scenario.PERTURBED,
                       state=SessionState(slots=SLOTS, cursor=interaction - 1, **state))
 
 
@@ -80,7 +80,7 @@ def test_the_overview_says_each_status_in_a_word_or_two():
 
 
 def test_the_devices_panel_says_how_settled_the_learner_is_once_it_can():
-    """The stopping signal in words (app.session.learning_words), under the learner's line; no line
+    """The stopping signal in words (app.protocol.learning_words), under the learner's line; no line
     before the first learning batch has given one."""
     assert "learning" not in devices_markdown(view_at(6))
     settled = view_at(11).model_copy(update={"learning": "the learner's choice has not changed in "
