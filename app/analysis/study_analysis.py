@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from app.analysis.cycle_times import cycle_table
 from app.analysis.learning_stop import learning_table
 from app.analysis.provenance import validation_blinding
 from app.analysis.stats import StatTest, paper_tests
@@ -34,6 +35,7 @@ class StudyAnalysis:
     tests: list[StatTest]
     distances: pd.DataFrame
     learning: pd.DataFrame  # per participant: where learning ended and why, ties (issue 40)
+    cycle: pd.DataFrame  # per stage of the handover cycle: trials that reached it, time in it
 
     @classmethod
     def of(cls, tables: dict[str, pd.DataFrame]) -> StudyAnalysis:
@@ -46,4 +48,4 @@ class StudyAnalysis:
         distances = validation_distances(tables["participants"], tables["trials"], tables["samples"])
         learning = learning_table(tables["participants"], tables["trials"], tables["events"])
         return cls(tables, status, pairs, scores, survey, paper_tests(scores, survey), distances,
-                   learning)
+                   learning, cycle_table(tables["events"]))

@@ -41,7 +41,6 @@ from app.protocol.session_inputs import hand_seed, learner_config, validation_so
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
 from app.protocol.study import StudyConfig
 from robot_io.control.loop import Outcome, TrialRecord
-from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.models import (
     Answer,
@@ -215,12 +214,12 @@ class SessionEngine:
                                    reason=reason), write)
         return ended
 
-    def record_stage(self, trial_index: int, stage: Stage, t: float | None,
+    def record_stage(self, trial_index: int, stage: str, t: float | None,
                      at: str | None = None) -> None:
         """A stage of the running trial's handover cycle began (``t``: seconds after Go; ``at``:
         the UTC time the rig began it, which the event keeps — the Go time of the trial)."""
         if self.state.running_trial != trial_index:
-            raise RefusedAction(f"stage {stage.value} of trial {trial_index} refused: the running "
+            raise RefusedAction(f"stage {stage} of trial {trial_index} refused: the running "
                                 f"trial is {self.state.running_trial}")
         self._commit(ev.TrialStage(actor=Actor.SYSTEM, at=at or utc_now(), trial_index=trial_index,
                                    stage=stage, t=t))

@@ -37,7 +37,7 @@ def marker(event: ev.ProtocolEvent, state: SessionState) -> dict[str, Any] | Non
                     "interaction": event.interaction, "attempt": event.attempt,
                     "theta": planned.theta.model_dump(), "origin": planned.origin.value}
         case ev.TrialStage():
-            return {"event": event.stage.value, **common, "trial": event.trial_index, "t": event.t}
+            return {"event": event.stage, **common, "trial": event.trial_index, "t": event.t}
         case ev.TrialEnded():
             return {"event": MARKED[event.kind], **common, "trial": event.trial_index,
                     "outcome": event.outcome.value, "reason": event.reason}

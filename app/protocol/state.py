@@ -21,7 +21,7 @@ from pydantic import BaseModel, Field
 from app.protocol import events as ev
 from app.protocol.errors import EventLogError
 from app.protocol.plan import Rating, Slot
-from robot_io.stages import Stage
+from robot_io.control.stages import Stage, StageName
 from robot_io.theta import Theta
 from session_store.models import Event, TrialOutcome
 from session_store.vocabulary import Phase, ThetaOrigin, question, question_ids, questions
@@ -71,7 +71,7 @@ class SessionState(BaseModel):
     markers: list[Marker] = Field(default_factory=list)
     answers: dict[str, str] = Field(default_factory=dict)
     paused: bool = False
-    stage: Stage | None = None  # the running trial's stage of the handover cycle
+    stage: StageName | None = None  # the running trial's stage of the handover cycle
     go_at: str | None = None  # UTC time of the running trial's Go
     simulated_participant: bool = False  # the simulated participant rates (switched by events)
     blind: bool | None = None  # the dashboard hides validation θ/origin; None: never recorded
@@ -205,11 +205,11 @@ def _trial_started(state: SessionState, event: ev.TrialStarted) -> None:
 
 
 def _trial_stage(state: SessionState, event: ev.TrialStage) -> None:
-    _check(event.trial_index == state.running_trial, f"stage {event.stage.value} of trial "
+    _check(event.trial_index == state.running_trial, f"stage {event.stage} of trial "
                                                      f"{event.trial_index}, which is not running "
                                                      f"(running: {state.running_trial})")
     state.stage = event.stage
-    if event.stage is Stage.GO:
+    if event.stage == Stage.GO:
         state.go_at = event.at
 
 

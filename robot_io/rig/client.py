@@ -36,9 +36,8 @@ from robot_io.rig.messages import (
     HEARTBEAT_S,
     Command,
     DeviceReport,
-    Go,
+    Gate,
     Heartbeat,
-    ObjectLoaded,
     Recover,
     Recovered,
     Report,
@@ -54,7 +53,6 @@ from robot_io.rig.messages import (
     TrialDone,
 )
 from robot_io.rig.stream import SampleStream, capacity_for
-from robot_io.stages import Stage
 
 log = logging.getLogger(__name__)
 
@@ -76,8 +74,6 @@ REAP_S = 5.0
 CLOSE_S = 5.0
 #: How long a hung rig gets to print its threads' stacks before it is killed [s].
 STACKS_S = 0.2
-#: Stages during which the rig writes one sample row per cycle.
-STREAMING = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
 
 
 class RigError(RobotIOError):
@@ -107,7 +103,7 @@ class RigClient:
                                              logging.getLogger().getEffectiveLevel()))
         self.process.start()
         child.close()
-        self.stage: Stage | None = None
+        self.stage: str | None = None
         self.running: int | None = None  # the trial index the rig is running
         self._closing = False  # close() has begun: the rig's end is expected, not a death
         self._stop_ack = threading.Event()
@@ -171,11 +167,9 @@ class RigClient:
             self.running = None
             raise RigError("the rig process is not reachable")
 
-    def object_loaded(self) -> None:
-        self._send(ObjectLoaded())
-
-    def go(self) -> None:
-        self._send(Go())
+    def confirm(self, stage: str) -> None:
+        """The experimenter's confirmation that ``stage`` waits for (Object loaded, Go, …)."""
+        self._send(Gate(stage=stage))
 
     def recover(self, inspected: bool, timeout: float = 20.0) -> Recovered:
         """Ask the rig to clear the arm's fault (it waits out a UR's 5 s protective-stop rule)."""
@@ -282,7 +276,7 @@ class RigClient:
                        else f"exit code {code}")
                 stage = self.stage
                 self._notify(RigDied(trial_index=self.running, reason=(
-                    f"the rig process ended ({how})" + (f" during {stage.value}" if stage else "")
+                    f"the rig process ended ({how})" + (f" during {stage}" if stage else "")
                     + "; the arm was stopped by its control worker or the controller's watchdog")))
                 self.running = None
         finally:
@@ -315,7 +309,7 @@ class RigClient:
     def _silence_limit(self) -> tuple[float, str] | None:
         """How long the rig may write no sample row before it counts as hung, and what it is doing
         meanwhile; None while it is not watched (outside the streaming stages, simulated time)."""
-        if self.stage not in STREAMING or not self.spec.realtime:
+        if self.stage not in self.spec.cycle.streamed or not self.spec.realtime:
             return None
         if self.stream.count == 0:
             return self.spec.config.ur.connect_timeout_s + SETTLE_S, "starting the stream"
@@ -347,7 +341,7 @@ class RigClient:
                 last_count, last_change = count, now
             elif now - last_change > limit[0]:
                 self.backstop(f"the rig wrote no sample for {limit[0]:g} s while {limit[1]} "
-                              f"({self.stage})")  # a StrEnum: its value (None if the trial just ended)
+                              f"({self.stage})")  # None if the trial just ended
                 return
 
 
