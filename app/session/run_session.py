@@ -85,7 +85,7 @@ def run_session(args: argparse.Namespace) -> int:
     elif args.scenario is None:
         raise StoreError("--scenario is required for a new session")
     lab = load_lab_config(args.config)
-    simulated = lab.arm.kind == "mock" and lab.hand_source.kind == "simulated"
+    simulated = lab.arm.simulated and lab.hand_source.simulated
     began = time.monotonic()
     try:
         with interruptible(), open_runner(

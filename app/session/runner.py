@@ -184,7 +184,7 @@ class SessionRunner:
     def tablet_required(self) -> bool:
         """Whether a trial needs the paired tablet: always with a tablet screen, except when the
         simulated participant rates on a simulated rig (mock arm or rehearsal)."""
-        simulated_rig = self.rehearsal is not None or self.lab.arm.kind == "mock"
+        simulated_rig = self.rehearsal is not None or self.lab.arm.simulated
         return self._pairing is not None and not (self._auto_on() and simulated_rig)
 
     def _auto_on(self) -> bool:

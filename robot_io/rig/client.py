@@ -29,6 +29,7 @@ import threading
 import time
 from collections.abc import Callable
 
+from robot_io.arms.arm import Backstop
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.errors import RobotIOError
 from robot_io.rig import process
@@ -91,8 +92,8 @@ class RigClient:
 
     def __init__(self, spec: RigSpec, listener: Listener) -> None:
         self.spec, self._listener = spec, listener
-        # a UR's rate (125 or 500 Hz) is known only once connected: room for the faster
-        rate = spec.config.loop.rate_hz if spec.config.arm.kind == "mock" else 500
+        # a real arm's rate (a UR's 125 or 500 Hz) may be known only once connected: room for the fastest
+        rate = spec.config.arm.fastest_rate_hz or spec.config.loop.rate_hz
         self.stream = SampleStream(capacity_for(spec.config, rate))
         self._holders, self._holders_lock = 1, threading.Lock()  # of the stream: see _let_go
         context = multiprocessing.get_context("spawn")
@@ -110,7 +111,7 @@ class RigClient:
         self._recovered = threading.Event()
         self._recovery: Recovered | None = None
         self._send_lock = threading.Lock()
-        self._stopper: DashboardStop | None = None
+        self._stopper: Backstop | None = None
         try:
             self.devices = self._await_open()
         except BaseException:
@@ -136,10 +137,7 @@ class RigClient:
         if isinstance(report, RigFailed):
             raise RigError(f"the rig could not open its devices: {report.reason}")
         assert isinstance(report, RigOpened), report
-        host = self.spec.config.ur.host
-        if self.spec.config.arm.kind == "ur":
-            assert host is not None, "ControllerConfig refuses arm.kind = 'ur' without [ur] host"
-            self._stopper = DashboardStop(host)
+        self._stopper = self.spec.config.arm.backstop(self.spec.config)
         return report.devices
 
     # -- commands ----------------------------------------------------------------------------------
@@ -343,37 +341,3 @@ class RigClient:
                 self.backstop(f"the rig wrote no sample for {limit[0]:g} s while {limit[1]} "
                               f"({self.stage})")  # None if the trial just ended
                 return
-
-
-class DashboardStop:
-    """The UR controller's dashboard server as an independent stop path (port 29999). ur_rtde's
-    client is not thread-safe, and a stop may come from a screen's thread and the watchdog while
-    the client closes: every use of it is under one lock. A stop after :meth:`close` connects again."""
-
-    def __init__(self, host: str) -> None:
-        import dashboard_client
-
-        self.host = host
-        self._lock = threading.Lock()
-        self._client = dashboard_client.DashboardClient(host)
-        try:
-            self._client.connect(2000)
-        except RuntimeError as exc:
-            log.error("no dashboard connection to %s for the backstop: %s", host, exc)
-
-    def stop(self) -> None:
-        with self._lock:
-            try:
-                if not self._client.isConnected():
-                    self._client.connect(1000)
-                self._client.stop()
-            except Exception:
-                log.critical("the dashboard stop of %s failed: use the emergency stop", self.host,
-                             exc_info=True)
-
-    def close(self) -> None:
-        with self._lock:
-            try:
-                self._client.disconnect()
-            except Exception:
-                log.warning("closing the dashboard connection failed", exc_info=True)

@@ -57,7 +57,7 @@ batch_position_noise = true
 @pytest.mark.parametrize(("text", "message"), [
     ("[protocl]\nbatch_size = 3\n", "protocl"),
     ("[protocol]\nbatch_size = 30\n", "protocol.batch_size"),
-    ("[arm]\nkind = \"ur5\"\n", "arm.kind"),
+    ("[arm]\nkind = \"ur5\"\n", r"\[arm\] kind = 'ur5' is no arm; the kinds are \"mock\", \"ur\""),
     ("[cycle]\nstart_zone_m = 2.0\n", "cycle.start_zone_m"),
     ("[learner]\nrecommendation = \"best\"\n", "learner.recommendation"),
     ("[learner]\nprior_weight = 11\n", "learner.prior_weight"),
