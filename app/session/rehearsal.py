@@ -1,7 +1,7 @@
 """Rehearsal without hardware on the real code path (``serve --rehearse``, ``run-session --rehearse``).
 
 It starts the project's stand-in UR controller (:mod:`robot_io.standins.ur`) on a free loopback
-address and a hand publisher (:mod:`robot_io.hands.hand_publisher`) that plays the simulated participant's
+address and a hand publisher (:mod:`robot_io.standins.hand_publisher`) that plays the simulated participant's
 hand on LSL (or UDP, or as a rigid body of a stand-in NatNet server) and makes the stand-in pull on
 the object once the hand holds it at H. The lab configuration is pointed at them — ``[arm] kind =
 "ur"`` at that address, ``[hand_source]`` the publisher's stream, ``[gripper]`` the UR's tool output,
@@ -31,8 +31,8 @@ from robot_io.grippers.gripper import GripperKind, ToolOutputKind
 from robot_io.grippers.kinds import GRIPPERS
 from robot_io.grippers.robotiq import ROBOTIQ_PORT, RobotiqSocketKind
 from robot_io.hands.config import NatNetSource, UDPSource
-from robot_io.hands.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.hands.simulated_hand import Scenario
+from robot_io.standins.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.standins.ur.control import ControlClient
 from robot_io.standins.ur.control_script import MOVEL
 from robot_io.standins.ur.standin import RTDE_PORT
