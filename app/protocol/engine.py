@@ -36,6 +36,7 @@ from app.protocol.session_learner import LearnerFactory, SessionLearner, scale_p
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, not_running, refusal, replay
 from app.protocol.study import StudyConfig
 from robot_io.control.loop import Outcome, TrialRecord
+from robot_io.control.stages import current
 from robot_io.theta import Theta
 from session_store.models import (
     Answer,
@@ -208,6 +209,9 @@ class SessionEngine:
                      at: str | None = None) -> None:
         """A stage of the running trial's handover cycle began (``t``: seconds after Go; ``at``:
         the UTC time the rig began it, which the event keeps — the Go time of the trial)."""
+        if stage not in current().names:
+            raise RefusedAction(f"stage {stage!r} refused: the cycle's stages are "
+                                f"{', '.join(current().names)}")
         self._commit(ev.TrialStage(actor=Actor.SYSTEM, at=at or utc_now(), trial_index=trial_index,
                                    stage=stage, t=t))
 

@@ -25,7 +25,7 @@ from contextlib import contextmanager
 from enum import StrEnum
 from typing import Annotated
 
-from pydantic import AfterValidator, Field, StringConstraints, model_validator
+from pydantic import Field, StringConstraints, model_validator
 
 from robot_io.bounds import Frozen
 
@@ -231,13 +231,3 @@ def extended(row: StageRow, before: str) -> Iterator[CycleTable]:
         with _lock:
             _current = previous
 
-
-def _known_stage(name: str) -> str:
-    names = current().names
-    if name not in names:
-        raise ValueError(f"{name!r} is no stage of the cycle; the stages are {', '.join(names)}")
-    return name
-
-
-#: A stage of the cycle the application runs (an event refuses any other, naming the stages).
-KnownStage = Annotated[StageName, AfterValidator(_known_stage)]
