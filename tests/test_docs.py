@@ -36,3 +36,20 @@ def test_the_serve_options_table_names_every_option_serve_has():
     documented = set(re.findall(r"--[a-z][a-z-]*", table))
     assert documented == accepted, (f"documented, not accepted: {sorted(documented - accepted)}; "
                                     f"accepted, not documented: {sorted(accepted - documented)}")
+
+
+def cycle_rows() -> list[str]:
+    """The handover cycle's table (robot_io.control.stages) as docs/controller.md shows it."""
+    from robot_io.control.stages import PAPER_CYCLE
+
+    return [f"| `{row.name}` | {row.part.value.replace('_', ' ')} | {row.entry} | "
+            f"{row.gate.button if row.gate else ''} | {row.does} | {row.exit} |"
+            for row in PAPER_CYCLE.rows]
+
+
+def test_the_cycle_table_in_the_docs_is_the_one_the_rig_runs():
+    text = (ROOT / "docs" / "controller.md").read_text()
+    table = text[text.index("| stage | part | begins when | gate | the rig | ends when |"):]
+    rows = table[:table.index("\n\n")].splitlines()[2:]
+    assert rows == cycle_rows(), "\n".join(["docs/controller.md's cycle table should read:",
+                                            *cycle_rows()])

@@ -29,6 +29,7 @@ from app.analysis.study_analysis import StudyAnalysis
 from app.analysis.study_design import StudyDesign
 from app.analysis.tables import study_configs, theta_star
 from app.analysis.xdf import Recording, around_go, load_recording
+from robot_io.control.stages import Stage
 from session_store.export import load_study
 
 log = logging.getLogger(__name__)
@@ -69,7 +70,7 @@ def write_tables(analysis: StudyAnalysis, directory: Path) -> dict[str, Path]:
     directory.mkdir(parents=True, exist_ok=True)
     frames = {"sessions": analysis.status, "validation_pairs": analysis.pairs,
               "table4_survey": analysis.survey, "statistics": tests_frame(analysis.tests),
-              "learning": analysis.learning}
+              "learning": analysis.learning, "cycle": analysis.cycle}
     for scenario, name in TABLE_FILES.items():
         frames[name] = analysis.scores[analysis.scores["scenario"] == scenario]
     paths = {}
@@ -114,7 +115,7 @@ def draw_recording_figures(recording: Recording, aligned: pd.DataFrame, out_dir:
     (``figures/xdf-STREAM-CODE``)."""
     table = out_dir / "tables" / "xdf_around_go.csv"
     aligned.to_csv(table, index=False)
-    release = list(recording.trial_times("release").values())
+    release = list(recording.trial_times(Stage.RELEASE).values())
     code = recording.participant
     drawn = {}
     for name, frame in aligned.groupby("stream"):

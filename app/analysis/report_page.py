@@ -124,6 +124,13 @@ def learning(analysis: StudyAnalysis) -> str:
                             "hints_given": "Hints given", "hints_asked": "of those asked"}))
 
 
+def cycle(analysis: StudyAnalysis) -> str:
+    """Per stage of the handover cycle: the trials that reached it and the time spent in it."""
+    return html.section("The handover cycle: time in each stage", html.table(
+        analysis.cycle, {"stage": "Stage", "trials": "Trials", "median_s": "Median [s]",
+                         "longest_s": "Longest [s]"}))
+
+
 def validation_tables(analysis: StudyAnalysis) -> str:
     parts = []
     for scenario in SCENARIOS:
@@ -216,7 +223,7 @@ def render_page(analysis: StudyAnalysis, figures: Mapping[str, FigureFiles], *, 
     parts = [*banner, intro, html.paragraph(analysis.design.line),
              *([] if banner else [html.paragraph(ratings_counted)]),
              problems(analysis, unreadable, recording_cut_short),
-             sessions(analysis), who_answered(analysis), learning(analysis),
+             sessions(analysis), who_answered(analysis), learning(analysis), cycle(analysis),
              validation_tables(analysis),
              statistics(analysis.tests), survey(analysis),
              html.section("Fig. 4: trajectories of the validation trials (Sect. VI-C)", *fig4,

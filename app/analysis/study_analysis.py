@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import pandas as pd
 
+from app.analysis.cycle_times import cycle_table
 from app.analysis.learning_stop import learning_table
 from app.analysis.provenance import Counting, answers_by, counted_answers, validation_blinding
 from app.analysis.stats import StatTest, paper_tests
@@ -38,6 +39,7 @@ class StudyAnalysis:
     distances: pd.DataFrame
     #: per participant: where learning ended and why, ties (issue 40), who gave the answers
     learning: pd.DataFrame
+    cycle: pd.DataFrame  # per stage of the handover cycle: trials that reached it, time in it
 
     @classmethod
     def of(cls, tables: dict[str, pd.DataFrame], include_simulated: bool = False) -> StudyAnalysis:
@@ -63,4 +65,5 @@ class StudyAnalysis:
         learning = learning_table(tables["participants"], tables["trials"], tables["events"]).merge(
             answered, on="participant")
         return cls(tables, counting, study_design(tables["participants"]), status, pairs, scores,
-                   survey, paper_tests(scores, survey), distances, learning)
+                   survey, paper_tests(scores, survey), distances, learning,
+                   cycle_table(tables["events"]))

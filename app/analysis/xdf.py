@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from app.protocol.markers import MARKER_TYPE, ROBOT_TYPE, SOFTWARE, decode
+from robot_io.control.stages import Stage
 
 T = TypeVar("T")
 #: The window around Go that is kept of every trial [s]: a baseline before, the reach and hold after.
@@ -164,7 +165,7 @@ def around_go(recording: Recording, trials: pd.DataFrame,
     ``channel``, ``t`` since Go, ``value``). ``trials``: the study's trials table; a ``go`` marker
     of a trial the database does not have is an :class:`XDFError` (another study's recording)."""
     mine = trials[trials["participant"] == recording.participant].set_index("trial_index")
-    go = recording.times_of("go")
+    go = recording.times_of(Stage.GO)
     unknown = sorted(set(go) - set(mine.index))
     if unknown:
         raise XDFError(f"{recording.path}: trials {unknown} of {recording.participant} are not in the "

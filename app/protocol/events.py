@@ -15,7 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from app.protocol.errors import EventLogError
-from robot_io.stages import Stage
+from robot_io.control.stages import StageName
 from session_store.models import Event, SafetyRecord, TrialOutcome, utc_now
 from session_store.vocabulary import Actor, Hint, Rater, ThetaOrigin
 
@@ -92,7 +92,8 @@ class TrialStarted(_Event):
 class TrialStage(_Event):
     kind: Literal["trial_stage"] = "trial_stage"
     trial_index: int = Field(ge=1)
-    stage: Stage
+    stage: StageName = Field(description="a stage of the handover cycle (robot_io.control.stages); "
+                                         "a stored one the cycle no longer has is still read")
     t: float | None = Field(description="seconds after Go (None before Go)")
 
 

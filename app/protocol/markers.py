@@ -38,7 +38,7 @@ def marker(event: ev.ProtocolEvent, state: SessionState) -> dict[str, Any] | Non
                     "interaction": event.interaction, "attempt": event.attempt,
                     "theta": planned.theta.model_dump(), "origin": planned.origin.value}
         case ev.TrialStage():
-            return {"event": event.stage.value, **common, "trial": event.trial_index, "t": event.t}
+            return {"event": event.stage, **common, "trial": event.trial_index, "t": event.t}
         case ev.TrialEnded():
             safety = None if event.safety is None else event.safety.model_dump()
             return {"event": MARKED[event.kind], **common, "trial": event.trial_index,

@@ -33,7 +33,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from session_store.models import SafetyRecord
 
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
-#: The hold's and the released stage's codes in the sample rows (robot_io.stages: 1 reach, 2 hold,
+#: The hold's and the released stage's codes in the sample rows (robot_io.control.stages: 1 reach, 2 hold,
 #: 3 released); the pull is watched in the hold only (after the release the rows keep its last value).
 HOLD, RELEASED = 2.0, 3.0
 

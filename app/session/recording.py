@@ -38,7 +38,7 @@ from app.protocol import events as ev
 from app.protocol.state import SessionState
 from app.session.config import RecordingSettings
 from app.session.rcs_client import RecorderError, RemoteLabRecorder
-from robot_io.stages import Stage
+from robot_io.control.stages import Stage
 from session_store.recordings import next_run, recording_path, recordings_root
 
 log = logging.getLogger(__name__)
@@ -189,7 +189,7 @@ class SessionRecording:
     def on_event(self, event: ev.ProtocolEvent, state: SessionState) -> None:
         """An engine listener: a trial streams robot samples from its Go to its end."""
         self._last_event = time.monotonic()
-        if isinstance(event, ev.TrialStage) and event.stage is Stage.GO:
+        if isinstance(event, ev.TrialStage) and event.stage == Stage.GO:
             self._streaming = True
         elif isinstance(event, ev.TrialEnded):
             self._streaming = False

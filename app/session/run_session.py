@@ -89,7 +89,7 @@ def run_session(args: argparse.Namespace) -> int:
     if not (exists or resume) and args.scenario is None and lab.study is None:
         raise StoreError("--scenario is required for a new session (or a [study] plan in "
                          "--config, which proposes it)")
-    simulated = lab.arm.kind == "mock" and lab.hand_source.kind == "simulated"
+    simulated = lab.arm.simulated and lab.hand_source.simulated
     began = time.monotonic()
     try:
         with interruptible(), open_runner(

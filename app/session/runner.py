@@ -46,10 +46,11 @@ from app.session.pairing import TabletPairing
 from app.session.publisher import Listener, Publisher
 from app.session.rehearsal import Rehearsal
 from app.session.supervisor import Recording, TrialSupervisor
-from app.session.view import RunnerView, Status, Waiting, build_view
+from app.session.view import RunnerView, Status, build_view
 from robot_io.clock import utc_of_monotonic
 from robot_io.config import SceneConfig
 from robot_io.control.loop import TrialRecord
+from robot_io.control.stages import current
 from robot_io.errors import RobotIOError
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.client import RigClient
@@ -184,7 +185,7 @@ class SessionRunner:
     def tablet_required(self) -> bool:
         """Whether a trial needs the paired tablet: always with a tablet screen, except when the
         simulated participant rates on a simulated rig (mock arm or rehearsal)."""
-        simulated_rig = self.rehearsal is not None or self.lab.arm.kind == "mock"
+        simulated_rig = self.rehearsal is not None or self.lab.arm.simulated
         return self._pairing is not None and not (self._auto_on() and simulated_rig)
 
     def _auto_on(self) -> bool:
@@ -207,15 +208,15 @@ class SessionRunner:
                       f"{plan.trial.interaction}, attempt {plan.trial.attempt})")
         return plan.trial
 
-    def object_loaded(self) -> None:
-        """The experimenter confirms the object is in the gripper."""
-        self._require_waiting("loaded").object_loaded()
-        self._changed("object loaded")
-
-    def go(self) -> None:
-        """The experimenter gives Go: the tablet's cue and the robot's start."""
-        self._require_waiting("go").go()
-        self._changed("Go")
+    def confirm(self, stage: str) -> None:
+        """The experimenter gives the confirmation the running trial's ``stage`` waits for (its
+        gate: Object loaded in prepare, Go in ready — the tablet's cue and the robot's start)."""
+        rig = self._supervisor.rig
+        gate = current().gate(stage)
+        if gate is None or self.view.waiting_for != stage or rig is None:
+            raise RefusedAction(f"refused: the trial is not waiting in '{stage}'")
+        rig.confirm(stage)
+        self._changed(gate.button)
 
     def recover_arm(self, inspected: bool = True) -> None:
         """Clear the arm's fault once its cause is inspected (moves nothing); a UR's protective stop
@@ -460,19 +461,13 @@ class SessionRunner:
             at = utc_of_monotonic(report.monotonic).isoformat(timespec="microseconds")
             self._call(lambda: self._side.record_stage(report, at))
         except (RefusedAction, StoreError) as exc:
-            log.warning("stage %s not recorded: %s", report.stage.value, exc)
+            log.warning("stage %s not recorded: %s", report.stage, exc)
         self._changed()
 
     def _record_trial_end(self, trial_index: int, record: TrialRecord, reason: str | None,
                           actor: Actor) -> Trial | None:
         """Record the trial's end, unless it was already recorded (from the rig's reader thread)."""
         return self._call(lambda: self._side.trial_end(trial_index, record, reason, actor))
-
-    def _require_waiting(self, what: Waiting) -> RigClient:
-        rig = self._supervisor.rig
-        if self.view.waiting_for != what or rig is None:
-            raise RefusedAction(f"refused: the trial is not waiting for '{what}'")
-        return rig
 
     def _make_view(self) -> RunnerView:
         """A new view, numbered (on the engine thread)."""

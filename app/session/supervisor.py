@@ -29,6 +29,7 @@ from app.session.view import RigStatus, StopState
 from robot_io.config import ControllerConfig
 from robot_io.control.cycle import not_started
 from robot_io.control.loop import Outcome, TrialRecord
+from robot_io.control.stages import Stage
 from robot_io.errors import RobotIOError, explain
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.client import RigClient
@@ -43,7 +44,6 @@ from robot_io.rig.messages import (
     StageReached,
     TrialDone,
 )
-from robot_io.stages import Stage
 from session_store.models import Trial
 from session_store.vocabulary import Actor
 
@@ -157,7 +157,7 @@ class TrialSupervisor:
                                 "press Recover arm")
 
     def run(self, plan: TrialPlan, automatic: bool) -> None:
-        """Send ``plan``'s trial to the rig (``automatic``: no Object loaded nor Go to wait for).
+        """Send ``plan``'s trial to the rig (``automatic``: no confirmation of the cycle to wait for).
         Refused if a Stop came since Start was checked: the lock makes a Stop land either before
         (refused here) or after the rig has the trial (the Stop ends it). Held over the send only
         (the rig's inbox reads commands at once)."""
@@ -168,8 +168,7 @@ class TrialSupervisor:
             rig = self._rig
             assert rig is not None, "ready_rig opened it on this (the engine) thread"
             rig.run_trial(RunTrial(trial_index=plan.trial.trial_index, theta=plan.theta,
-                                   hand_seed=plan.trial.hand_seed, auto_loaded=automatic,
-                                   auto_go=automatic))
+                                   hand_seed=plan.trial.hand_seed, automatic=automatic))
 
     # -- the experimenter (screens' threads; never wait for the engine) -----------------------------
     def _halting(self, reason: str) -> RigClient | None:
@@ -310,12 +309,12 @@ class TrialSupervisor:
     def _on_stage(self, rig: RigClient, report: StageReached) -> None:
         with self._state_lock:
             plan = self._plan
-            if report.stage is Stage.READY:
+            if report.stage == Stage.READY:
                 self._set(ready_wait=None)
         outlets = self._recording.outlets()
-        if report.stage is Stage.GO and outlets is not None:
+        if report.stage == Stage.GO and outlets is not None:
             outlets.feed.go(report.trial_index, report.monotonic)
-        if report.stage is Stage.GO and self._rehearsal is not None and plan is not None:
+        if report.stage == Stage.GO and self._rehearsal is not None and plan is not None:
             assert rig.spec.scenario is not None, \
                 "the rig that reports its plan's trial, opened with the session's scenario"
             self._rehearsal.play(rig.spec.scenario, plan.trial.hand_seed, report.monotonic)

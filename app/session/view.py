@@ -17,12 +17,11 @@ from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary
 from app.session.pairing import TabletStatus
 from app.session.recording import RecordingStatus
+from robot_io.control.stages import StageName, current
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.messages import DeviceReport, RigTiming
-from robot_io.stages import AWAITS, Stage
 from session_store.models import Trial
 
-Waiting = Literal["loaded", "go"]
 #: After STOP ARM: "stopping" until the arm has stopped (the running trial has ended), then
 #: "stopped" until the experimenter re-arms (the scene is safe); only "armed" lets a trial start.
 StopState = Literal["armed", "stopping", "stopped"]
@@ -56,7 +55,7 @@ class RunnerView(BaseModel):
     gripper: str = ""
     timing: str = ""  # the rig's scheduling: real-time priority or not
     timing_warning: str | None = None  # the latest trial's cycles or hand samples ran late: how
-    waiting_for: Waiting | None = None  # the cycle waits for the experimenter's confirmation
+    waiting_for: StageName | None = None  # the stage that waits for the experimenter's confirmation
     ready_wait: str | None = None  # why the hand is not ready at the start A
     learner: str = "idle"
     learner_fault: str | None = None
@@ -84,7 +83,7 @@ class RunnerView(BaseModel):
         return 0 if self.state is None else self.state.interactions
 
     @property
-    def stage(self) -> Stage | None:
+    def stage(self) -> str | None:
         return None if self.state is None else self.state.stage
 
 
@@ -140,12 +139,13 @@ def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
             "no real-time priority (normal scheduling): trials may run late on a busy machine")
 
 
-def waiting_for(state: SessionState, automatic: bool) -> Waiting | None:
-    """What the running cycle waits for the experimenter to confirm: the object loaded (at prepare)
-    or Go (at ready); nothing when the trials confirm themselves (``automatic``)."""
-    if automatic or state.step is not Step.RUNNING or state.stage is None:
+def waiting_for(state: SessionState, automatic: bool) -> str | None:
+    """The running trial's stage if it waits for the experimenter's confirmation (its gate in the
+    cycle's table: Object loaded in prepare, Go in ready); nothing when the trials confirm
+    themselves (``automatic``)."""
+    if automatic or state.step is not Step.RUNNING or current().gate(state.stage) is None:
         return None
-    return AWAITS.get(state.stage)
+    return state.stage
 
 
 def status_fields(status: Status) -> dict:

@@ -55,6 +55,7 @@ from app.ui.status_text import (
     tablet_markdown,
 )
 from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, STOP_LABEL, style_block
+from robot_io.control.stages import current
 from robot_io.errors import RobotIOError
 from session_store.errors import StoreError
 
@@ -92,6 +93,14 @@ def posterior_data(slices: list[PosteriorSlice]) -> tuple[np.ndarray, ...]:
     return (position, *(np.asarray(s.mean) for s in slices))
 
 
+def gate_buttons(gui: viser.GuiApi) -> dict[str, viser.GuiButtonHandle]:
+    """A button for each confirmation of the cycle (its table's gates, in order): the last one, Go,
+    is the participant's cue and green."""
+    gated = current().gated
+    return {row.name: gui.add_button(row.gate.button, color="green" if row is gated[-1] else "blue")
+            for row in gated if row.gate is not None}
+
+
 def error_key(view: RunnerView) -> tuple:
     """What a refusal was about: when any of it changes, the refusal is no longer current."""
     tablet = view.tablet
@@ -103,8 +112,7 @@ def error_key(view: RunnerView) -> tuple:
 class Controls:
     start: viser.GuiButtonHandle
     start_why: viser.GuiMarkdownHandle
-    loaded: viser.GuiButtonHandle
-    go: viser.GuiButtonHandle
+    gates: dict[str, viser.GuiButtonHandle]  # one per gated stage of the cycle: Object loaded, Go
     abort: viser.GuiButtonHandle
     recover: viser.GuiButtonHandle
     pause: viser.GuiButtonHandle
@@ -121,16 +129,15 @@ class Controls:
         blocker = start_blocker(view) if controlling else VIEW_ONLY
         self.start.disabled = step is not Step.READY or blocker is not None
         self.start_why.content = f"Start is locked: {blocker}." if blocker and state else ""
-        self.loaded.disabled = view.waiting_for != "loaded"
-        self.go.disabled = view.waiting_for != "go"
+        for stage, button in self.gates.items():
+            button.disabled = view.waiting_for != stage or not controlling
         self.abort.disabled = step is not Step.RUNNING
         self.recover.disabled = view.arm_fault is None or step is Step.RUNNING
         self.pause.disabled = state is None or paused or step in (Step.RUNNING, Step.DONE)
         self.resume.disabled = not paused
         self.end.disabled = state is None or step is Step.RUNNING
         if not controlling:
-            for control in (self.loaded, self.go, self.abort, self.recover, self.pause,
-                            self.resume, self.end):
+            for control in (self.abort, self.recover, self.pause, self.resume, self.end):
                 control.disabled = True
         self.auto.disabled = not controlling
         self._show_auto(view.auto)
@@ -304,8 +311,7 @@ class DashboardClient:
         controls = Controls(
             start=gui.add_button("Start trial", color="green", icon=viser.Icon.PLAYER_PLAY),
             start_why=gui.add_markdown(""),
-            loaded=gui.add_button("Object loaded", color="blue"),
-            go=gui.add_button("Go", color="green"),
+            gates=gate_buttons(gui),
             abort=gui.add_button("Abort trial", color="orange"),
             recover=gui.add_button("Recover arm (cause inspected)", color="yellow"),
             pause=gui.add_button("Pause session"),
@@ -314,8 +320,8 @@ class DashboardClient:
             auto=gui.add_checkbox("Simulated participant rates", False),
         )
         controls.start.on_click(lambda _: self._act(self.runner.start_trial))
-        controls.loaded.on_click(lambda _: self._act(self.runner.object_loaded))
-        controls.go.on_click(lambda _: self._act(self.runner.go))
+        for stage, button in controls.gates.items():
+            button.on_click(self._confirming(stage))
         controls.abort.on_click(lambda _: self._act(self.runner.abort_trial))
         controls.recover.on_click(lambda _: self._act(self.runner.recover_arm))
         controls.pause.on_click(lambda _: self._act(self.runner.pause))
@@ -338,6 +344,9 @@ class DashboardClient:
 
     def _staging(self, fault: StagedFault) -> Callable[[object], None]:
         return lambda _: self._act(lambda: self.runner.stage_fault(fault))
+
+    def _confirming(self, stage: str) -> Callable[[object], None]:
+        return lambda _: self._act(lambda: self.runner.confirm(stage))
 
     # -- replay -----------------------------------------------------------------------------------
     def _replay_controls(self, gui: viser.GuiApi) -> None:

@@ -16,8 +16,8 @@ from app.protocol.learning_words import stop_headline
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
-from app.ui.stage_words import CYCLE, INSTEAD_OF, STAGE_WORDS, stage_name
-from robot_io.stages import Stage
+from app.ui.stage_words import before_ready, cycle_line, instead_of, stage_name, stage_words
+from robot_io.control.stages import current
 from session_store.vocabulary import Phase, questions
 
 PHASE_WORDS = {Phase.INITIAL: "Initial handovers", Phase.LEARNING: "Learning batch",
@@ -92,12 +92,10 @@ def _status(view: RunnerView) -> str:
         blocker = start_blocker(view)
         return f"**Ready, but** {blocker}." if blocker else "**Ready** — press **Start trial**."
     if step is Step.RUNNING:
-        if view.waiting_for == "loaded":
-            return "**Load the object** into the gripper, then press **Object loaded**."
-        if view.waiting_for == "go":
-            return "**The participant's hand is at the start** — press **Go**."
+        if (gate := current().gate(view.waiting_for)) is not None:
+            return gate.asks
         stage = view.stage
-        return f"**Handover running** — {STAGE_WORDS[stage].dashboard if stage else 'starting'}."
+        return f"**Handover running** — {stage_words(stage).dashboard if stage else 'starting'}."
     if step is Step.PLACE:
         slot = state.slot
         assert slot is not None, "a placement is due for the slot at the cursor"
@@ -150,12 +148,12 @@ def progress_markdown(view: RunnerView) -> str:
 
 def cycle_markdown(view: RunnerView) -> str:
     """The running trial's stage within the cycle, the current one in bold."""
-    stage = view.stage
-    shown = [f"**[{stage_name(s)}]**" if s is stage else stage_name(s) for s in CYCLE]
-    if stage in INSTEAD_OF:
-        shown[CYCLE.index(INSTEAD_OF[stage])] = f"**[{stage_name(stage)}]**"
+    stage, stages, replaced = view.stage, cycle_line(), instead_of()
+    shown = [f"**[{stage_name(s)}]**" if s == stage else stage_name(s) for s in stages]
+    if stage in replaced:
+        shown[stages.index(replaced[stage])] = f"**[{stage_name(stage)}]**"
     line = "cycle: " + " → ".join(shown)
-    if view.ready_wait and stage in (Stage.LOADED, Stage.PREPARE):
+    if view.ready_wait and before_ready(stage):
         line += f"  \nnot ready: {view.ready_wait}"
     return line
 

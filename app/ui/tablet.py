@@ -47,7 +47,7 @@ from app.session.runner import RunnerView, SessionRunner
 from app.ui.deliberate import SETTLE_S, Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
-from app.ui.stage_words import STAGE_WORDS
+from app.ui.stage_words import stage_words
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
 from session_store.vocabulary import Hint, Phase, Question, question, questions
 
@@ -113,7 +113,7 @@ def screen_for(view: RunnerView) -> Screen:
     if state is None:
         return Screen(kind="wait")
     step, slot = state.step, state.slot
-    shown = STAGE_WORDS[state.stage].tablet if step is Step.RUNNING and state.stage else "wait"
+    shown = stage_words(state.stage).tablet if step is Step.RUNNING and state.stage else "wait"
     if shown != "wait":  # "go": the cue, the robot starts with it; "back": it moves back
         return Screen(kind=shown, interaction=_current(slot).interaction)
     if view.auto and step in PARTICIPANT_STEPS:

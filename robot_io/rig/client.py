@@ -29,6 +29,7 @@ import threading
 import time
 from collections.abc import Callable
 
+from robot_io.arms.arm import Backstop
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.errors import RobotIOError
 from robot_io.rig import process
@@ -36,9 +37,8 @@ from robot_io.rig.messages import (
     HEARTBEAT_S,
     Command,
     DeviceReport,
-    Go,
+    Gate,
     Heartbeat,
-    ObjectLoaded,
     Recover,
     Recovered,
     Report,
@@ -54,7 +54,6 @@ from robot_io.rig.messages import (
     TrialDone,
 )
 from robot_io.rig.stream import SampleStream, capacity_for
-from robot_io.stages import Stage
 
 log = logging.getLogger(__name__)
 
@@ -76,8 +75,6 @@ REAP_S = 5.0
 CLOSE_S = 5.0
 #: How long a hung rig gets to print its threads' stacks before it is killed [s].
 STACKS_S = 0.2
-#: Stages during which the rig writes one sample row per cycle.
-STREAMING = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
 
 
 class RigError(RobotIOError):
@@ -95,8 +92,8 @@ class RigClient:
 
     def __init__(self, spec: RigSpec, listener: Listener) -> None:
         self.spec, self._listener = spec, listener
-        # a UR's rate (125 or 500 Hz) is known only once connected: room for the faster
-        rate = spec.config.loop.rate_hz if spec.config.arm.kind == "mock" else 500
+        # a real arm's rate (a UR's 125 or 500 Hz) may be known only once connected: room for the fastest
+        rate = spec.config.arm.fastest_rate_hz or spec.config.loop.rate_hz
         self.stream = SampleStream(capacity_for(spec.config, rate))
         self._holders, self._holders_lock = 1, threading.Lock()  # of the stream: see _let_go
         context = multiprocessing.get_context("spawn")
@@ -107,14 +104,14 @@ class RigClient:
                                              logging.getLogger().getEffectiveLevel()))
         self.process.start()
         child.close()
-        self.stage: Stage | None = None
+        self.stage: str | None = None
         self.running: int | None = None  # the trial index the rig is running
         self._closing = False  # close() has begun: the rig's end is expected, not a death
         self._stop_ack = threading.Event()
         self._recovered = threading.Event()
         self._recovery: Recovered | None = None
         self._send_lock = threading.Lock()
-        self._stopper: DashboardStop | None = None
+        self._stopper: Backstop | None = None
         try:
             self.devices = self._await_open()
         except BaseException:
@@ -140,10 +137,7 @@ class RigClient:
         if isinstance(report, RigFailed):
             raise RigError(f"the rig could not open its devices: {report.reason}")
         assert isinstance(report, RigOpened), report
-        host = self.spec.config.ur.host
-        if self.spec.config.arm.kind == "ur":
-            assert host is not None, "ControllerConfig refuses arm.kind = 'ur' without [ur] host"
-            self._stopper = DashboardStop(host)
+        self._stopper = self.spec.config.arm.backstop(self.spec.config)
         return report.devices
 
     # -- commands ----------------------------------------------------------------------------------
@@ -171,11 +165,9 @@ class RigClient:
             self.running = None
             raise RigError("the rig process is not reachable")
 
-    def object_loaded(self) -> None:
-        self._send(ObjectLoaded())
-
-    def go(self) -> None:
-        self._send(Go())
+    def confirm(self, stage: str) -> None:
+        """The experimenter's confirmation that ``stage`` waits for (Object loaded, Go, …)."""
+        self._send(Gate(stage=stage))
 
     def recover(self, inspected: bool, timeout: float = 20.0) -> Recovered:
         """Ask the rig to clear the arm's fault (it waits out a UR's 5 s protective-stop rule)."""
@@ -282,7 +274,7 @@ class RigClient:
                        else f"exit code {code}")
                 stage = self.stage
                 self._notify(RigDied(trial_index=self.running, reason=(
-                    f"the rig process ended ({how})" + (f" during {stage.value}" if stage else "")
+                    f"the rig process ended ({how})" + (f" during {stage}" if stage else "")
                     + "; the arm was stopped by its control worker or the controller's watchdog")))
                 self.running = None
         finally:
@@ -315,7 +307,7 @@ class RigClient:
     def _silence_limit(self) -> tuple[float, str] | None:
         """How long the rig may write no sample row before it counts as hung, and what it is doing
         meanwhile; None while it is not watched (outside the streaming stages, simulated time)."""
-        if self.stage not in STREAMING or not self.spec.realtime:
+        if self.stage not in self.spec.cycle.streamed or not self.spec.realtime:
             return None
         if self.stream.count == 0:
             return self.spec.config.ur.connect_timeout_s + SETTLE_S, "starting the stream"
@@ -347,39 +339,5 @@ class RigClient:
                 last_count, last_change = count, now
             elif now - last_change > limit[0]:
                 self.backstop(f"the rig wrote no sample for {limit[0]:g} s while {limit[1]} "
-                              f"({self.stage})")  # a StrEnum: its value (None if the trial just ended)
+                              f"({self.stage})")  # None if the trial just ended
                 return
-
-
-class DashboardStop:
-    """The UR controller's dashboard server as an independent stop path (port 29999). ur_rtde's
-    client is not thread-safe, and a stop may come from a screen's thread and the watchdog while
-    the client closes: every use of it is under one lock. A stop after :meth:`close` connects again."""
-
-    def __init__(self, host: str) -> None:
-        import dashboard_client
-
-        self.host = host
-        self._lock = threading.Lock()
-        self._client = dashboard_client.DashboardClient(host)
-        try:
-            self._client.connect(2000)
-        except RuntimeError as exc:
-            log.error("no dashboard connection to %s for the backstop: %s", host, exc)
-
-    def stop(self) -> None:
-        with self._lock:
-            try:
-                if not self._client.isConnected():
-                    self._client.connect(1000)
-                self._client.stop()
-            except Exception:
-                log.critical("the dashboard stop of %s failed: use the emergency stop", self.host,
-                             exc_info=True)
-
-    def close(self) -> None:
-        with self._lock:
-            try:
-                self._client.disconnect()
-            except Exception:
-                log.warning("closing the dashboard connection failed", exc_info=True)

@@ -19,9 +19,9 @@ from support.waiting import wait_for
 
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
-from robot_io.hands.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.hands.udp_hand import UDPHand
+from robot_io.standins.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.standins.ur.control import DEFAULT_PORT
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak]  # a process that publishes on the wall clock

@@ -25,6 +25,7 @@ from app.session.config import LabConfig
 from app.session.pairing import CODE_GUESSES, WRONG_CODE_ALERT_S, TabletPairing
 from app.session.runner import SessionRunner
 from app.ui.status_text import status_line
+from robot_io.control.stages import Stage
 from robot_io.hands.simulated_hand import Scenario
 
 
@@ -163,7 +164,7 @@ def test_start_needs_one_paired_tablet_and_after_a_stop_a_rearm(tmp_path: Path):
             runner.start_trial()
         runner.rearm()
         runner.start_trial()
-        probe.wait(lambda v: v.waiting_for == "loaded", what="the cycle waits for the object")
+        probe.wait(lambda v: v.waiting_for == Stage.PREPARE, what="the cycle waits for the object")
         runner.stop()  # during a trial: "stopping" until the trial has ended, then "stopped"
         view = probe.wait(lambda v: v.stop == "stopped" and v.step.value == "ready",
                           what="the stop completed")

@@ -21,8 +21,8 @@ from app.session.faults import StagedFault
 from app.session.rehearsal import Rehearsal
 from app.session.runner import SessionRunner
 from robot_io.arms.ur_kinematics import forward
+from robot_io.control.stages import PAPER_CYCLE, Stage
 from robot_io.hands.simulated_hand import Scenario
-from robot_io.stages import SAMPLE_CODE, Stage
 from session_store.sample_rows import stored_rows
 from session_store.store import ParticipantStore
 
@@ -85,7 +85,7 @@ def ended(view, index: int):
 def moving(runner: SessionRunner) -> bool:
     """The reach runs and the stand-in controller reports the TCP moving (above the hold's settle
     speed, 0.02 m/s)."""
-    return runner.view.stage is Stage.REACH and runner.rehearsal.control("state")["speed"] > 0.02
+    return runner.view.stage == Stage.REACH and runner.rehearsal.control("state")["speed"] > 0.02
 
 
 def stopped(state: dict) -> dict | None:
@@ -97,7 +97,7 @@ def start_until(runner: SessionRunner, probe: Probe, stage: Stage) -> None:
     probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start",
                timeout=READY_CEILING_S)
     runner.start_trial()
-    probe.wait(lambda v: v.stage is stage, what=f"stage {stage.value}")
+    probe.wait(lambda v: v.stage == stage, what=f"stage {stage}")
 
 
 def test_every_rehearsed_sample_carries_joint_angles_and_coupling_signals(rehearsed):
@@ -123,7 +123,7 @@ def test_every_rehearsed_sample_carries_joint_angles_and_coupling_signals(rehear
     assert np.ptp(q, axis=0).max() > 0.1  # the arm moved its joints
     error = np.linalg.norm(forward(q)[:, :3, 3] - measured, axis=1)
     assert error.max() < 1e-3, f"FK(q) is {error.max() * 1e3:.3f} mm from the recorded TCP"
-    reach = keep & (rows["stage"] == SAMPLE_CODE[Stage.REACH])
+    reach = keep & (rows["stage"] == PAPER_CYCLE.sample_code(Stage.REACH))
     c_t = rows["c_t"][reach]
     assert reach.sum() > 100 and np.isfinite(c_t).mean() > 0.95, "coupling signals not recorded"
     ok = np.isfinite(c_t)
@@ -156,7 +156,7 @@ def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(re
     runner.start_trial()
     waiting = probe.wait(lambda v: v.state.running_trial == 2 and v.ready_wait is not None,
                          what="the repeat (trial 2) waiting for the hand")
-    assert "no valid hand sample" in waiting.ready_wait and waiting.stage is Stage.LOADED
+    assert "no valid hand sample" in waiting.ready_wait and waiting.stage == Stage.LOADED
     runner.rehearsal.publisher.occlude(0.0)  # the tracker sees the hand again
     view = probe.wait(lambda v: ended(v, 2) is not None, what="trial 2 ended")
     second = ended(view, 2)

@@ -142,7 +142,7 @@ def _rig_cycle(rng: np.random.Generator, cycle: int, ends: dict[str, int]) -> No
         for index in range(1, 4):
             done.clear()
             client.run_trial(RunTrial(trial_index=index, theta=Theta(a=5.0, delta=-0.2, k=5.0),
-                                      hand_seed=cycle, auto_loaded=True, auto_go=True))
+                                      hand_seed=cycle, automatic=True))
             if rng.random() < 0.3:  # ended at a random moment of this trial
                 break
             done.wait(60)

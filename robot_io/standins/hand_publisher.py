@@ -30,11 +30,11 @@ from pydantic import BaseModel, ConfigDict
 
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.config import ControllerConfig
-from robot_io.control.minimum_jerk import minimum_jerk
 from robot_io.devices import tracker_transform
 from robot_io.hands.config import LSLSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.minimum_jerk import minimum_jerk
 
 log = logging.getLogger(__name__)
 
