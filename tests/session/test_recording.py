@@ -32,8 +32,8 @@ from app.session.config import LabConfig, RecordingSettings
 from app.session.rcs_client import RecorderError
 from app.session.recording import SessionRecording
 from app.session.runner import SessionRunner
-from robot_io.hands.simulated_hand import Scenario
 from robot_io.control.stages import Stage
+from robot_io.hands.simulated_hand import Scenario
 from robot_io.standins.labrecorder_rcs import RemoteControl, StandInLabRecorder
 from session_store.reading import reading
 from session_store.recordings import recordings_of
