@@ -10,6 +10,9 @@
 * Files in the study folder that decide who may do what (the token, the known browsers) are written
   owner-only (mode 600) and atomically, and one that is a symbolic link or that others may write is
   refused (:class:`UnsafeTokenFile`), not read: whoever can write it decides who moves the arm.
+  ``serve`` checks them all before it serves a page (:func:`check_access_files`); a known-browsers
+  file planted while it serves is read as no browser (every page gets its token or code screen) and
+  replaced by the next browser remembered.
 * :class:`AttemptLimit` checks a secret (the dashboard token, the tablet's pairing code) at most
   ``max_failures`` times per ``window_s`` from one remote address; every wrong attempt is logged with
   its address, further attempts are refused unchecked until the window has slid past the oldest
@@ -87,6 +90,14 @@ def dashboard_token(study: Path, override: str | None = None) -> str:
     return token
 
 
+def check_access_files(study: Path) -> None:
+    """Refuse (:class:`UnsafeTokenFile`, naming the file and what to do) a study whose known-browser
+    files are symbolic links or writable by others, before any page is served: read while serving,
+    they would fail every page's start."""
+    for name in (DASHBOARD_BROWSERS_FILE, TABLET_BROWSER_FILE):
+        read_private(Path(study) / name)
+
+
 class KnownBrowsers:
     """Browser ids remembered in the study folder's ``file`` (the latest ``keep``), each stored as
     the hash of ``salt`` and the id (thread-safe)."""
@@ -99,7 +110,13 @@ class KnownBrowsers:
         return hashlib.sha256(f"{self.salt}\n{browser}".encode()).hexdigest()
 
     def _stored(self) -> list[str]:
-        return (read_private(self.path) or "").split()
+        """The stored hashes; none from a file planted since the start (:func:`check_access_files`):
+        it grants nothing, and the next :meth:`remember` replaces it."""
+        try:
+            return (read_private(self.path) or "").split()
+        except UnsafeTokenFile as exc:
+            log.error("%s; no browser is known by it until one is remembered anew", exc)
+            return []
 
     def known(self, browser: str | None) -> bool:
         if browser is None:

@@ -19,6 +19,7 @@ from app.session.access import (
     DASHBOARD_BROWSERS_FILE,
     KNOWN_DASHBOARDS,
     KnownBrowsers,
+    check_access_files,
     dashboard_token,
 )
 from app.session.runner import SessionRunner
@@ -59,6 +60,7 @@ class HandoverServers:
         quiet_unreadable_messages()
         self.runner, self.options = runner, options
         self.token = dashboard_token(runner.study, options.token)
+        check_access_files(runner.study)  # before a page is served, which would read them
         self.tablet_server, self.tablet_guard = open_server(options.host, options.tablet_port,
                                                             "tablet", TABLET_PAGE)
         try:
