@@ -173,6 +173,7 @@ class DashboardClient:
         self._code: str | None = "-"
         self._error_key: tuple | None = None
         self._lock = threading.Lock()
+        self.closed = False  # the page has gone (a token answered later unlocks nothing then)
         if gate.recognised(client.client_id):  # unlocked in this browser before
             self.refresh(runner.view, rebuild=True)
         else:
@@ -188,21 +189,25 @@ class DashboardClient:
         unlock = gui.add_button("Unlock")
         error = gui.add_markdown("")
 
-        @unlock.on_click
-        def _(_: viser.GuiEvent) -> None:
-            refusal = self.gate.attempt(self.client.client_id, field.value.strip())
+        def answered(refusal: str | None) -> None:
             if refusal is None:
                 self.refresh(self.runner.view, rebuild=True)
             else:
                 error.content = f"⚠ {refusal}"
+
+        @unlock.on_click
+        def _(_: viser.GuiEvent) -> None:
+            waiting = self.gate.attempt(self.client.client_id, field.value.strip(), answered)
+            if waiting is not None:
+                error.content = f"⏳ {waiting}"
 
     # -- panels -----------------------------------------------------------------------------------
     def refresh(self, view: RunnerView, rebuild: bool = False) -> None:
         """Show ``view``; ``rebuild``: build the panels anew (the first build is the unlock: the
         window is then one of the dashboard windows, and every window is told)."""
         with self._lock:
-            if self.live is None and not rebuild:
-                return  # still locked
+            if self.closed or (self.live is None and not rebuild):
+                return  # gone, or still locked
             unlocking = self.live is None
             if unlocking:
                 self.windows.opened(self.client.client_id, self.address)
@@ -229,6 +234,11 @@ class DashboardClient:
                 self._show_error(None)  # the refusal is no longer true
         if unlocking:
             self._on_windows()
+
+    def close(self) -> None:
+        """The page has gone: a refresh after this (a token's answer that waited) does nothing."""
+        with self._lock:
+            self.closed = True
 
     def tick(self) -> None:
         if self.live is not None and (self.replay is None or not self.replay.running):
@@ -458,6 +468,8 @@ class Dashboard:
 
     def _disconnect(self, client: viser.ClientHandle) -> None:
         page = self.clients.pop(client.client_id, None)
+        if page is not None:
+            page.close()
         self.windows.closed(client.client_id)
         if page is not None:
             page.cancel_replay()

@@ -297,3 +297,16 @@ def test_a_browsers_file_planted_while_serving_grants_nothing_and_fails_no_page(
     assert not path.is_symlink() and stat.S_IMODE(path.stat().st_mode) == 0o600
     assert planted.read_text() == target  # the link's target is untouched
     assert known.known("b" * 32)
+
+
+def test_a_token_file_others_may_read_is_made_owner_only_with_a_warning(tmp_path, caplog):
+    """A 0644 token file was read without a word (issue 45, item 8): it is made owner-only, as the
+    writer's lock file is, and serve says that whoever read it knows the token."""
+    study = tmp_path / "study"
+    token = dashboard_token(study)
+    path = study / TOKEN_FILE
+    path.chmod(0o644)
+    assert dashboard_token(study) == token
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert (f"{path} was readable by others (mode 644): made owner-only (600). Anyone who read it "
+            "knows the token: delete it for a new one") in caplog.text
