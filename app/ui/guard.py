@@ -11,6 +11,8 @@
   tablet could end up on the dashboard's port; here the port actually bound must be the one asked for.
 * **Token attempts slowed down and logged** (:class:`TokenGate`), per remote address; the right
   token is never refused.
+* **GUI updates a page never sends are refused** (:mod:`app.ui.gui_updates`): a value of the wrong
+  kind or outside an input's range, a property other than the value; one line in the log each.
 * **The browser's id** (:meth:`Guard.browser_of`): the cookie the study's page sets
   (:mod:`app.ui.client_page`), read from the websocket's request headers; an id of any other form
   is no id.
@@ -35,12 +37,14 @@ from urllib.parse import urlsplit
 
 import viser
 from viser import _messages
-from viser.infra import WebsockClientConnection
+from viser._gui_api import GuiApi
+from viser.infra import WebsockClientConnection, WebsockMessageHandler
 from websockets.asyncio.server import ServerConnection
 from websockets.http11 import Request
 
 from app.session.access import AttemptLimit, KnownBrowsers
 from app.ui.client_page import BROWSER_ID_PATTERN, ClientPage, StudyViserServer, client_folder
+from app.ui.gui_updates import checked
 from app.ui.streams import safe_streams
 
 log = logging.getLogger(__name__)
@@ -86,8 +90,23 @@ class Guard:
         for message in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
             self._infra.unregister_handler(message)  # viser's own: it would open a public tunnel
             self._infra.register_handler(message, self._refuse_share_link)
+        self._guard_gui_updates(self._infra)  # the server's own GUI (the pages use their own)
         self._infra.on_client_connect(self._check_origin)
         self._infra.on_client_disconnect(self._forget)
+
+    def _guard_gui_updates(self, interface: WebsockMessageHandler) -> None:
+        """Put :func:`~app.ui.gui_updates.checked` before each of viser's GUI-update handlers on
+        ``interface`` (the server's, or a page's connection once its ClientHandle registered)."""
+        handlers = interface._incoming_handlers.get(_messages.GuiUpdateMessage, [])
+        for handler in list(handlers):
+            gui = getattr(handler, "__self__", None)
+            if isinstance(gui, GuiApi):
+                interface.unregister_handler(_messages.GuiUpdateMessage, handler)
+                interface.register_handler(_messages.GuiUpdateMessage,
+                                           checked(gui, handler, self._refuse_update))
+
+    def _refuse_update(self, client_id: int, why: str) -> None:
+        self._refuse(f"{why} (client {client_id} at {self.source_of(client_id)})")
 
     def source_of(self, client_id: int) -> str:
         """The remote address of a connected client ("unknown" once it has gone)."""
@@ -135,6 +154,7 @@ class Guard:
             return
         address = connection.remote_address[0] if connection.remote_address else "unknown"
         self._addresses[conn.client_id] = address
+        self._guard_gui_updates(conn)  # viser's ClientHandle has registered its handler by now
         headers = _request(connection).headers
         origin, host = headers.get("Origin"), headers.get("Host")
         if not same_origin(origin, host, self.port):

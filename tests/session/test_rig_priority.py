@@ -19,6 +19,7 @@ from support.priority import without_priority
 from support.runner import Probe
 from support.waiting import tail, wait_for
 
+from app.cli import main
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import LabConfig, load_lab_config
 from app.session.runner import SessionRunner
@@ -126,7 +127,15 @@ def test_lab_files_say_auto_true_or_false(tmp_path, text, setting):
     assert load_lab_config(tmp_path / "lab.toml").loop.realtime_priority == setting
 
 
-def test_an_unknown_priority_setting_is_refused_with_its_field(tmp_path):
-    (tmp_path / "lab.toml").write_text('[loop]\nrealtime_priority = "always"\n')
+@pytest.mark.parametrize("value", ['"always"', '"yes"', '"true"', "1", '"on"'])
+def test_an_unknown_priority_setting_is_refused_naming_the_values(tmp_path, capsys, value):
+    """``realtime_priority = "yes"`` was read as true, 1 and "on" too (pydantic's lax booleans;
+    issue 45, item 10): only true, false and "auto" are settings, and the refusal names them."""
+    (tmp_path / "lab.toml").write_text(f'[loop]\nrealtime_priority = {value}\n')
     with pytest.raises(ValidationError, match=r"loop\.realtime_priority"):
         load_lab_config(tmp_path / "lab.toml")
+    assert main(["run-session", "--study", str(tmp_path / "study"), "--participant", "P01",
+                 "--scenario", "perturbed", "--auto", "--config", str(tmp_path / "lab.toml")]) == 2
+    read = value.strip('"') if value.startswith('"') else int(value)  # as TOML reads it
+    assert (f'loop.realtime_priority = {read!r}: must be true, false or "auto" (without quotes: '
+            'true, false; with: "auto")') in capsys.readouterr().err

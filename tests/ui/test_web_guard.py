@@ -25,6 +25,8 @@ from support.waiting import CEILING_S, tail, wait_for
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
+from app.ui.guard import open_server
+
 SUBPROTOCOL = f"viser-v{viser.__version__}"
 #: The websocket's waits (open, first message, the close): ceilings for a hung server, not bounds.
 WS_S = CEILING_S
@@ -125,3 +127,49 @@ def test_a_message_viser_cannot_read_is_one_line_in_the_log_and_other_pages_go_o
             assert ws.recv(timeout=WS_S)
         output = served.shutdown()
     assert "Traceback" not in output and output.count("cannot read") == 1, tail(output)
+
+
+#: GUI updates no viser page sends for a slider (the client sends {"value": <number>} only): a
+#: word, nothing, NaN, outside the slider's range, a list, a property other than the value.
+FORGED_UPDATES = [{"value": "abc"}, {"value": None}, {"value": float("nan")}, {"value": 7.0},
+                  {"value": [1, 2]}, {"disabled": False}, {"value": 0.3, "min": 0.5}]
+
+
+#: The camera message a viser page sends first (viser's client is connected from then on).
+CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [0.0, 0.0, 1.0],
+          "fov": 1.0, "near": 0.01, "far": 100.0, "image_height": 600, "image_width": 800,
+          "look_at": [0.0, 0.0, 0.0], "up_direction": [0.0, 0.0, 1.0]}
+
+
+def test_a_gui_update_no_page_sends_is_refused_in_one_line_and_the_page_goes_on(caplog):
+    """A non-numeric slider value from the paired tablet printed an asyncio traceback from viser's
+    _handle_gui_updates (issue 45, item 10); a value outside the slider's range was taken as it
+    came. Each is refused and logged in one line, the slider keeps its value, and the page's next
+    real move counts."""
+    server, guard = open_server("127.0.0.1", 0, "tablet")
+    sliders: dict[int, viser.GuiSliderHandle] = {}
+    moves: list[float] = []
+
+    def connect(client: viser.ClientHandle) -> None:
+        slider = client.gui.add_slider("Scale", min=0.0, max=1.0, step=0.001, initial_value=0.5)
+        slider.on_update(lambda _: moves.append(slider.value))
+        sliders[client.client_id] = slider
+
+    server.on_client_connect(connect)
+    url = f"http://127.0.0.1:{server.get_port()}"
+    try:
+        with _ws(url, origin=url) as ws:
+            ws.recv(timeout=WS_S)
+            ws.send(msgspec.msgpack.encode(CAMERA))  # viser counts a page as connected from then on
+            [slider] = wait_for(lambda: list(sliders.values()), "the page's slider")
+            for updates in [*FORGED_UPDATES, {"value": 0.25}]:
+                ws.send(msgspec.msgpack.encode({"type": "GuiUpdateMessage",
+                                                "uuid": slider._impl.uuid, "updates": updates}))
+            wait_for(lambda: moves, "the real move to 0.25", seen=lambda: guard.refused)
+    finally:
+        server.stop()
+    assert moves == [0.25] and slider.value == 0.25
+    assert len(guard.refused) == len(FORGED_UPDATES), guard.refused
+    assert all(refusal.startswith("GUI update of 'Scale' ") and refusal.endswith(" at 127.0.0.1)")
+               for refusal in guard.refused), guard.refused
+    assert "Traceback" not in caplog.text and "exception was never retrieved" not in caplog.text
