@@ -18,9 +18,9 @@ Next.
 
 One tablet per session (:mod:`app.session.pairing`): a page on the tablet port becomes the study's
 tablet once the pairing code shown on the dashboard is typed on it ("Connect this tablet"); the
-pairing holds for that device across reloads, and for that browser across restarts. Another page of
-the same device shows "This tablet is not in use" and is offered nothing to rate, until the
-tablet's page closes; a page of another device is offered only the code. The runner hears of every
+pairing holds for that browser across reloads and restarts. Another page of the same browser shows
+"This tablet is not in use" and is offered nothing to rate, until the tablet's page closes; a page
+of another browser, even from the tablet's address, is offered only the code. The runner hears of every
 page (:meth:`SessionRunner.tablet_connected`), so the dashboard shows how many are open and Start
 is refused without exactly one paired tablet.
 

@@ -310,3 +310,27 @@ def test_a_token_file_others_may_read_is_made_owner_only_with_a_warning(tmp_path
     assert stat.S_IMODE(path.stat().st_mode) == 0o600
     assert (f"{path} was readable by others (mode 644): made owner-only (600). Anyone who read it "
             "knows the token: delete it for a new one") in caplog.text
+
+
+def test_once_the_tablets_page_closes_another_browser_of_its_address_needs_the_code():
+    """After the paired tablet's page closed, another browser from the same address became the
+    tablet without the code, and the dashboard advised "type the code" when the tablet itself needed
+    none (issue 45, item 11). The pairing belongs to the browser that typed it (its page's id):
+    that browser comes back without the code, any other types it."""
+    pairing = TabletPairing(code="6715")
+    pairing.connected(1, "10.0.0.5", browser="a" * 32)
+    assert pairing.pair(1, "6715") is None
+    pairing.connected(2, "10.0.0.5", browser="a" * 32)  # a second tab of the tablet's browser
+    assert pairing.role(2) == "unused"
+    pairing.closed(1)
+    pairing.closed(2)
+    assert pairing.status().blocker() == (
+        "the paired tablet's page is closed: open the tablet page on it again (no code needed; "
+        "another device types the code 6715)")
+    pairing.connected(3, "10.0.0.5", browser="b" * 32)  # another browser, same address (a NAT)
+    assert pairing.role(3) == "pair" and not pairing.status().ready
+    assert pairing.status().blocker() == "the tablet is not paired: type the code 6715 on it"
+    pairing.connected(4, "10.0.0.5", browser="a" * 32)  # the tablet's own browser, reloaded
+    assert pairing.role(4) == "tablet" and pairing.role(3) == "pair"
+    pairing.closed(3)
+    assert pairing.status().ready
