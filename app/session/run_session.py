@@ -36,7 +36,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "simulated time unless --realtime. --resume continues an interrupted session.")
     run.add_argument("--study", type=Path, required=True, help="study folder (one .sqlite per code)")
     run.add_argument("--participant", required=True, help="pseudonymous participant code")
-    run.add_argument("--scenario", type=argument_type(Scenario.parse),
+    run.add_argument("--scenario", type=argument_type(Scenario.parse), choices=list(Scenario),
                      help="straightforward or perturbed (required for a new session)")
     run.add_argument("--auto", action="store_true",
                      help="the simulated participant rates and answers (required headless)")
