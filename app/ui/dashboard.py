@@ -182,7 +182,7 @@ class DashboardClient:
     # -- access -----------------------------------------------------------------------------------
     def _locked_screen(self) -> None:
         gui = self.client.gui
-        gui.add_html(style_block(DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
+        gui.add_html(style_block(DASHBOARD_CSS + DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
         gui.add_markdown("### handover-lab dashboard\nEnter the dashboard token (printed by "
                          "`handover serve` and kept in the study folder).")
         field = gui.add_text("Token", "")

@@ -26,7 +26,7 @@ from app.session.runner import SessionRunner
 from app.ui.client_page import ClientPage
 from app.ui.dashboard import Dashboard
 from app.ui.guard import TokenGate, open_server
-from app.ui.style import DASHBOARD_OFFLINE_CSS, OFFLINE_CSS
+from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, OFFLINE_CSS
 from app.ui.tablet import Tablet
 from app.ui.unreadable import quiet_unreadable_messages
 
@@ -41,7 +41,7 @@ TABLET_PAGE = ClientPage(role="tablet", title="Handover study", css=OFFLINE_CSS,
                          enter={"Code": "Connect"})
 #: The experimenter's page.
 DASHBOARD_PAGE = ClientPage(role="dashboard", title="handover-lab dashboard",
-                            css=DASHBOARD_OFFLINE_CSS, enter={"Token": "Unlock"})
+                            css=DASHBOARD_CSS + DASHBOARD_OFFLINE_CSS, enter={"Token": "Unlock"})
 
 
 @dataclass(frozen=True)
