@@ -12,15 +12,19 @@ it, and :mod:`app.ui.guard` installs it on every page's connection.
 
 from __future__ import annotations
 
+import inspect
 import math
 import reprlib
-from collections.abc import Awaitable, Callable
+from collections.abc import Callable, Coroutine
 from typing import Any
 
 from viser import _messages
 from viser._gui_api import GuiApi
+from viser.infra import ClientId
+from viser.infra._messages import Message
 
-Handler = Callable[[int, _messages.GuiUpdateMessage], Awaitable[None]]
+#: A handler of the messages a page sends, as viser's websocket interfaces keep them.
+Handler = Callable[[ClientId, Message], Coroutine[Any, Any, Any] | None]
 
 
 def _number(value: Any) -> bool:
@@ -66,14 +70,17 @@ def forged(gui: GuiApi, message: _messages.GuiUpdateMessage) -> str | None:
     return None
 
 
-def checked(gui: GuiApi, handler: Handler, refuse: Callable[[int, str], None]) -> Handler:
+def checked(gui: GuiApi, handler: Handler, refuse: Callable[[int, str], None]
+            ) -> Callable[[ClientId, _messages.GuiUpdateMessage], Coroutine[Any, Any, None]]:
     """viser's ``handler`` of ``gui``'s updates, behind :func:`forged`: a forged update goes to
     ``refuse`` (its client and why) and no further."""
-    async def handle(client_id: int, message: _messages.GuiUpdateMessage) -> None:
+    async def handle(client_id: ClientId, message: _messages.GuiUpdateMessage) -> None:
         why = forged(gui, message)
         if why is not None:
             refuse(client_id, why)
             return
-        await handler(client_id, message)
+        handled = handler(client_id, message)
+        if inspect.isawaitable(handled):
+            await handled
 
     return handle
