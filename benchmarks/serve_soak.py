@@ -12,12 +12,12 @@ resident memory of its child processes together (the rig process, the learner's 
 forkserver).
 
 Printed: one line per sample (as it is taken), then the run's own baseline against its end — the
-median of the ``--window`` minutes after the warm-up (until ``--warmup`` minutes after the first
-handover completed: the first participant's imports, its first learner fits, the pages' first
-messages) against the median of the last ``--window`` minutes — and the least-squares slope after
-the warm-up, per hour. Flat: the end within a few MB and a
-handful of descriptors of the baseline, and a slope that would not fill memory in a day of
-sessions.
+median of the ``--window`` minutes after the warm-up (the first participant's whole session: its
+imports, its learner's first fits, the validation's first θ*, the pages' first messages) against
+the median of the last ``--window`` minutes — and the least-squares slope after the warm-up, per
+hour. ``--from-log`` prints the same of a run's printed samples without running again. Flat: the
+end within a few MB and a handful of descriptors of the baseline, and a slope that would not fill
+memory in a day of sessions.
 
     nice -n 19 .venv/bin/python benchmarks/serve_soak.py --minutes 15 > /tmp/serve_soak.log
 """
@@ -142,18 +142,32 @@ def run(minutes: float, every_s: float) -> list[Sample]:
     return sampler.samples
 
 
-def report(samples: list[Sample], warmup_min: float, window_min: float) -> None:
-    """The baseline (the window after the warm-up) against the end (the last window), and the
-    slopes after the warm-up."""
-    began = next(s.t_s for s in samples if s.handovers > 0) + 60 * warmup_min
+#: A sample as :class:`Sampler` prints it.
+SAMPLE_LINE = re.compile(r"^\s*([\d.]+) s  participants\s+(\d+)  handovers\s+(\d+)  RSS\s+([\d.]+) MB"
+                         r"  fds\s+(\d+)  threads\s+(\d+)  children\s+([\d.]+) MB$", re.M)
+
+
+def read_log(path: Path) -> list[Sample]:
+    """The samples a run printed."""
+    return [Sample(float(t), int(p), int(h), float(rss), int(fds), int(threads), float(children))
+            for t, p, h, rss, fds, threads, children in SAMPLE_LINE.findall(path.read_text())]
+
+
+def report(samples: list[Sample], window_min: float) -> None:
+    """The baseline (the window after the warm-up: the first participant's session) against the
+    end (the last window), and the slopes after the warm-up."""
+    began = next((s.t_s for s in samples if s.participants > 1), None)
+    if began is None:
+        raise SystemExit("the run ended within its first participant's session: no baseline after "
+                         "the warm-up (run longer)")
     warm = [s for s in samples if s.t_s >= began]
     first = [s for s in warm if s.t_s <= began + 60 * window_min]
     last = [s for s in warm if s.t_s >= samples[-1].t_s - 60 * window_min]
     t = np.array([s.t_s for s in warm]) / 3600
     print(f"\n{samples[-1].t_s / 60:.1f} min, {samples[-1].participants} participants, "
-          f"{samples[-1].handovers} handovers, {len(samples)} samples; from {began / 60:.1f} min "
-          f"({warmup_min:g} min after the first handover), medians of the first and the last "
-          f"{window_min:g} min, and the least-squares slope:")
+          f"{samples[-1].handovers} handovers, {len(samples)} samples; from the second "
+          f"participant ({began / 60:.1f} min), medians of the first and the last {window_min:g} "
+          "min, and the least-squares slope:")
     for name, unit in (("rss_mb", "MB"), ("fds", ""), ("threads", ""), ("children_mb", "MB")):
         values = np.array([getattr(s, name) for s in warm], dtype=float)
         base = statistics.median(getattr(s, name) for s in first)
@@ -168,12 +182,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=15.0, help="how long the soak runs")
     parser.add_argument("--every", type=float, default=10.0, help="seconds between samples")
-    parser.add_argument("--warmup", type=float, default=2.0,
-                        help="minutes left out after the first handover (the first learner fits)")
     parser.add_argument("--window", type=float, default=3.0,
                         help="minutes of the baseline and of the end compared")
+    parser.add_argument("--from-log", type=Path,
+                        help="report the samples a run printed to this file (no new run)")
     args = parser.parse_args()
-    report(run(args.minutes, args.every), args.warmup, args.window)
+    samples = read_log(args.from_log) if args.from_log else run(args.minutes, args.every)
+    report(samples, args.window)
 
 
 if __name__ == "__main__":
