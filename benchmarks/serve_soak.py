@@ -13,7 +13,8 @@ forkserver).
 
 Printed: one line per sample (as it is taken), then the run's own baseline against its end — the
 median of the ``--window`` minutes after the warm-up (the first participant's whole session: its
-imports, its learner's first fits, the validation's first θ*, the pages' first messages) against
+imports, its learner's first fits, the end of its learning batches, where the serve process grew
+by some 60 MB once in the run of README.md, the pages' first messages) against
 the median of the last ``--window`` minutes — and the least-squares slope after the warm-up, per
 hour. ``--from-log`` prints the same of a run's printed samples without running again. Flat: the
 end within a few MB and a handful of descriptors of the baseline, and a slope that would not fill
