@@ -49,6 +49,7 @@ def test_the_experimenter_enters_placements_for_the_participant(tmp_path: Path) 
         assert run_trial(dashboard, tablet) == "place"
         wait_text(dashboard, "The participant places handover 1")
         assert button(dashboard, STORE).is_disabled()  # the slider untouched: nothing to store
+        button(dashboard, STORE).scroll_into_view_if_needed()
         shot(dashboard, SHOTS, "dashboard-on-behalf-untouched")
         slider = dashboard.get_by_role("slider")
         slider.focus()
@@ -65,6 +66,7 @@ def test_the_experimenter_enters_placements_for_the_participant(tmp_path: Path) 
         dashboard.locator("xpath=//*[normalize-space(text())='Or the same as']"
                           "/following::input[1]").click()
         dashboard.get_by_role("option", name="handover 1").click()
+        button(dashboard, STORE).scroll_into_view_if_needed()
         shot(dashboard, SHOTS, "dashboard-on-behalf")
         wait_enabled(dashboard, STORE)  # an earlier handover chosen: a deliberate entry
         click(dashboard, STORE)
