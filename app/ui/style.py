@@ -120,7 +120,8 @@ TABLET_CSS = f"""
   font-weight: 600; padding-top: 8px; }}
 .hl-caption {{ text-align: center; font-size: calc(1.15 * var(--hl-text)); font-weight: 700;
   color: {ORANGE}; height: calc(1.5 * var(--hl-text)); }}
-.hl-hint {{ font-size: var(--hl-text); font-weight: 400; color: {GREY}; }}
+.hl-hint {{ display: inline-block; font-size: var(--hl-text); font-weight: 400; color: {GREY};
+  line-height: 1.3; }}
 .mantine-Flex-root:has(> div > .mantine-Flex-root > .mantine-Slider-root) > :first-child {{
   display: none; }}
 .mantine-Slider-root {{ margin: calc(var(--hl-thumb) / 3) calc(var(--hl-marker) / 2 + 8px) 0;
