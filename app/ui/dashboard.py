@@ -199,7 +199,7 @@ class DashboardClient:
         def _(_: viser.GuiEvent) -> None:
             waiting = self.gate.attempt(self.client.client_id, field.value.strip(), answered)
             if waiting is not None:
-                error.content = f"⏳ {waiting}"
+                error.content = waiting
 
     # -- panels -----------------------------------------------------------------------------------
     def refresh(self, view: RunnerView, rebuild: bool = False) -> None:
