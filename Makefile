@@ -4,7 +4,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: install bytecode demo typecheck test soak chromium bench clean
+.PHONY: install bytecode demo typecheck test soak soak-serve chromium bench clean
 
 # The suite runs on PYTEST_WORKERS xdist workers (`--dist loadgroup`: tests marked
 # xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run,
@@ -76,6 +76,13 @@ test: install chromium bytecode
 
 soak: install chromium bytecode
 	PYTHONDONTWRITEBYTECODE= $(BIN)/python .ci/soak.py --runs $(SOAK_RUNS) --hogs $(SOAK_HOGS) --workers $(PYTEST_WORKERS)
+
+# `make soak-serve`: `handover serve` with the simulated participant and both screens open for
+# SOAK_MINUTES, participant after participant; prints the serve process's memory, open files and
+# threads over time, and the run's end against its own baseline (benchmarks/serve_soak.py).
+SOAK_MINUTES ?= 15
+soak-serve: install chromium
+	$(BIN)/python benchmarks/serve_soak.py --minutes $(SOAK_MINUTES)
 
 bench: install
 	$(BIN)/python benchmarks/control_loop.py

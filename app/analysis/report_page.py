@@ -149,17 +149,12 @@ def validation_tables(analysis: StudyAnalysis) -> str:
     return html.section("Validation (Sect. VI-A)", *parts, html.paragraph(SCORE_RULE, "note"))
 
 
-def _p_text(p: float) -> str:
-    return "n/a" if pd.isna(p) else f"{p:.2g}" if p >= 1e-4 else f"{p:.1e}"
-
-
 def statistics(tests: list[StatTest]) -> str:
     frame = pd.DataFrame([{
         "name": t.name, "test": "sign test" if t.test == "sign" else "Mann–Whitney U",
         "sides": ALTERNATIVE_TEXT[t.alternative], "n": t.n, "n_total": t.n_total, "ties": t.n_ties,
         "groups": ", ".join(f"{k} {v}" for k, v in t.groups.items()),
-        "statistic": "n/a" if pd.isna(t.statistic) else f"{t.statistic:g}",
-        "p": _p_text(t.p_value)} for t in tests])
+        "statistic": t.statistic_text(), "p": t.p_text()} for t in tests])
     rules = [f"Sign test: exact binomial (p = ½); {SIGN_TIE_RULE}. Statistic S = number of values "
              "above the threshold; H1: values lie above it (the paper's directional hypotheses).",
              f"Mann–Whitney U: two-sided, {MWU_METHOD}; U is that of the first group "

@@ -26,7 +26,7 @@ from session_store.errors import LockRefused
 from session_store.inspect import inspect_database
 from session_store.lock import holder_of
 from session_store.models import SafetyRecord
-from session_store.paths import SUFFIX
+from session_store.paths import participant_files
 from session_store.sample_rows import read_samples
 from session_store.schema import SCHEMA_VERSION
 
@@ -103,7 +103,7 @@ def examine(path: Path) -> Verdict:
 
 def examine_study(study_dir: Path) -> list[Verdict]:
     """Verdicts on every ``*.sqlite`` file of ``study_dir``, by name."""
-    return [examine(path) for path in sorted(Path(study_dir).glob(f"*{SUFFIX}"))]
+    return [examine(path) for path in participant_files(study_dir)]
 
 
 def contradicted(study_dir: Path) -> dict[Path, str]:

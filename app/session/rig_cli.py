@@ -30,6 +30,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "simulate-trial", help="run one handover with the simulated hand and the mock arm",
         description="Run one handover of the simulated participant with the kinematic mock arm.")
     parser.add_argument("--scenario", required=True, type=argument_type(Scenario.parse),
+                        choices=list(Scenario),
                         help="straightforward or perturbed (Sect. V-A)")
     parser.add_argument("--theta", required=True, type=argument_type(Theta.parse), metavar="A,DELTA,K",
                         help="coupling θ = (a, δ, k); a in [1, 10], δ in [-1, 1], k in [0.01, 15]")

@@ -37,7 +37,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "simulated time unless --realtime. --resume continues an interrupted session.")
     run.add_argument("--study", type=Path, required=True, help="study folder (one .sqlite per code)")
     run.add_argument("--participant", required=True, help="pseudonymous participant code")
-    run.add_argument("--scenario", type=argument_type(Scenario.parse),
+    run.add_argument("--scenario", type=argument_type(Scenario.parse), choices=list(Scenario),
                      help="straightforward or perturbed (required for a new session, unless the "
                           "--config has a [study] plan: then the plan's proposal; another choice "
                           "is recorded as a deviation)")

@@ -281,7 +281,9 @@ class TrialSupervisor:
             timing = self._status.timing
             first = timing is None or timing.trial_index != report.trial_index
             self._set(timing=report)
-        if first:  # the whole of it on stderr (headless too); the dashboard shows it by the devices
+        # on stderr (headless too) as it begins and as the trial ended, the figures the dashboard
+        # then keeps by the devices
+        if first or report.final:
             log.warning("%s", report.describe())
         self._recording.changed(f"trial {report.trial_index}: the rig's timing runs late (see "
                                 "Devices)" if first else None)

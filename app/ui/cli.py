@@ -61,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     serve.add_argument("--participant",
                        help="open this participant at start (resume it, or create it with "
                             "--scenario); refused at once while another process writes it")
-    serve.add_argument("--scenario", type=argument_type(Scenario.parse),
+    serve.add_argument("--scenario", type=argument_type(Scenario.parse), choices=list(Scenario),
                        help="with --participant: the scenario of a new participant")
     serve.add_argument("--seed", type=argument_type(parse_seed), default=None,
                        help="with --participant: the seed of a new participant (default: fresh)")

@@ -178,7 +178,8 @@ class DashboardClient:
         self._code: str | None = "-"
         self._error_key: tuple | None = None
         self._lock = threading.Lock()  # over every change of this page's panels, and its close
-        self._closed = False  # the browser left: nothing is drawn for it any more
+        self._closed = False  # the page has gone: nothing is drawn for it (a token answered later
+        #                       unlocks nothing then)
         if gate.recognised(client.client_id):  # unlocked in this browser before
             self.refresh(runner.view, rebuild=True)
         else:
@@ -187,20 +188,24 @@ class DashboardClient:
     # -- access -----------------------------------------------------------------------------------
     def _locked_screen(self) -> None:
         gui = self.client.gui
-        gui.add_html(style_block(DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
+        gui.add_html(style_block(DASHBOARD_CSS + DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
         gui.add_markdown("### handover-lab dashboard\nEnter the dashboard token (printed by "
                          "`handover serve` and kept in the study folder).")
         field = gui.add_text("Token", "")
         unlock = gui.add_button("Unlock")
         error = gui.add_markdown("")
 
-        @unlock.on_click
-        def _(_: viser.GuiEvent) -> None:
-            refusal = self.gate.attempt(self.client.client_id, field.value.strip())
+        def answered(refusal: str | None) -> None:
             if refusal is None:
                 self.refresh(self.runner.view, rebuild=True)
             else:
                 error.content = f"⚠ {refusal}"
+
+        @unlock.on_click
+        def _(_: viser.GuiEvent) -> None:
+            waiting = self.gate.attempt(self.client.client_id, field.value.strip(), answered)
+            if waiting is not None:
+                error.content = waiting
 
     # -- panels -----------------------------------------------------------------------------------
     def refresh(self, view: RunnerView, rebuild: bool = False) -> None:
@@ -244,7 +249,8 @@ class DashboardClient:
                 self.live.update(self.runner.live(STRIDE)[1])
 
     def close(self) -> None:
-        """The browser left: no more refreshes, frames or replay for it."""
+        """The page has gone: no more refreshes (a token's answer that waited unlocks nothing),
+        frames or replay for it."""
         with self._lock:
             self._closed = True
         self.cancel_replay()
@@ -434,9 +440,10 @@ class Dashboard:
 
     def _disconnect(self, client: viser.ClientHandle) -> None:
         page = self.clients.pop(client.client_id, None)
-        self.windows.closed(client.client_id)
         if page is not None:
             page.close()
+        self.windows.closed(client.client_id)
+        if page is not None:
             self._windows_changed()
 
     def _windows_changed(self) -> None:

@@ -172,12 +172,17 @@ class RigTiming(_Message):
     old_bound_s: float
     staleness_limit_s: float = Field(description="[loop] staleness_limit_s: the tracker is lost")
     realtime_priority: bool = Field(description="the rig runs under SCHED_FIFO")
+    final: bool = Field(False, description="the whole trial's figures, sent at its end (else the "
+                                           "trial's so far)")
 
     def describe(self) -> str:
-        """What ran late and by how much, and what to do about it, in the experimenter's words."""
+        """What ran late and by how much, and what to do about it, in the experimenter's words:
+        the trial's figures so far, or the whole trial's (:attr:`final`)."""
         parts = []
         if self.late_cycles:
-            parts.append(f"{self.late_cycles} control cycles started late, by up to "
+            cycles = "1 control cycle" if self.late_cycles == 1 else \
+                f"{self.late_cycles} control cycles"
+            parts.append(f"{cycles} started late, by up to "
                          f"{self.latest_start_s * 1e3:.0f} ms (warned above "
                          f"{self.late_bound_s * 1e3:.0f} ms)")
         if self.oldest_hand_sample_s > self.old_bound_s:
@@ -188,7 +193,8 @@ class RigTiming(_Message):
                   "programs" if self.realtime_priority else
                   "the rig runs without real-time priority: grant it (docs/hardware.md, "
                   "\"Real-time priority\") or close other programs")
-        return f"timing degraded in trial {self.trial_index}: {'; '.join(parts)} — {advice}"
+        when = "" if self.final else " so far"
+        return f"timing degraded in trial {self.trial_index}{when}: {'; '.join(parts)} — {advice}"
 
 
 class HandLink(_Message):

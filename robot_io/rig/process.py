@@ -211,7 +211,7 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
                     outbox.send(Recovered(ok=False, message=explain(exc)))
                 continue
             command, gates = item
-            _run(command, gates, devices, stream, outbox, inbox)
+            _run(command, gates, devices, stream, outbox, inbox, timing)
     finally:
         if timing is not None:
             timing.close()
@@ -220,7 +220,7 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
 
 
 def _run(command: RunTrial, gates: Gates, devices: RigDevices, stream: SampleStream,
-         outbox: Outbox, inbox: Inbox) -> None:
+         outbox: Outbox, inbox: Inbox, timing: TimingReporter | None) -> None:
     index = command.trial_index
 
     def on_stage(stage: str, t: float) -> None:
@@ -236,4 +236,6 @@ def _run(command: RunTrial, gates: Gates, devices: RigDevices, stream: SampleStr
                            cycle=devices.spec.cycle)
     finally:
         inbox.running = False
+    if timing is not None:
+        timing.trial_ended()  # the whole trial's figures, before its end: the screens keep them
     outbox.send(TrialDone(trial_index=index, summary=record.summary, rows=recorder.count))
