@@ -26,7 +26,8 @@ def stage_spans(events: pd.DataFrame) -> pd.DataFrame:
     spans = pd.DataFrame({"participant": rows["participant"].to_numpy(),
                           "trial_index": payloads.map(lambda p: p["trial_index"]).to_numpy(),
                           "stage": payloads.map(lambda p: p.get("stage")).to_numpy(),
-                          "at": pd.to_datetime(rows["at"], utc=True, format="ISO8601").to_numpy()})
+                          "at": rows["at"].to_numpy()})
+    spans["at"] = pd.to_datetime(spans["at"], utc=True, format="ISO8601")  # datetimes, even if none
     following = spans.groupby(["participant", "trial_index"])["at"].shift(-1)
     spans["seconds"] = (following - spans["at"]).dt.total_seconds()
     return spans[spans["stage"].notna()].drop(columns="at")

@@ -34,7 +34,7 @@ def events(*trials: list[tuple[str, float]]) -> pd.DataFrame:
             rows.append({"participant": "C01", "seq": seq, "at": at, "actor": "system",
                          "kind": "trial_ended" if stage == "end" else "trial_stage",
                          "payload": json.dumps(payload)})
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=["participant", "seq", "at", "actor", "kind", "payload"])
 
 
 def test_each_stage_s_time_runs_to_the_trial_s_next_event_in_the_cycle_s_order():
@@ -49,6 +49,12 @@ def test_each_stage_s_time_runs_to_the_trial_s_next_event_in_the_cycle_s_order()
     assert table.loc["ready", "trials"] == 2 and table.loc["ready", "median_s"] == pytest.approx(0.5)
     assert table.loc["go", "median_s"] == pytest.approx(3.0)
     assert table.loc["reach", "trials"] == 0 and pd.isna(table.loc["reach", "median_s"])
+
+
+def test_a_study_no_trial_of_which_began_has_every_stage_and_no_times():
+    table = cycle_table(events()).set_index("stage")
+    assert list(table.index) == list(PAPER_CYCLE.names)
+    assert (table["trials"] == 0).all() and table["median_s"].isna().all()
 
 
 def test_a_stored_stage_the_cycle_no_longer_has_is_still_read():
