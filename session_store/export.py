@@ -21,7 +21,7 @@ from pydantic import BaseModel, ValidationError
 
 from robot_io.errors import explain
 from session_store.errors import CorruptStoreError, StoreError, StoreWriteError
-from session_store.inspection import explained_writes
+from session_store.file_check import explained_writes
 from session_store.models import (
     Answer,
     Comparison,
@@ -33,7 +33,7 @@ from session_store.models import (
     ValidationRating,
 )
 from session_store.paths import EXPORT_FORMATS
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.schema import TABLES, columns_of, sample_column_names, sample_columns
 from session_store.store import SUFFIX, ParticipantStore, participant_codes
 

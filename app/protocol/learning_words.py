@@ -17,7 +17,7 @@ import math
 
 from app.learning.models import Settledness
 from app.protocol.state import SessionState, Step
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.models import Event, LearnerSnapshotRow
 from session_store.vocabulary import Phase
 

@@ -33,7 +33,7 @@ from pydantic.fields import FieldInfo
 
 from app.protocol.design import Assignment, StudyPlan
 from app.protocol.safety_record import SafetyRecordSettings
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from robot_io.config import ControllerConfig
 from robot_io.errors import ConfigError
 from robot_io.hands.simulated_hand import Scenario
