@@ -225,14 +225,14 @@ class Export(NamedTuple):
 LEFT_OUT_FILE = "left_out.csv"
 
 
-def refuse_inside_study(out_dir: Path, study_dir: Path) -> None:
+def refuse_inside_study(out_dir: Path, study_dir: Path, writer: str = "export") -> None:
     """Refuse an output folder that is the study folder, lies inside it, or would put the
-    ``sqlite/`` copies there: an export beside the participants' databases would be overwritten by
-    the next one and read by nothing that reads a study."""
+    ``sqlite/`` copies there: an export (or a report, ``writer``) beside the participants'
+    databases would be overwritten by the next one and read by nothing that reads a study."""
     study, out = Path(study_dir).resolve(), Path(out_dir).resolve()
     if out == study or study in out.parents or out / "sqlite" == study:
         where = "would write its sqlite/ copies into" if out / "sqlite" == study else "is inside"
-        raise StoreError(f"--out {out_dir} {where} the study folder {study_dir}: export never "
+        raise StoreError(f"--out {out_dir} {where} the study folder {study_dir}: {writer} never "
                          "writes into a study folder; choose an output folder outside it")
 
 
