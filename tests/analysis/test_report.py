@@ -158,11 +158,13 @@ def test_a_database_of_another_schema_version_is_named_and_the_rest_reported(stu
 
 
 def test_empty_and_unreadable_study_folders_are_errors(tmp_path, capsys):
+    study = tmp_path / "study"
+    study.mkdir()
     with pytest.raises(StoreError, match="holds no participant database"):
-        build_report(tmp_path, tmp_path / "out")
-    (tmp_path / "X1.sqlite").write_bytes(b"not a database at all" * 100)
+        build_report(study, tmp_path / "out")
+    (study / "X1.sqlite").write_bytes(b"not a database at all" * 100)
     with pytest.raises(StoreError, match=r"no readable participant database.*not a readable SQLite"):
-        build_report(tmp_path, tmp_path / "out")
+        build_report(study, tmp_path / "out")
     assert main(["report", str(tmp_path / "nothing"), "--out", str(tmp_path / "o")]) == 2
     assert "holds no participant database" in capsys.readouterr().err
 
