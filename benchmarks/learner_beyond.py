@@ -50,12 +50,12 @@ from recommendation_study import ratio_ci
 from scipy import stats
 
 from app.learning.cluster import dask_client, run_tasks
-from app.learning.config import StoppingRule
+from app.learning.config import StoppingRule, epsilon_for
 from app.learning.models import TieHandling
+from app.learning.paper_population import PaperPopulation
 from app.learning.pilot import validation_wins
 from app.learning.planner import PAPER_SESSION_SCHEDULE
 from app.learning.rng import derive_seed
-from app.learning.settled import epsilon_for
 from app.learning.simulation import (
     StudyCondition,
     TrialResult,
@@ -93,8 +93,9 @@ def arms(noise: float, tie: float) -> dict[str, StudyCondition]:
 
 
 def run_arm(condition: StudyCondition, *, participants: int, seed: int, client, out: Path,
-            progress: bool) -> list[TrialResult]:
-    """Run (or resume) ``participants`` trials of ``condition`` with the stopping signal."""
+            progress: bool, spread: float | PaperPopulation | None = None) -> list[TrialResult]:
+    """Run (or resume) ``participants`` trials of ``condition`` with the stopping signals
+    (``spread``: the participants of a population, app.learning.simulation.trial_target)."""
     path = out / f"{condition.name}-seed{seed}.jsonl"
     out.mkdir(parents=True, exist_ok=True)
     done: dict[int, TrialResult] = {}
@@ -109,7 +110,7 @@ def run_arm(condition: StudyCondition, *, participants: int, seed: int, client, 
             handle.write(result.model_dump_json() + "\n")
         done[result.trial] = result
 
-    todo = [(condition, seed, t, True) for t in range(participants) if t not in done]
+    todo = [(condition, seed, t, True, spread) for t in range(participants) if t not in done]
     run_tasks(client, run_trial, todo, finished, total=participants,
               initial=participants - len(todo), desc=condition.name, progress=progress)
     return [done[t] for t in range(participants)]
@@ -235,14 +236,14 @@ def together_line(condition: StudyCondition, together: list[TrialResult],
             f"{final.mean():.3f}, ratio {ratio:.3f} [{lo:.3f}, {hi:.3f}]")
 
 
-def validation_scores(results: list[TrialResult], used: list[int], seed: int,
-                      noise: float) -> np.ndarray:
+def validation_scores(results: list[TrialResult], used: list[int], seed: int, noise: float,
+                      spread: float | PaperPopulation | None = None) -> np.ndarray:
     """Per participant, the share of :data:`VALIDATION_PAIRS` pairs won by θ* when learning ended
     after ``used`` interactions; the same participant meets the same pairs in every arm."""
     scores = []
     for result, n in zip(results, used, strict=True):
         star = np.array(stopped_theta_star(result, n))
-        target = trial_target(len(star), seed, result.trial)
+        target = trial_target(len(star), seed, result.trial, spread)
         rng = np.random.default_rng(derive_seed(seed, result.trial, 4))
         scores.append(validation_wins(target, star, VALIDATION_PAIRS, noise, rng) / VALIDATION_PAIRS)
     return np.array(scores)
