@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import math
 
+from app.learning.config import GainRule
+from app.learning.models import NextBatchGain
 from app.protocol.engine import SessionEngine
 from session_store.vocabulary import Phase
 
@@ -25,6 +27,9 @@ def learning_line(engine: SessionEngine) -> str | None:
                     if e.kind == "learning_stopped"), None)
     if stopped is not None:
         return f"learning stopped early, {stopped}"
+    rule = engine.config.stopping_rule()
+    if isinstance(rule, GainRule):
+        return None if engine.gain is None else gain_words(engine.gain, rule)
     signal = engine.settledness
     if signal is None:
         return None
@@ -33,13 +38,23 @@ def learning_line(engine: SessionEngine) -> str | None:
               f"the learner's choice has not changed in {unchanged} batch"
               f"{'es' if unchanged != 1 else ''}" if unchanged else
               "the learner's choice moved in the last batch")
-    rule = engine.config.stopping_rule()
     sure = (f"{signal.probability_within(engine.config.settled_epsilon):.0%} sure that the best "
             f"handover would be preferred to it at most {engine.config.settled_preference:.0%} of "
             "the time")
     stops = ("learning runs the whole schedule (stop_when_settled off)" if rule is None else
              f"learning stops at {rule.threshold:.0%} after at least {rule.min_batches} batches")
     return f"{choice}; {sure}; {stops}"
+
+
+def gain_words(gain: NextBatchGain, rule: GainRule) -> str:
+    """With ``[protocol] stop_when_no_gain`` (issue 46): what the next batch may find, and when
+    learning stops, e.g. "the next batch is at most 35 % likely to find a handover preferred to the
+    learner's choice more than 80 % of the time; learning stops at 50 % or less after at least 1
+    batch"."""
+    batches = f"{rule.min_batches} batch{'es' if rule.min_batches != 1 else ''}"
+    return (f"the next batch is at most {gain.chance(rule.epsilon):.0%} likely to find a handover "
+            f"preferred to the learner's choice more than {rule.preference:.0%} of the time; "
+            f"learning stops at {rule.chance:.0%} or less after at least {batches}")
 
 
 def unchanged_batches(engine: SessionEngine) -> int | None:
