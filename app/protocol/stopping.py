@@ -48,12 +48,12 @@ def check(config: StudyConfig, after: int, batches: int, settled: Settledness | 
 
 def reason(config: StudyConfig, rule: StoppingRule | GainRule, batches: int, signal: float) -> str:
     """Why learning stopped, in the lab's words."""
-    plural = "es" if batches != 1 else ""
+    done = f"{batches} learning batch{'es' if batches != 1 else ''}"
+    least = f"{rule.min_batches} batch{'es' if rule.min_batches != 1 else ''}"
     if isinstance(rule, GainRule):
-        return (f"after {batches} learning batch{plural} the next batch was at most {signal:.0%} "
-                f"likely to find a handover preferred to θ* more than {rule.preference:.0%} of "
-                f"the time (stops at {rule.chance:.0%} or less, after at least "
-                f"{rule.min_batches} batch{'es' if rule.min_batches != 1 else ''})")
-    return (f"settled after {batches} learning batches: {signal:.0%} sure that the best handover "
-            f"would be preferred to θ* at most {config.settled_preference:.0%} of the time (stops "
-            f"at {rule.threshold:.0%}, after at least {rule.min_batches} batches)")
+        return (f"after {done} the next batch was at most {signal:.0%} likely to find a handover "
+                f"preferred to θ* more than {rule.preference:.0%} of the time (stops at "
+                f"{rule.chance:.0%} or less, after at least {least})")
+    return (f"settled after {done}: {signal:.0%} sure that the best handover would be preferred to "
+            f"θ* at most {config.settled_preference:.0%} of the time (stops at "
+            f"{rule.threshold:.0%}, after at least {least})")

@@ -111,10 +111,10 @@ class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS)):  # type: 
     @model_validator(mode="after")
     def _one_stopping_rule(self) -> ProtocolSettings:
         if self.stop_when_settled and self.stop_when_no_gain:
-            preset = f' (preset = "{self.preset}" sets it)' if PRESETS[self.preset].get(
-                "stop_when_no_gain") else ""
-            raise ValueError(f"stop_when_settled and stop_when_no_gain{preset} are both true: "
-                             "learning stops by one rule; set one of them to false")
+            preset = {key: f' (preset = "{self.preset}" sets it)' for key in PRESETS[self.preset]}
+            raise ValueError(f"stop_when_settled{preset.get('stop_when_settled', '')} and "
+                             f"stop_when_no_gain{preset.get('stop_when_no_gain', '')} are both "
+                             "true: learning stops by one rule; set one of them to false")
         return self
 
     def counts(self) -> dict[str, Any]:

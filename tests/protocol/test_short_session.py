@@ -117,12 +117,12 @@ def test_the_short_preset_sets_hints_and_the_rule_and_a_lab_key_wins(tmp_path):
     path = tmp_path / "lab.toml"
     path.write_text('[protocol]\npreset = "short"\n')
     study = load_lab_config(path).study_config(Scenario.PERTURBED, seed=9)
-    assert study.preset == "short" and study.coactive and study.stop_when_no_gain
+    assert study.preset == "short" and study.coactive and study.stop_when_settled
     assert study.stopping_rule() == SHORT_RULE
-    assert PRESETS["short"]["gain_chance"] == SHORT_RULE.chance
-    path.write_text('[protocol]\npreset = "short"\ngain_chance = 0.1\n')
-    assert load_lab_config(path).study_config(Scenario.PERTURBED, seed=9).gain_chance == 0.1
-    path.write_text('[protocol]\npreset = "short"\nstop_when_settled = true\n')
+    assert {k: getattr(study, k) for k in PRESETS["short"]} == PRESETS["short"]
+    path.write_text('[protocol]\npreset = "short"\nsettled_threshold = 0.9\n')
+    assert load_lab_config(path).study_config(Scenario.PERTURBED, seed=9).settled_threshold == 0.9
+    path.write_text('[protocol]\npreset = "short"\nstop_when_no_gain = true\n')
     with pytest.raises(ValueError, match='preset = "short" sets it'):
         load_lab_config(path)
     path.write_text('[protocol]\npreset = "quick"\n')
