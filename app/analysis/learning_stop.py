@@ -1,11 +1,11 @@
 """Per participant, where learning ended and why, and the ties and hints the learner used (issue 40).
 
-With ``[protocol] stop_when_settled`` a session may end learning after a batch, once the learner is
-sure enough that θ* is the participant's best (a ``learning_stopped`` event records the signal and
-the reason); otherwise it runs the paper's fixed schedule. With ``[learner] ties = "model"`` each
-"equal" placement of the initial and learning batches is information for the learner; with
-"drop" (the paper) it is not. With ``[protocol] coactive`` the participant may give a hint after
-each placement (a ``hint_given`` event; none when they said nothing should change).
+With a stopping rule (``[protocol] stop_when_settled`` or ``stop_when_no_gain``; ``preset =
+"short"`` sets the first) a session may end learning after a batch (a ``learning_stopped`` event
+records the signal and the reason); otherwise it runs the paper's fixed schedule. With ``[learner]
+ties = "model"`` each "equal" placement of the initial and learning batches is information for the
+learner; with "drop" (the paper) it is not. With ``[protocol] coactive`` the participant may give a
+hint after each placement (a ``hint_given`` event; none when they said nothing should change).
 """
 
 from __future__ import annotations
@@ -14,11 +14,13 @@ import json
 
 import pandas as pd
 
+from app.analysis.stop_replay import rule_words
 from app.analysis.tables import study_configs
 from session_store.vocabulary import Phase
 
 COLUMNS = ["participant", "scenario", "learning_interactions", "schedule_interactions",
-           "learning_ended", "why", "ties_placed", "ties", "hints_given", "hints_asked"]
+           "learning_ended", "why", "stopping_rule", "ties_placed", "ties", "hints_given",
+           "hints_asked"]
 LEARNED_PHASES = (Phase.INITIAL.value, Phase.LEARNING.value)
 
 
@@ -39,13 +41,14 @@ def learning_table(participants: pd.DataFrame, trials: pd.DataFrame,
         payloads = [json.loads(p) for p in placed.loc[placed["participant"] == code, "payload"]]
         hints = [json.loads(p) for p in hinted.loc[hinted["participant"] == code, "payload"]]
         schedule = config.initial_trials + config.learning_batches * config.batch_size
+        rule = config.stopping_rule()
         why = (json.loads(stop["payload"].iloc[-1])["reason"] if not stop.empty
-               else "the fixed schedule" + ("" if config.stop_when_settled
-                                            else " (stop_when_settled off)"))
+               else "the fixed schedule" + ("" if rule is not None else " (no stopping rule)"))
         rows.append({"participant": code, "scenario": config.scenario.value,
                      "learning_interactions": len(done), "schedule_interactions": schedule,
                      "learning_ended": "early" if not stop.empty else "at the schedule's end",
-                     "why": why, "ties_placed": sum(p.get("equal_to") is not None
+                     "why": why, "stopping_rule": "none" if rule is None else rule_words(rule),
+                     "ties_placed": sum(p.get("equal_to") is not None
                                                     for p in payloads),
                      "ties": config.ties,
                      "hints_given": sum(h.get("hint") is not None for h in hints),
