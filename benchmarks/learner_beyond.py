@@ -92,22 +92,36 @@ def arms(noise: float, tie: float) -> dict[str, StudyCondition]:
             "sect4": StudyCondition(noise=noise)}
 
 
+def arm_path(out: Path, condition: StudyCondition, seed: int) -> Path:
+    """Where an arm's results go: one JSON line per participant."""
+    return out / f"{condition.name}-seed{seed}.jsonl"
+
+
+def stored_results(path: Path) -> dict[int, TrialResult]:
+    """The results already in ``path`` (none if it does not exist), by trial."""
+    if not path.exists():
+        return {}
+    results = (TrialResult.model_validate_json(line) for line in path.read_text().splitlines()
+               if line.strip())
+    return {r.trial: r for r in results}
+
+
+def append_result(path: Path, result: TrialResult) -> None:
+    """Add one participant's result to ``path`` (a resumed run reads it back)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a") as handle:
+        handle.write(result.model_dump_json() + "\n")
+
+
 def run_arm(condition: StudyCondition, *, participants: int, seed: int, client, out: Path,
             progress: bool, spread: float | PaperPopulation | None = None) -> list[TrialResult]:
     """Run (or resume) ``participants`` trials of ``condition`` with the stopping signals
     (``spread``: the participants of a population, app.learning.simulation.trial_target)."""
-    path = out / f"{condition.name}-seed{seed}.jsonl"
-    out.mkdir(parents=True, exist_ok=True)
-    done: dict[int, TrialResult] = {}
-    if path.exists():
-        for line in path.read_text().splitlines():
-            if line.strip():
-                result = TrialResult.model_validate_json(line)
-                done[result.trial] = result
+    path = arm_path(out, condition, seed)
+    done = stored_results(path)
 
     def finished(result: TrialResult) -> None:
-        with path.open("a") as handle:
-            handle.write(result.model_dump_json() + "\n")
+        append_result(path, result)
         done[result.trial] = result
 
     todo = [(condition, seed, t, True, spread) for t in range(participants) if t not in done]

@@ -43,17 +43,17 @@ from datetime import datetime
 from pathlib import Path
 
 import numpy as np
-from learner_beyond import run_arm, validation_scores
+from learner_beyond import append_result, arm_path, stored_results, validation_scores
 from pydantic import BaseModel, ConfigDict, Field
 from recommendation_study import ratio_ci
 from scipy import stats
 
-from app.learning.cluster import dask_client
+from app.learning.cluster import dask_client, run_tasks
 from app.learning.config import GainRule, StoppingRule, epsilon_for, preferred_for
 from app.learning.models import TieHandling
 from app.learning.paper_population import PAPER_POPULATION
 from app.learning.planner import PAPER_SESSION_SCHEDULE
-from app.learning.simulation import StudyCondition, TrialResult, stop_point
+from app.learning.simulation import StudyCondition, TrialResult, run_trial, stop_point
 from app.protocol.study import SHORT_RULE
 from session_store.export import load_study
 
@@ -74,6 +74,31 @@ def arms(noise: float, tie: float) -> dict[str, StudyCondition]:
     return {"paper": paper, "hints": hints,
             "hints-wrong": hints.model_copy(update={"hint_flip": 0.3}),
             "hints-faster": hints.model_copy(update={"hint_faster": 0.5})}
+
+
+def arm_trial(arm: str, condition: StudyCondition, seed: int, trial: int) -> tuple[str, TrialResult]:
+    """One participant of one arm, with the stopping signals (a Dask task)."""
+    return arm, run_trial(condition, seed, trial, True, PAPER_POPULATION)
+
+
+def run_arms(conditions: dict[str, StudyCondition], *, participants: int, seed: int, client,
+             out: Path, progress: bool) -> dict[str, list[TrialResult]]:
+    """Run (or resume) every arm, participant by participant (all arms of participant t before
+    any of t + 1), so that an interrupted run leaves every arm with the same participants."""
+    paths = {arm: arm_path(out, c, seed) for arm, c in conditions.items()}
+    done = {arm: stored_results(path) for arm, path in paths.items()}
+
+    def finished(result: tuple[str, TrialResult]) -> None:
+        arm, trial = result
+        append_result(paths[arm], trial)
+        done[arm][trial.trial] = trial
+
+    todo = [(arm, c, seed, t) for t in range(participants) for arm, c in conditions.items()
+            if t not in done[arm]]
+    total = participants * len(conditions)
+    run_tasks(client, arm_trial, todo, finished, total=total, initial=total - len(todo),
+              desc="participants × arms", progress=progress)
+    return {arm: [done[arm][t] for t in range(participants)] for arm in conditions}
 
 
 def rule_families() -> dict[str, list[tuple[str, Rule]]]:
@@ -336,10 +361,8 @@ def main() -> None:
                   if args.arms is None or name in args.arms}
     start = time.monotonic()
     with dask_client(args.scheduler, args.workers) as client:
-        results = {name: run_arm(c, participants=args.participants, seed=args.seed,
-                                 client=client, out=args.out, progress=not args.no_progress,
-                                 spread=PAPER_POPULATION)
-                   for name, c in conditions.items()}
+        results = run_arms(conditions, participants=args.participants, seed=args.seed,
+                           client=client, out=args.out, progress=not args.no_progress)
     wall = time.monotonic() - start
     trials = [r for rs in results.values() for r in rs]
     scenarios = np.arange(args.participants) % 2
