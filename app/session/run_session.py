@@ -110,10 +110,13 @@ def run_session(args: argparse.Namespace) -> int:
     with reading(args.study, args.participant) as store:  # read, never written: a plain file stays
         counts = store.counts()
         snapshot = store.rows("learner_snapshots")[-1]
+        stopped = next((e.payload["reason"] for e in store.events()
+                        if e.kind == "learning_stopped"), None)
     summary = {"participant": args.participant, "seed": view.seed, "completed": view.state.completed,
                "rig": view.arm, "hand": view.hand,
                "theta_star": {"a": snapshot.theta_star_a, "delta": snapshot.theta_star_delta,
                               "k": snapshot.theta_star_k},
+               "learning": {"interactions": snapshot.after_interaction, "stopped_early": stopped},
                "seconds": round(time.monotonic() - began, 2),
                "database_bytes": participant_path(args.study, args.participant).stat().st_size,
                "counts": counts}
@@ -127,6 +130,9 @@ def run_session(args: argparse.Namespace) -> int:
               f"on {view.arm}; "
               f"θ* = (a {star['a']:.2f}, δ {star['delta']:.2f}, k {star['k']:.2f}); "
               f"{summary['seconds']} s; database {summary['database_bytes'] / 1e6:.1f} MB")
+        if stopped is not None:
+            print(f"learning stopped early, after {snapshot.after_interaction} interactions: "
+                  f"{stopped}")
         if observed is not None:
             print(f"the stand-in saw the gripper open {observed['gripper_opened']} times and "
                   f"{observed['moves_to_R']} moves to R; the TCP ended "

@@ -5,11 +5,14 @@ words, the report's row; a rule that never fires checks every batch and runs the
 
 from __future__ import annotations
 
+import json
+
 import pandas as pd
 import pytest
-from support.engine import drive_until, study_config
+from support.engine import SESSION_LOOP_TOML, drive_until, protocol_toml, study_config
 
 from app.analysis.report import build_report
+from app.cli import main
 from app.learning.config import GainRule
 from app.protocol import stopping
 from app.protocol.engine import SessionEngine
@@ -131,3 +134,18 @@ def test_the_short_preset_sets_hints_and_the_rule_and_a_lab_key_wins(tmp_path):
     path.write_text('[protocol]\ngain_preference = 1.0\n')
     with pytest.raises(ValueError, match=r"protocol\.gain_preference"):
         load_lab_config(path)
+
+
+def test_run_session_says_where_learning_stopped_and_why(tmp_path, capsys):
+    """The headless command with a lab file that stops early: its summary says after how many
+    interactions learning stopped and why. A whole session with its learner and rig processes:
+    20-60 s."""
+    lab = tmp_path / "lab.toml"
+    lab.write_text(SESSION_LOOP_TOML + "[protocol]\n" + protocol_toml({**SMALL, **LOOSE}))
+    assert main(["run-session", "--study", str(tmp_path / "study"), "--participant", "S01",
+                 "--scenario", "straightforward", "--auto", "--seed", "2", "--config", str(lab),
+                 "--json", "--no-progress"]) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    learning = summary["learning"]
+    assert learning["interactions"] < 16 and learning["stopped_early"].startswith("after ")
+    assert summary["counts"]["hints"] == learning["interactions"]
