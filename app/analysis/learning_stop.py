@@ -14,8 +14,8 @@ import json
 
 import pandas as pd
 
-from app.analysis.stop_replay import rule_words
 from app.analysis.tables import study_configs
+from app.protocol.stopping import rule_words
 from session_store.vocabulary import Phase
 
 COLUMNS = ["participant", "scenario", "learning_interactions", "schedule_interactions",

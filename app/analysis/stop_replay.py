@@ -26,9 +26,10 @@ import torch
 from pydantic import BaseModel, ConfigDict, Field
 from scipy.stats import norm
 
-from app.learning.config import GainRule, LearnerSnapshot, StoppingRule, preferred_for
+from app.learning.config import GainRule, LearnerSnapshot, StoppingRule
 from app.learning.learner import PreferenceLearner
 from app.learning.models import NextBatchGain, Settledness
+from app.protocol.stopping import rule_words
 from app.protocol.study import StudyConfig
 from session_store.paths import participant_codes
 from session_store.reading import reading
@@ -61,17 +62,6 @@ class ReplayedStop(BaseModel):
     theta_stop: dict[str, float]
     theta_final: dict[str, float]
     preferred_final: float = Field(description="P(final θ* ≻ θ* at the stop), the final learner's")
-
-
-def rule_words(rule: StoppingRule | GainRule) -> str:
-    """A rule in a lab's words, short."""
-    batches = f"{rule.min_batches} batch{'es' if rule.min_batches != 1 else ''}"
-    if isinstance(rule, GainRule):
-        return (f"gain: the next batch at most {rule.chance:.0%} likely to find a handover "
-                f"preferred to θ* more than {rule.preference:.0%} of the time, after at least "
-                f"{batches}")
-    return (f"settled: {rule.threshold:.0%} sure that the best handover would be preferred to θ* "
-            f"at most {preferred_for(rule.epsilon):.0%} of the time, after at least {batches}")
 
 
 def batch_signals(config: StudyConfig, snapshots: Sequence[LearnerSnapshot],

@@ -10,7 +10,7 @@ session's database so holds every batch's signal and why learning ended.
 
 from __future__ import annotations
 
-from app.learning.config import GainRule, StoppingRule
+from app.learning.config import GainRule, StoppingRule, preferred_for
 from app.learning.models import NextBatchGain, Settledness
 from app.protocol import events as ev
 from app.protocol.study import StudyConfig
@@ -43,17 +43,33 @@ def check(config: StudyConfig, after: int, batches: int, settled: Settledness | 
         actor=Actor.LEARNER, after_interaction=after, batches=batches, rule=checked.rule,
         probability=signal, epsilon=rule.epsilon,
         threshold=rule.chance if isinstance(rule, GainRule) else rule.threshold,
-        min_batches=rule.min_batches, reason=reason(config, rule, batches, signal))]
+        min_batches=rule.min_batches, reason=reason(rule, batches, signal))]
 
 
-def reason(config: StudyConfig, rule: StoppingRule | GainRule, batches: int, signal: float) -> str:
+def batches_words(count: int, learning: bool = False) -> str:
+    """"1 batch", "2 batches" ("2 learning batches")."""
+    return f"{count} {'learning ' if learning else ''}batch{'es' if count != 1 else ''}"
+
+
+def rule_words(rule: StoppingRule | GainRule) -> str:
+    """A rule in the lab's words, e.g. "stop when 50% sure that the best handover would be
+    preferred to θ* at most 80% of the time, after at least 1 batch"."""
+    if isinstance(rule, GainRule):
+        return (f"stop when the next batch is at most {rule.chance:.0%} likely to find a handover "
+                f"preferred to θ* more than {rule.preference:.0%} of the time, after at least "
+                f"{batches_words(rule.min_batches)}")
+    return (f"stop when {rule.threshold:.0%} sure that the best handover would be preferred to θ* "
+            f"at most {preferred_for(rule.epsilon):.0%} of the time, after at least "
+            f"{batches_words(rule.min_batches)}")
+
+
+def reason(rule: StoppingRule | GainRule, batches: int, signal: float) -> str:
     """Why learning stopped, in the lab's words."""
-    done = f"{batches} learning batch{'es' if batches != 1 else ''}"
-    least = f"{rule.min_batches} batch{'es' if rule.min_batches != 1 else ''}"
+    done, least = batches_words(batches, learning=True), batches_words(rule.min_batches)
     if isinstance(rule, GainRule):
         return (f"after {done} the next batch was at most {signal:.0%} likely to find a handover "
                 f"preferred to θ* more than {rule.preference:.0%} of the time (stops at "
                 f"{rule.chance:.0%} or less, after at least {least})")
     return (f"settled after {done}: {signal:.0%} sure that the best handover would be preferred to "
-            f"θ* at most {config.settled_preference:.0%} of the time (stops at "
+            f"θ* at most {preferred_for(rule.epsilon):.0%} of the time (stops at "
             f"{rule.threshold:.0%}, after at least {least})")

@@ -82,7 +82,7 @@ def test_the_command_prints_each_rule_and_writes_its_rows(sessions, tmp_path, ca
     assert main(["replay-stop", str(full), "--chance", "0.01", "0.95", "--preference", "0.95",
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "the next batch at most 1% likely" in printed and "did not stop" in printed
+    assert "the next batch is at most 1% likely" in printed and "did not stop" in printed
     assert "at most 95% likely" in printed and "the final learner prefers its θ*" in printed
     assert len(out.read_text().splitlines()) == 3  # a header and one row per rule
 
