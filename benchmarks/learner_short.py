@@ -271,6 +271,10 @@ def draw_curves(conditions: dict[str, StudyCondition], results: dict[str, list[T
                 axis.plot(*zip(*points, strict=True), marker=marker, linestyle=line,
                           color=colour, markersize=4, linewidth=1,
                           label=f"{'no hints' if arm == 'paper' else 'hints'}: {family}")
+        hinted = [r for r, k in zip(results["hints"], keep, strict=True) if k]
+        short = used_by(SHORT_RULE, conditions["hints"], hinted)
+        axis.plot([short.mean()], [at_stop(hinted, short).mean()], "*", color="black",
+                  markersize=12, label="the short preset (hints, its rule)")
         paper_final = np.mean([r.distances[-1] for r, k in zip(results["paper"], keep,
                                                                 strict=True) if k])
         axis.axhline(paper_final, color="grey", linewidth=0.8)
@@ -279,7 +283,7 @@ def draw_curves(conditions: dict[str, StudyCondition], results: dict[str, list[T
     axes[0].set_ylabel("u(θ*) when learning stopped (mean)")
     axes[1].legend(fontsize=6, loc="upper right")
     figure.suptitle("Stopping rules: interactions against distance (grey: the paper's protocol "
-                    "after 25)", fontsize=9)
+                    "after 25; ★: the short preset)", fontsize=9)
     figure.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(path, dpi=110)
