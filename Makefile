@@ -4,10 +4,12 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: install bytecode demo typecheck test soak chromium bench clean
+.PHONY: install bytecode demo typecheck test soak soak-serve chromium bench clean
 
 # The suite runs on PYTEST_WORKERS xdist workers (`--dist loadgroup`: tests marked
-# xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run.
+# xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run,
+# then its wall and CPU time. A crashed worker, a hung test or a hung worker ends the run
+# (tests/support/watchdog.py).
 PYTEST_WORKERS ?= 3
 PYTEST_ARGS ?=
 # `make soak`: the browser, rehearsal, rig-process and kill tests SOAK_RUNS times beside
@@ -64,13 +66,23 @@ bytecode: install
 typecheck: install
 	$(BIN)/mypy
 
+# pytest runs through .ci/timed.py, which prints its wall and CPU time at the end, with the
+# calibration loop's CPU time (how fast the machine was at the time).
 test: install chromium bytecode
 	$(BIN)/ruff check .
 	$(MAKE) --no-print-directory typecheck
-	PYTHONDONTWRITEBYTECODE= $(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=25 $(PYTEST_ARGS)
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python .ci/timed.py \
+		$(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=25 $(PYTEST_ARGS)
 
 soak: install chromium bytecode
 	PYTHONDONTWRITEBYTECODE= $(BIN)/python .ci/soak.py --runs $(SOAK_RUNS) --hogs $(SOAK_HOGS) --workers $(PYTEST_WORKERS)
+
+# `make soak-serve`: `handover serve` with the simulated participant and both screens open for
+# SOAK_MINUTES, participant after participant; prints the serve process's memory, open files and
+# threads over time, and the run's end against its own baseline (benchmarks/serve_soak.py).
+SOAK_MINUTES ?= 15
+soak-serve: install chromium
+	$(BIN)/python benchmarks/serve_soak.py --minutes $(SOAK_MINUTES)
 
 bench: install
 	$(BIN)/python benchmarks/control_loop.py

@@ -4,8 +4,10 @@ The browser, rehearsal, rig-process and kill tests (marker ``soak``, plus ``brow
 browsers, stand-in controllers and processes that are killed; they are where a wait on the clock
 would show. This runs them ``--runs`` times (default 10) as ``make test`` runs them (the same xdist
 workers), with ``yes > /dev/null`` keeping one core busy the whole time, and prints each test's pass
-count, the failures' first lines, and the wall time of each run. It is not part of CI: run it before
-saying that the suite is steady.
+count, the failures' first lines, and the wall time of each run. Before them, once, the lifetime
+stress tests (marker ``stress``: shared objects opened and released in a loop while other threads use
+them) run with ``--stress-cycles`` cycles each (default 500) beside the same hog. It is not part of
+CI: run it before saying that the suite is steady.
 
     make soak [SOAK_RUNS=10] [SOAK_HOG=1] [PYTEST_WORKERS=3]
 """
@@ -13,6 +15,7 @@ saying that the suite is steady.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import subprocess
 import sys
@@ -22,15 +25,18 @@ import xml.etree.ElementTree as ET
 from collections import Counter
 from pathlib import Path
 
-SELECTION = "browser or soak"
+SELECTION = "(browser or soak) and not stress"
+#: The lifetime stress tests read their cycles from this variable (tests/support/lifetimes.py).
+STRESS_CYCLES = "HANDOVER_STRESS_CYCLES"
 
 
-def run_once(junit: Path, workers: str, extra: list[str]) -> float:
-    """One pytest run of the soak selection; its wall time [s]."""
+def run_once(junit: Path, workers: str, extra: list[str], selection: str = SELECTION,
+             env: dict[str, str] | None = None) -> float:
+    """One pytest run of ``selection``; its wall time [s]."""
     began = time.monotonic()
-    subprocess.run([sys.executable, "-m", "pytest", "-m", SELECTION, "-n", workers,
+    subprocess.run([sys.executable, "-m", "pytest", "-m", selection, "-n", workers,
                     "--dist", "loadgroup", "-p", "no:cacheprovider", "-q", "--no-header",
-                    f"--junitxml={junit}", *extra], check=False)
+                    f"--junitxml={junit}", *extra], check=False, env=env)
     return time.monotonic() - began
 
 
@@ -49,6 +55,8 @@ def main() -> int:
     parser.add_argument("--runs", type=int, default=10)
     parser.add_argument("--hogs", type=int, default=1, help="cores kept busy by `yes > /dev/null`")
     parser.add_argument("--workers", default="3")
+    parser.add_argument("--stress-cycles", type=int, default=500,
+                        help="cycles of each lifetime stress test (run once, before the soak runs)")
     parser.add_argument("pytest_args", nargs="*", help="passed on to pytest (e.g. -k rehearsal)")
     args = parser.parse_args()
     passed, ran, seconds = Counter(), Counter(), []
@@ -58,6 +66,15 @@ def main() -> int:
     hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(args.hogs)]
     try:
         with tempfile.TemporaryDirectory(prefix="soak-") as folder:
+            junit = Path(folder) / "stress.xml"
+            # no run-wide ceiling (each stress test carries its own: tests/support/lifetimes.py)
+            took = run_once(junit, args.workers, ["--timeout=0", *args.pytest_args], "stress",
+                            {**os.environ, STRESS_CYCLES: str(args.stress_cycles)})
+            for name, outcome in outcomes(junit).items():
+                if outcome != "skipped":
+                    ran[name] += 1
+                    passed[name] += outcome == "passed"
+            print(f"stress run ({args.stress_cycles} cycles each): {took:.0f} s", flush=True)
             for i in range(args.runs):
                 junit = Path(folder) / f"run-{i}.xml"
                 seconds.append(run_once(junit, args.workers, args.pytest_args))
@@ -76,8 +93,8 @@ def main() -> int:
     print(f"\n{'test':<{width}}  passed/runs")
     for name in sorted(ran, key=lambda n: (passed[n] - ran[n], n)):
         print(f"{name:<{width}}  {passed[name]}/{ran[name]}")
-    steady = sum(passed[n] == ran[n] == args.runs for n in ran)
-    print(f"\n{steady} of {len(ran)} tests passed {args.runs} of {args.runs}; "
+    steady = sum(passed[n] == ran[n] for n in ran)
+    print(f"\n{steady} of {len(ran)} tests passed every run ({args.runs} soak runs, 1 stress run); "
           f"run wall time median {sorted(seconds)[len(seconds) // 2]:.0f} s "
           f"(min {min(seconds):.0f}, max {max(seconds):.0f})")
     return 0 if steady == len(ran) else 1

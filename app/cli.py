@@ -16,7 +16,7 @@ from robot_io.errors import RobotIOError, explain
 from robot_io.lsl_log import quiet_liblsl
 from session_store import lock as writer_lock
 from session_store.errors import StoreError
-from session_store.paths import DEFAULT_STUDY, participant_path
+from session_store.paths import DEFAULT_STUDY, participant_path, unreadable_study
 
 #: Modules that contribute subcommands: each has ``register(subparsers) -> None`` and sets
 #: ``func(args) -> int`` on its parsers.
@@ -54,7 +54,11 @@ def reserve_participant(argv: Sequence[str]) -> writer_lock.WriterLock | None:
         database = participant_path(known.study, known.participant)
     except StoreError:
         return None
-    if not database.exists():
+    try:
+        exists = database.exists()
+    except PermissionError as exc:  # another user's study folder (mode 700)
+        raise unreadable_study(known.study, exc) from None
+    if not exists:
         return None  # a new participant: its creation takes the lock, after the arguments are valid
     from app.session.config import load_lab_config
 
@@ -123,7 +127,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         reserve_participant(argv)
     except StoreError as exc:
-        print(f"handover: error: {exc}", file=sys.stderr)
+        command = next((word for word in argv if not word.startswith("-")), "")
+        print(f"handover {command}: error: {exc}", file=sys.stderr)
         return 2
     parser = build_parser()
     args = parser.parse_args(argv)

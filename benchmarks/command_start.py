@@ -28,7 +28,7 @@ KINEMATICS = "import scipy.linalg, scipy.spatial.transform"
 STARTS = {"handover --help": ("from app.cli import main; main(['--help'])",
                               f"import scipy.stats, viser, pandas; {KINEMATICS}"),
           "rig process": ("import robot_io.rig.process", KINEMATICS),
-          "hand publisher": ("import robot_io.hands.hand_publisher", KINEMATICS)}
+          "hand publisher": ("import robot_io.standins.hand_publisher", KINEMATICS)}
 
 
 def cpu_seconds(code: str) -> float:

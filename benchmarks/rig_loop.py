@@ -48,10 +48,10 @@ from app.session.runner import SessionRunner
 from app.ui.server import HandoverServers, ServeOptions
 from robot_io.control.cycle import Gates, run_cycle
 from robot_io.control.loop import Outcome
+from robot_io.control.stages import Stage
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import RigSpec
-from robot_io.stages import Stage
 from robot_io.standins.ur.control_script import SERVOL
 from robot_io.theta import Theta
 
@@ -142,9 +142,9 @@ def rig_process(runner: SessionRunner, dashboard, trials: int) -> Figures:
     for n in range(1, trials + 1):
         wait(lambda: runner.view.step is not None and runner.view.step.value == "ready")
         runner.start_trial()
-        wait(lambda: runner.view.waiting_for == "loaded")
-        runner.object_loaded()
-        wait(lambda: runner.view.waiting_for == "go")
+        wait(lambda: runner.view.waiting_for == Stage.PREPARE)
+        runner.confirm(Stage.PREPARE)  # Object loaded
+        wait(lambda: runner.view.waiting_for == Stage.READY)
         index = runner.view.trials[-1].trial_index
         point = tap_point(dashboard, "Go")  # once the dashboard shows it enabled
         before = len(go_stage)
@@ -177,7 +177,7 @@ def thread_trial(devices: RigDevices, rehearsal: Rehearsal, seed: int
     result: dict = {}
 
     def on_stage(stage: Stage, t: float) -> None:
-        if stage is Stage.GO:
+        if stage == Stage.GO:
             go["at"] = time.monotonic()
             rehearsal.play(Scenario.PERTURBED, seed, go["at"])
 

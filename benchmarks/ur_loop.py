@@ -21,7 +21,7 @@ import numpy as np
 
 from robot_io.arms.ur_arm import URArm
 from robot_io.config import ControllerConfig
-from robot_io.devices import ur_trial
+from robot_io.devices import arm_trial
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.standins.ur.control import ControlClient
 from robot_io.theta import Theta
@@ -44,7 +44,7 @@ def figures(series: str, host: str, seconds: float) -> dict[str, float]:
         try:
             while cycles < seconds * arm.rate_hz:
                 hand = SimulatedHand(Scenario.PERTURBED, config.scene, config.hand, seed)
-                record = ur_trial(config, THETA, hand, arm)
+                record = arm_trial(config, THETA, hand, arm)
                 assert record.summary.outcome == "completed", record.summary.reason
                 periods.append(np.diff(record.samples["t"]))
                 misses += record.summary.deadline_misses

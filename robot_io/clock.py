@@ -17,7 +17,9 @@ import threading
 import time
 from collections.abc import Iterator
 from datetime import UTC, datetime
-from typing import Literal, NamedTuple, Protocol
+from typing import Annotated, Literal, NamedTuple, Protocol
+
+from pydantic import BeforeValidator
 
 from robot_io.errors import ConfigError
 
@@ -114,9 +116,17 @@ def raise_priority(priority: int = CONTROL_PRIORITY) -> tuple[int, int] | None:
     return before
 
 
+def priority_setting(value: object) -> object:
+    """``[loop] realtime_priority`` as written: true, false or "auto", nothing else (pydantic would
+    read "yes", "on", "true" or 1 as true, a lab's guess read as a setting it did not make)."""
+    if value is True or value is False or value == "auto":
+        return value
+    raise ValueError('must be true, false or "auto" (without quotes: true, false; with: "auto")')
+
+
 #: ``[loop] realtime_priority``: "auto" runs the rig under SCHED_FIFO where the OS permits it and says
 #: so where it does not; true refuses to start without it; false never asks for it.
-PrioritySetting = bool | Literal["auto"]
+PrioritySetting = Annotated[bool | Literal["auto"], BeforeValidator(priority_setting)]
 
 #: How a lab grants the rig real-time priority, for the messages that say it runs without.
 GRANT_PRIORITY = ("grant it with `sudo setcap cap_sys_nice+ep` on the venv's python (the real file, "

@@ -8,29 +8,32 @@ No value is infinite or NaN, and every limit that guards a person has a hard upp
 (``docs/hardware.md``, "Hard bounds of the configuration"): the box lies within a UR5's reach, the
 speed and acceleration caps stay at or below what the arm and the mock are strict about, and every
 time-out is finite. A value outside its bound is refused with its field, its value and the range
-(the bounded field types: ``robot_io.bounds``). ``[hand_source]`` has one table per kind of hand
-source, each with its own keys and defaults (``robot_io.hands.config``).
+(the bounded field types: ``robot_io.bounds``). ``[hand_source]``, ``[arm]`` and ``[gripper]`` have
+one table per kind of device, each with its own keys and defaults (``robot_io.kinds``; the kinds:
+``robot_io.hands.config``, ``robot_io.arms.kinds``, ``robot_io.grippers.kinds``).
 """
 
 from __future__ import annotations
 
 from typing import Annotated, Literal
 
-import numpy as np
 from pydantic import Field, model_validator
 
+from robot_io.arms.kinds import ArmConfig
+from robot_io.arms.mock_arm import MockArmKind
+from robot_io.arms.ur_config import URConfig
 from robot_io.bounds import (
-    MAX_ACCELERATION_BOUND,
-    MAX_SPEED_BOUND,
     Frozen,
     Positive,
-    ScenePoint,
-    WorkspaceCorner,
     in_range,
 )
 from robot_io.clock import PrioritySetting
 from robot_io.errors import ConfigError
+from robot_io.grippers.gripper import NoGripperKind
+from robot_io.grippers.kinds import GripperConfig
 from robot_io.hands.config import HandSourceConfig, SimulatedSource
+from robot_io.hands.profile import HandProfile
+from robot_io.scene import SafetyLimits, SceneConfig
 from robot_io.vector import written
 
 
@@ -56,92 +59,6 @@ class DMPConstants(Frozen):
         return self.alpha_x / 4.0
 
 
-class SceneConfig(Frozen):
-    """Table-top geometry of Fig. 1: robot start R, handover point H, hand start A, box B, place C."""
-
-    robot_start: ScenePoint = Field((0.35, -0.35, 0.35), description="R: robot TCP start [m]")
-    handover_point: ScenePoint = Field((0.55, 0.05, 0.30), description="H: handover point = DMP goal g [m]")
-    hand_start: ScenePoint = Field((0.95, 0.10, 0.05), description="A: hand start on the desk [m]")
-    box: ScenePoint = Field((0.65, 0.25, 0.15), description="B: box, about 25 cm from H [m]")
-    place: ScenePoint = Field((1.00, 0.40, 0.05), description="C: where the box is put down [m]")
-
-    def point(self, name: str) -> np.ndarray:
-        return np.asarray(getattr(self, name), dtype=float)
-
-
-class SafetyLimits(Frozen):
-    """Limits applied to every target before it reaches the arm (see ``robot_io.control.safety``)."""
-
-    workspace_min: WorkspaceCorner = Field(
-        (0.10, -0.60, 0.05), description="workspace box, lower corner [m], each within ±1 m")
-    workspace_max: WorkspaceCorner = Field(
-        (0.90, 0.60, 0.80), description="workspace box, upper corner [m], each within ±1 m")
-    max_speed: Annotated[float, in_range(0, MAX_SPEED_BOUND, "m/s")] = Field(
-        1.0, description="TCP speed cap [m/s]")
-    max_acceleration: Annotated[float, in_range(0, MAX_ACCELERATION_BOUND, "m/s²")] = Field(
-        5.0, description="TCP acceleration cap [m/s²]")
-
-    @model_validator(mode="after")
-    def _box_not_empty(self) -> SafetyLimits:
-        for axis, (low, high) in enumerate(zip(self.workspace_min, self.workspace_max, strict=True)):
-            if low >= high:
-                raise ConfigError(f"safety.workspace_min[{axis}] = {low} must be below "
-                                  f"workspace_max[{axis}] = {high}")
-        return self
-
-    def contains(self, point: np.ndarray) -> bool:
-        return bool(np.all(point >= self.workspace_min) and np.all(point <= self.workspace_max))
-
-
-#: Upper bounds of the simulated participant's ranges: a reaction, a hand speed, a pause.
-HAND_RANGE_BOUNDS = {"reaction_delay_s": 5.0, "mean_speed_mps": 3.0, "pause_s": 10.0}
-
-
-#: A minimum-jerk reach's peak speed over its mean speed (15/8).
-MINIMUM_JERK_PEAK_OVER_MEAN = 1.875
-
-
-class HandProfile(Frozen):
-    """The participant's hand: the fastest any hand moves, which tracked samples must respect, and
-    how the simulated participant moves (each range drawn from uniformly per trial)."""
-
-    max_speed: Annotated[float, in_range(0, 10, "m/s")] = Field(
-        3.0, description="the fastest a hand moves [m/s]: a tracked sample farther from the last "
-                         "accepted one than this speed allows is a tracker jump, refused as a "
-                         "dropout (reach-to-grasp peaks at 1-1.5 m/s; 3 leaves room for a hurry)")
-
-    tracker_rate_hz: Annotated[float, in_range(0, 2000, "Hz")] = Field(
-        100.0, description="tracker sample rate (Vicon in the paper; mocap runs at most ~2 kHz)")
-    reaction_delay_s: tuple[float, float] = Field((0.15, 0.35), description="delay after Go [s]")
-    mean_speed_mps: tuple[float, float] = Field(
-        (0.45, 0.65), description="mean hand speed of each reach [m/s] (duration = length/speed)")
-    pause_s: tuple[float, float] = Field(
-        (0.25, 0.50), description="pause to grasp the box at B and to put it down at C [s]")
-    noise_std_m: Annotated[float, in_range(0, 0.1, "m", low_open=False)] = Field(
-        0.0, description="tracker noise, std per axis [m]")
-    dropout_rate: float = Field(0.0, ge=0, lt=1, description="share of tracker samples lost")
-    pull_n: float = Field(15.0, ge=0, le=100, description="pull on the object once grasped [N]; 0: "
-                                                         "never takes it (see robot_io.hands.simulated_pull)")
-    grasp_delay_s: float = Field(0.5, ge=0, le=10, description="from touching the object to pulling "
-                                                               "[s]; longer than [release] baseline_s")
-
-    @model_validator(mode="after")
-    def _ranges_ordered(self) -> HandProfile:
-        for name in ("reaction_delay_s", "mean_speed_mps", "pause_s"):
-            low, high = getattr(self, name)
-            if not 0 <= low <= high <= HAND_RANGE_BOUNDS[name]:
-                raise ConfigError(f"hand.{name} = ({low}, {high}) must satisfy 0 ≤ low ≤ high ≤ "
-                                  f"{HAND_RANGE_BOUNDS[name]:g}")
-        if self.mean_speed_mps[0] <= 0:
-            raise ConfigError(f"hand.mean_speed_mps = {self.mean_speed_mps} must be > 0")
-        peak = MINIMUM_JERK_PEAK_OVER_MEAN * self.mean_speed_mps[1]
-        if peak > self.max_speed:
-            raise ConfigError(f"hand.mean_speed_mps = {self.mean_speed_mps} makes reaches that peak "
-                              f"at {peak:.2f} m/s, beyond hand.max_speed = {self.max_speed:g} m/s: "
-                              "the simulated hand's samples would be refused as tracker jumps")
-        return self
-
-
 class LoopConfig(Frozen):
     """The control loop: rate, end conditions, and when the tracker counts as lost."""
 
@@ -162,73 +79,6 @@ class LoopConfig(Frozen):
                             "to start without it; false: never")
 
 
-class URConfig(Frozen):
-    """The UR5 over RTDE (``robot_io.arms.ur_arm``); see ``docs/hardware.md``."""
-
-    host: str | None = Field(
-        None, description="controller address, required by [arm] kind = \"ur\"; never assumed "
-                          "(a stand-in: 127.0.0.x)")
-    servo_lookahead_s: float = Field(
-        0.1, ge=0.03, le=0.2, description="servoL lookahead time [s] (ur_rtde's range [0.03, 0.2])")
-    servo_gain: float = Field(300.0, ge=100, le=2000,
-                              description="servoL proportional gain (ur_rtde's range [100, 2000])")
-    watchdog_hz: float = Field(
-        10.0, gt=0, le=125,
-        description="controller watchdog: the program stops if no target comes for 1/watchdog_hz s; "
-                    "10 Hz tolerates Python jitter (50 Hz tripped on a 31 ms stall)")
-    move_speed: float = Field(0.25, gt=0, le=0.5, description="moveL to the start pose: speed [m/s]")
-    move_acceleration: float = Field(0.5, gt=0, le=1.2, description="moveL acceleration [m/s²]")
-    max_move_distance: float = Field(
-        0.6, gt=0, le=1.0, description="move_to refuses a start pose farther than this from the TCP [m]")
-    stop_deceleration: float = Field(5.0, gt=0, le=10,
-                                     description="servoStop deceleration at the end of a trial [m/s²]")
-    connect_timeout_s: Annotated[float, in_range(0, 120, "s")] = Field(
-        10.0, description="give up connecting after this [s]")
-    upper_range_registers: bool = Field(
-        False, description="use RTDE registers 24–47 (when a fieldbus owns 0–23)")
-
-
-#: A Robotiq register value (position, speed, force): one byte.
-RobotiqByte = Annotated[int, Field(ge=0, le=255)]
-#: The Robotiq URCap's gripper socket on the controller (its manual, "Control over the socket").
-ROBOTIQ_PORT = 63352
-
-
-class GripperConfig(Frozen):
-    """The gripper that holds the object: ``tool_output``, a tool digital output drives it;
-    ``robotiq_socket``, a Robotiq 2F-85 through its URCap's socket (``robot_io.grippers.robotiq``)."""
-
-    kind: Literal["none", "tool_output", "robotiq_socket"] = Field("none", description="gripper interface")
-    tool_output: int = Field(0, ge=0, le=1, description="tool_output: the tool digital output that drives it")
-    open_level: bool = Field(True, description="tool_output: the output level that opens the gripper")
-    host: str | None = Field(
-        None, description="robotiq_socket: address of the controller whose URCap drives the gripper; "
-                          "unset: [ur] host (the URCap runs on the UR's controller); never assumed")
-    port: int = Field(ROBOTIQ_PORT, ge=1, le=65535,
-                      description="robotiq_socket: the URCap's gripper socket (63352 on every controller)")
-    speed: RobotiqByte = Field(255, description="robotiq_socket: finger speed, 0 (20 mm/s) to 255 "
-                                                "(150 mm/s on a 2F-85)")
-    force: RobotiqByte = Field(50, description="robotiq_socket: grip force, 0 (20 N) to 255 (235 N on a "
-                                               "2F-85); low enough that a pull opens no finger")
-    open_position: RobotiqByte = Field(0, description="robotiq_socket: finger position that opens "
-                                                      "(0: fully open, 85 mm on a 2F-85)")
-    closed_position: RobotiqByte = Field(255, description="robotiq_socket: finger position commanded "
-                                                          "to close (255: fully closed); the object "
-                                                          "stops the fingers before it")
-    move_timeout_s: Annotated[float, in_range(0, 30, "s")] = Field(
-        5.0, description="robotiq_socket: a close or an open that has not ended within this long is "
-                         "a fault [s] (a full 2F-85 stroke takes 0.6 s at speed 255, 4.3 s at 0)")
-    reply_timeout_s: Annotated[float, in_range(0, 10, "s")] = Field(
-        1.0, description="robotiq_socket: no answer from the URCap within this long is a fault [s]")
-
-    @model_validator(mode="after")
-    def _closes_past_open(self) -> GripperConfig:
-        if self.closed_position <= self.open_position:
-            raise ConfigError(f"gripper.closed_position = {self.closed_position} must be above "
-                              f"gripper.open_position = {self.open_position} (0 open … 255 closed)")
-        return self
-
-
 class ReleaseConfig(Frozen):
     """Force-threshold release (docs/controller.md): baseline at grasp, filtered norm, threshold."""
 
@@ -242,13 +92,6 @@ class ReleaseConfig(Frozen):
     timeout_s: Annotated[float, in_range(0, 60, "s")] = Field(
         10.0, description="no release within this long of holding: the trial ends "
                           "not_taken and the robot retracts with the object [s]")
-
-
-class ArmConfig(Frozen):
-    """Which arm the rig drives: the kinematic mock (no hardware) or a UR over RTDE (``[ur]``)."""
-
-    kind: Literal["mock", "ur"] = Field("mock", description="mock: kinematic mock arm; ur: a UR5 "
-                                                            "over RTDE at [ur] host (moves it!)")
 
 
 class CycleConfig(Frozen):
@@ -270,7 +113,7 @@ class CycleConfig(Frozen):
 class ControllerConfig(Frozen):
     """Everything the controller needs; the TOML file has one table per field."""
 
-    arm: ArmConfig = ArmConfig()
+    arm: ArmConfig = MockArmKind()
     cycle: CycleConfig = CycleConfig()
     dmp: DMPConstants = DMPConstants()
     scene: SceneConfig = SceneConfig()
@@ -279,7 +122,7 @@ class ControllerConfig(Frozen):
     loop: LoopConfig = LoopConfig()
     ur: URConfig = URConfig()
     hand_source: HandSourceConfig = SimulatedSource()
-    gripper: GripperConfig = GripperConfig()
+    gripper: GripperConfig = NoGripperKind()
     release: ReleaseConfig = ReleaseConfig()
 
     @model_validator(mode="after")
@@ -287,23 +130,21 @@ class ControllerConfig(Frozen):
         """Device tables that cannot work are refused when the file is read, before anything is
         written or opened. A device's address is never assumed: on a lab network another robot may
         sit at any address, so a UR without ``[ur] host`` is refused, naming the key."""
-        if self.gripper.kind == "tool_output" and self.arm.kind != "ur":
-            raise ConfigError("gripper.kind = 'tool_output' needs arm.kind = 'ur' (the output is the "
-                              f"UR's), not {self.arm.kind!r}")
-        if self.gripper.kind == "robotiq_socket" and self.gripper.host is None and self.ur.host is None:
-            raise ConfigError('[gripper] host is not set and neither is [ur] host; [gripper] kind = '
-                              '"robotiq_socket" needs the address of the controller its URCap runs '
-                              'on. Set [gripper] host (or [ur] host): it has no default')
-        if self.arm.kind == "ur" and self.ur.host is None:
-            raise ConfigError('[ur] host is not set; [arm] kind = "ur" needs the UR controller\'s '
-                              'address. Set it (e.g. host = "192.168.1.10"): it has no default, so no '
-                              "robot at an assumed address is ever driven")
+        self.gripper.complete(self.arm, self.controller_host)
+        self.arm.complete(self)
         return self
 
     @property
+    def controller_host(self) -> str | None:
+        """The UR controller's address (``[ur] host``), through which a tool output or a Robotiq's
+        URCap is driven; None: none is set."""
+        return self.ur.host
+
+    @property
     def gripper_host(self) -> str | None:
-        """Where a ``robotiq_socket`` gripper's URCap listens: ``[gripper] host``, else ``[ur] host``."""
-        return self.gripper.host or self.ur.host
+        """Where the gripper is driven from: a Robotiq's URCap at ``[gripper] host``, else the arm's
+        controller."""
+        return self.gripper.address(self.controller_host)
 
     @model_validator(mode="after")
     def _scene_in_workspace(self) -> ControllerConfig:

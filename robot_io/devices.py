@@ -1,4 +1,4 @@
-"""Opening the configured devices (UR arm, hand source, gripper) and ``handover check-devices``."""
+"""Opening the configured devices (arm, hand source, gripper) and ``handover check-devices``."""
 
 from __future__ import annotations
 
@@ -6,13 +6,12 @@ import time
 
 import numpy as np
 
-from robot_io.arms.ur_arm import URArm
+from robot_io.arms.arm import ConnectedArm
 from robot_io.config import ControllerConfig
 from robot_io.control.loop import TrialRecord
 from robot_io.control.trial import make_clock, make_loop
 from robot_io.errors import RobotIOError
 from robot_io.grippers.gripper import Gripper
-from robot_io.grippers.kinds import GRIPPERS
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.hand import HandSource
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
@@ -43,11 +42,12 @@ def open_tracked_hand(config: ControllerConfig) -> TrackedHand:
 
 def open_gripper(config: ControllerConfig) -> Gripper:
     """The configured gripper, connected (a Robotiq one also activated, if it was not)."""
-    return GRIPPERS[config.gripper.kind].open(config)
+    return config.gripper.open(config.controller_host)
 
 
-def ur_trial(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: URArm) -> TrialRecord:
-    """One real-time handover on the UR at the controller's rate (125 or 500 Hz)."""
+def arm_trial(config: ControllerConfig, theta: Theta | None, hand: HandSource,
+              arm: ConnectedArm) -> TrialRecord:
+    """One real-time handover on a connected arm at its controller's rate (a UR's 125 or 500 Hz)."""
     config = config.model_copy(update={"loop": config.loop.model_copy(update={"rate_hz": arm.rate_hz})})
     return make_loop(config, theta, hand, arm, make_clock(config, realtime=True)).run()
 
@@ -55,11 +55,7 @@ def ur_trial(config: ControllerConfig, theta: Theta | None, hand: HandSource, ar
 def check_devices(config: ControllerConfig, listen_s: float = 1.0) -> tuple[list[str], bool]:
     """Connect to the configured arm, hand source and gripper; report in plain words; move nothing.
     Returns the report lines and whether everything is usable."""
-    lines, arm_ok = [], True
-    if config.arm.kind == "mock":
-        lines.append("arm: mock arm ([arm] kind = \"mock\": no robot configured)")
-    else:
-        arm_ok = _check_arm(config, lines)
+    lines, arm_ok = config.arm.check(config)
     lines.extend(_check_hand(config, listen_s))
 
     lines.append(_check_gripper(config))
@@ -70,28 +66,9 @@ def _check_gripper(config: ControllerConfig) -> str:
     """One line on the gripper: reachable, and a Robotiq's activation, position and fault code
     (read, never activated or moved)."""
     try:
-        return f"gripper: {GRIPPERS[config.gripper.kind].check(config)}"
+        return f"gripper: {config.gripper.check(config.controller_host)}"
     except RobotIOError as exc:
         return f"gripper: NOT OK — {str(exc).removeprefix('gripper: ')}"
-
-
-def _check_arm(config: ControllerConfig, lines: list[str]) -> bool:
-    try:
-        arm = URArm(config.ur, config.safety)
-    except RobotIOError as exc:
-        lines.append(f"arm: NOT OK — {exc}")
-        return True  # said NOT OK in the line
-    try:
-        pose = arm.read_pose()
-        state = arm.state
-        lines.append(f"arm: UR at {config.ur.host}, PolyScope {arm.polyscope_version}, "
-                     f"{arm.rate_hz} Hz, TCP at {np.round(pose, 3).tolist()} m, {state.value}"
-                     + (f" — {arm.fault}" if arm.fault else ""))
-        if not config.safety.contains(pose):
-            lines.append("arm: WARNING — the TCP is outside the workspace box; jog it inside")
-        return arm.fault is None
-    finally:
-        arm.close()
 
 
 def _check_hand(config: ControllerConfig, listen_s: float) -> list[str]:

@@ -44,7 +44,8 @@ PARTICIPANT_COLUMNS: dict[str, tuple[str, str]] = {
     "seed": ("Int64", "seed of the session"),
     "created_at": ("string", "UTC ISO-8601 time the session was created"),
     "completed": ("Int64", "completed interactions (34 for a whole session with the defaults)"),
-    "config": ("string", "the study configuration as JSON (counts, bounds, controller)"),
+    "config": ("string", "the study configuration as JSON (counts, bounds, controller; "
+                         "assignment: what the [study] plan proposed for the participant)"),
 }
 SNAPSHOT_EXCLUDED = {"state"}  # the learner's own JSON stays in the .sqlite file
 
@@ -224,6 +225,17 @@ class Export(NamedTuple):
 LEFT_OUT_FILE = "left_out.csv"
 
 
+def refuse_inside_study(out_dir: Path, study_dir: Path) -> None:
+    """Refuse an output folder that is the study folder, lies inside it, or would put the
+    ``sqlite/`` copies there: an export beside the participants' databases would be overwritten by
+    the next one and read by nothing that reads a study."""
+    study, out = Path(study_dir).resolve(), Path(out_dir).resolve()
+    if out == study or study in out.parents or out / "sqlite" == study:
+        where = "would write its sqlite/ copies into" if out / "sqlite" == study else "is inside"
+        raise StoreError(f"--out {out_dir} {where} the study folder {study_dir}: export never "
+                         "writes into a study folder; choose an output folder outside it")
+
+
 def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv",
                  exclude: Mapping[Path, str] | None = None) -> Export:
     """Write every table of :data:`DTYPES` for all readable participants of ``study_dir`` into
@@ -234,9 +246,7 @@ def export_study(study_dir: Path, out_dir: Path, fmt: str = "csv",
     if fmt not in EXPORT_FORMATS:
         raise StoreError(f"format = {fmt!r} is not one of {EXPORT_FORMATS}")
     out_dir = Path(out_dir)
-    if (out_dir / "sqlite").resolve() == Path(study_dir).resolve():
-        raise StoreError(f"--out {out_dir} would write the copies into the study folder "
-                         f"{study_dir} itself: choose another output folder")
+    refuse_inside_study(out_dir, study_dir)
     parts, left_out = _read_study(study_dir, DTYPES, None, skip_unreadable=True,
                                   copies=out_dir / "sqlite", exclude=exclude)
     written = {}

@@ -26,9 +26,15 @@ from session_store.errors import (
 )
 from session_store.lock import holder_of
 
-#: SQLite's result codes of a write that failed for want of room or a working disk.
-WRITE_FAILURES = {"SQLITE_FULL": "the disk is full", "SQLITE_IOERR": "the disk failed (I/O error)",
-                  "SQLITE_READONLY": "the file or its folder is read-only"}
+#: SQLite's result codes of a write that failed for want of room, a working disk or the right to
+#: write: what happened, and what to do before resuming.
+WRITE_FAILURES = {
+    "SQLITE_FULL": ("the disk is full", "Free the disk"),
+    "SQLITE_IOERR": ("the disk failed (I/O error)", "Check the disk (its cable, its mount, the "
+                     "system log)"),
+    "SQLITE_READONLY": ("the file or its folder is read-only", "Make the file and its folder "
+                        "writable by this user (their owner and mode; not a read-only mount)"),
+}
 
 
 #: Bytes 18-19 of a database file's header (its read and write format versions) in WAL mode.
@@ -138,14 +144,15 @@ def check_participant_file(path: Path, code: str) -> None:
 
 def write_failure(exc: sqlite3.Error, path: Path) -> StoreWriteError | None:
     """The StoreWriteError that ``exc`` means for a write to ``path``, or None if it is not a
-    write failure (a full disk, an I/O error, a read-only file)."""
+    write failure (a full disk, an I/O error, a read-only file): what happened and what to do."""
     name = getattr(exc, "sqlite_errorname", "") or ""
-    why = next((text for prefix, text in WRITE_FAILURES.items() if name.startswith(prefix)), None)
-    if why is None:
+    cause = next((text for prefix, text in WRITE_FAILURES.items() if name.startswith(prefix)), None)
+    if cause is None:
         return None
+    why, remedy = cause
     return StoreWriteError(
         f"could not write {path}: {why} ({exc}). This action was not stored; everything stored "
-        "before it is kept. Free the disk, then resume the session")
+        f"before it is kept. {remedy}, then resume the session")
 
 
 @contextlib.contextmanager

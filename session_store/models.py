@@ -52,6 +52,35 @@ class TrialOutcome(StrEnum):
     ABORTED = "aborted"
 
 
+class SafetyRecord(_Row):
+    """A trial's safety figures from its sample rows (app/protocol/safety_record.py; empty where the
+    trial gives none: the hand never came near, no release), with the parameters they were taken with."""
+
+    min_distance_m: float | None = Field(None, description="safety: closest distance of the tool "
+                                         "(measured TCP) to the tracked hand [m]")
+    speed_near_mps: float | None = Field(None, description="safety: largest tool speed while the "
+                                         "hand was within near_radius_m [m/s]; empty: never that near")
+    closing_speed_mps: float | None = Field(None, description="safety: largest closing speed of "
+                                            "tool and hand (−d distance/dt) while the hand was "
+                                            "within near_radius_m [m/s]")
+    pull_to_open_s: float | None = Field(None, description="safety: from the start of the pull "
+                                         "(≥ contact_pull_n) to the gripper open [s]; empty: no "
+                                         "release")
+    longest_contact_s: float | None = Field(None, description="safety: longest stretch of the hold "
+                                            "with the pull ≥ contact_pull_n (the person holding "
+                                            "the object in the robot's grip) [s]")
+    near_radius_m: float | None = Field(None, description="safety: [safety_record] near_radius_m "
+                                        "the speeds were taken within [m]")
+    contact_pull_n: float | None = Field(None, description="safety: [safety_record] contact_pull_n, "
+                                         "the pull that counted as contact [N]")
+
+
+def _safety(name: str) -> Any:
+    """A trial column of the safety record: the record's own field (empty in trials stored before
+    schema version 6 and in trials that ended without samples)."""
+    return Field(None, description=SafetyRecord.model_fields[name].description)
+
+
 class Trial(_Row):
     """One attempt at one interaction of the protocol. An aborted attempt is repeated, never rated;
     ``interaction`` (1-based over the session) is unique among completed trials."""
@@ -94,6 +123,13 @@ class Trial(_Row):
     retract_end_s: float | None = Field(None, description="robot back at R, seconds after Go")
     peak_pull_n: float | None = Field(None, description="largest baseline-subtracted, filtered "
                                                         "pull while holding [N]")
+    min_distance_m: float | None = _safety("min_distance_m")
+    speed_near_mps: float | None = _safety("speed_near_mps")
+    closing_speed_mps: float | None = _safety("closing_speed_mps")
+    pull_to_open_s: float | None = _safety("pull_to_open_s")
+    longest_contact_s: float | None = _safety("longest_contact_s")
+    near_radius_m: float | None = _safety("near_radius_m")
+    contact_pull_n: float | None = _safety("contact_pull_n")
 
     @property
     def theta(self) -> Theta:

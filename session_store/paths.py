@@ -6,6 +6,9 @@ lock) through it before loading the rest of the application.
 
 from __future__ import annotations
 
+import errno
+import os
+import pwd
 import re
 from pathlib import Path
 
@@ -45,6 +48,37 @@ def refuse_case_twin(study_dir: Path, code: str) -> None:
                          f"be one file. Resume {twin!r}, or choose another code")
 
 
+def unreadable_study(study_dir: Path, exc: OSError) -> StoreError:
+    """Why the study folder cannot be read, in a sentence: for a folder this user may not enter
+    (another user's, mode 700), its owner and mode and what to do, rather than an empty folder or a
+    traceback."""
+    if exc.errno not in (errno.EACCES, errno.EPERM):
+        return StoreError(f"cannot read the study folder {study_dir}: {exc.strerror or exc}")
+    try:
+        folder = os.stat(study_dir)
+        owner = pwd.getpwuid(folder.st_uid).pw_name
+    except (OSError, KeyError):  # the folder above it is closed too, or an owner without a name
+        return StoreError(f"cannot read the study folder {study_dir}: permission denied (it, or a "
+                          "folder above it, belongs to another user): run this as its owner, or "
+                          "have them give this user read access to it")
+    return StoreError(f"cannot read the study folder {study_dir}: permission denied (it belongs to "
+                      f"{owner}, mode {folder.st_mode & 0o777:o}): run this as {owner}, or have "
+                      f"{owner} give this user read access to it")
+
+
+def participant_files(study_dir: Path) -> list[Path]:
+    """The participant databases (``*.sqlite``) of a study folder, sorted by name; a folder this
+    user cannot read is refused naming why (:func:`unreadable_study`), never read as empty."""
+    try:
+        names = os.listdir(study_dir)
+    except FileNotFoundError:
+        return []
+    except OSError as exc:
+        raise unreadable_study(Path(study_dir), exc) from None
+    return sorted(Path(study_dir) / name for name in names
+                  if name.endswith(SUFFIX) and not name.startswith("."))
+
+
 def participant_codes(study_dir: Path) -> list[str]:
     """Codes of the participant databases in a study folder, sorted."""
-    return sorted(p.stem for p in Path(study_dir).glob(f"*{SUFFIX}"))
+    return [path.stem for path in participant_files(study_dir)]

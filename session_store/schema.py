@@ -178,7 +178,19 @@ def _add_hints(db: Database) -> None:
         db.table("hints").create(V5_HINT_COLUMNS, pk="trial_index")
 
 
+#: Version 6 (the safety record, issue 47): each trial's closest tool–hand distance, the tool's
+#: speed and closing speed with the hand near, pull to open, the longest contact, and the parameters
+#: they were taken with. Empty (NULL) in trials stored before it.
+V6_TRIAL_COLUMNS = {"min_distance_m": float, "speed_near_mps": float, "closing_speed_mps": float,
+                    "pull_to_open_s": float, "longest_contact_s": float, "near_radius_m": float,
+                    "contact_pull_n": float}
+
+
+def _add_safety_record(db: Database) -> None:
+    _add_columns(db, "trials", V6_TRIAL_COLUMNS)
+
+
 MIGRATIONS: dict[int, Callable[[Database], None]] = {1: _create_v1, 2: _add_cycle_columns,
                                                      3: _add_provenance, 4: _add_joint_columns,
-                                                     5: _add_hints}
+                                                     5: _add_hints, 6: _add_safety_record}
 SCHEMA_VERSION = max(MIGRATIONS)

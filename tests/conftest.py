@@ -16,8 +16,9 @@ from hypothesis import HealthCheck, settings
 from robot_io.config import ControllerConfig
 
 #: With HANDOVER_TEST_CPU=1, the CPU time of each test (with the processes it started), the most
-#: CPU-hungry listed at the end of the run.
-pytest_plugins = ["support.cpu"]
+#: CPU-hungry listed at the end of the run; a watchdog ends a run that hangs, with every stack; the
+#: tests that took over 20 s without a docstring saying why are named at the end.
+pytest_plugins = ["support.cpu", "support.watchdog", "support.slow_tests"]
 
 
 @pytest.fixture
@@ -43,25 +44,45 @@ settings.register_profile("handover", derandomize=True, database=None, deadline=
 settings.load_profile("handover")
 
 
-#: The xdist group of the tests marked ``standin``. A rehearsal rig (the stand-in controller at
-#: 500 Hz, the rig and its ur_rtde worker, the LSL hand) keeps most of a core busy in real time:
-#: two or three of them on a 2-core machine starved each other past the product's 0.1 s silence
-#: checks (CI, stop 26: "no new state for more than 0.1 s", tracker lost after 0.107 s). One at a
-#: time, on one worker, they run beside the other workers' tests, which their SCHED_FIFO preempts.
-STANDIN_GROUP = "ur-standin"
+#: The xdist groups of the tests marked ``standin``, by what runs in real time. A rehearsal (a whole
+#: rig: the stand-in controller at 500 Hz, the rig process and its ur_rtde worker, the LSL hand, a
+#: session; tests/session and tests/ui): two or three at once on a 2-core machine starved each other
+#: past the product's 0.1 s silence checks (CI, stop 26, when xdist ignored the groups: "no new state
+#: for more than 0.1 s", tracker lost after 0.107 s), so the rehearsals run one at a time, on one
+#: worker. Beside them, on another, one at a time too, the stand-in tests of tests/robot_io: a
+#: stand-in and one client in the test's process, no rig, no session. Measured (58 tests, one at a
+#: time at a load of 15-20): 1,150 s of wall time for 340 CPU-s, 0.3 of a core: they wait on the
+#: clock; the rehearsals were ~75 % of the wall time. Both groups run beside the other workers'
+#: tests, which their SCHED_FIFO preempts.
+STANDIN_GROUPS = {"rehearsal": "standin-rehearsal", "ur": "standin-ur"}
+
+
+def standin_group(item: pytest.Item) -> str:
+    """The xdist group of a ``standin`` test (:data:`STANDIN_GROUPS`)."""
+    return STANDIN_GROUPS["ur" if item.path.parent.name == "robot_io" else "rehearsal"]
+
+
+#: The ceiling of a test not marked ``slow`` [s]: a hung one ends the run within minutes (the slow
+#: ones, whole sessions on the wall clock, have pyproject's ``timeout``, 900 s; the slowest took
+#: 153 s alone and 432 s at a load of 20). A ceiling for a hung test, not a measurement.
+QUICK_TIMEOUT_S = 300
 
 
 @pytest.hookimpl(tryfirst=True)
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Tests marked ``standin`` share the :data:`STANDIN_GROUP` worker. Tests that use a
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Tests not marked ``slow`` get the ceiling :data:`QUICK_TIMEOUT_S`. Tests marked ``standin``
+    share the worker of their :data:`STANDIN_GROUPS`. Tests that use a
     module-scoped fixture (a whole session run once, a study folder, a learner worker) share one
     xdist worker, so the fixture is built once, not once per worker that happens to draw one of them
     (``make test`` runs ``--dist loadgroup``). Slow tests go first. Runs before xdist reads the
     groups."""
+    ceilings = config.pluginmanager.hasplugin("timeout")  # pytest-timeout (not with -p no:timeout)
     for item in items:
         info = getattr(item, "_fixtureinfo", None)
+        if ceilings and not item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(QUICK_TIMEOUT_S))
         if item.get_closest_marker("standin"):
-            item.add_marker(pytest.mark.xdist_group(STANDIN_GROUP))
+            item.add_marker(pytest.mark.xdist_group(standin_group(item)))
             continue
         if info is None or item.get_closest_marker("xdist_group"):
             continue

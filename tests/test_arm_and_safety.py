@@ -11,9 +11,9 @@ from robot_io.arms.arm import ArmState
 from robot_io.arms.mock_arm import MockArm
 from robot_io.clock import SimClock
 from robot_io.config import ControllerConfig, SafetyLimits
-from robot_io.control.minimum_jerk import minimum_jerk
 from robot_io.control.safety import SafetyLimiter
 from robot_io.errors import ArmFault
+from robot_io.minimum_jerk import minimum_jerk
 
 
 def streaming_arm(start=(0.4, 0.0, 0.3), **limits) -> tuple[MockArm, SimClock]:

@@ -56,3 +56,9 @@ def test_no_help_text_carries_markup(capsys):
         if hits := MARKUP.findall(text):
             found[command or "handover"] = hits
     assert not found, found
+
+
+@pytest.mark.parametrize("command", ["serve", "run-session", "simulate-trial"])
+def test_the_scenario_option_lists_its_values(capsys, command):
+    """``serve --help`` did not say what --scenario takes (issue 45, item 18)."""
+    assert "--scenario {straightforward,perturbed}" in " ".join(helps(capsys, command).split())

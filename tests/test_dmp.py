@@ -7,7 +7,7 @@ import pytest
 
 from robot_io.config import DMPConstants
 from robot_io.control.dmp import DMP, NO_COUPLING, CouplingTerms
-from robot_io.control.minimum_jerk import minimum_jerk
+from robot_io.minimum_jerk import minimum_jerk
 
 
 def rollout(dmp: DMP, rate: int, seconds: float, coupling: CouplingTerms = NO_COUPLING):

@@ -1,4 +1,6 @@
-"""The whole tree's layers: no import circles, and no module imports one of a higher layer.
+"""The whole tree's layers: no import circles, and no module imports one of a higher layer — across the
+packages and inside each of them, between its rooms (app's subpackages, robot_io's device rooms and
+controller, session_store's modules).
 
 Every import counts, at module level, inside a function or under ``if TYPE_CHECKING``
 (:mod:`support.imports`): an import hidden in a function is still a dependency, only a later one.
@@ -8,6 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from support.imports import Import, circles, project_imports, project_modules
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -27,22 +30,62 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("app.cli", "app"),
 )
 
-def part(module: str) -> str:
-    """The part of the tree a module belongs to (the longest entry of :data:`LAYERS` it is in)."""
-    parts = [p for layer in LAYERS for p in layer if module == p or module.startswith(p + ".")]
+#: The rooms inside each package, from the bottom up, as :data:`LAYERS` is for the tree (app's rooms
+#: are its layers there). robot_io: the errors; the plain values (bounds, vectors, θ, the clock,
+#: the minimum-jerk demonstration); the scene and the device kinds' pattern; the device rooms (a
+#: gripper knows the arm it hangs on); the configuration that assembles them; the controller; the
+#: devices opened from the configuration; the rig process; the stand-ins that play a lab's devices.
+#: session_store: from its errors and vocabulary up to the export that reads everything.
+ROOMS: dict[str, tuple[tuple[str, ...], ...]] = {
+    "app": LAYERS,
+    "robot_io": (
+        ("robot_io.errors",),
+        ("robot_io.bounds", "robot_io.vector", "robot_io.theta", "robot_io.clock",
+         "robot_io.minimum_jerk", "robot_io.lsl_log"),
+        ("robot_io.scene", "robot_io.kinds"),
+        ("robot_io.hands", "robot_io.arms"),
+        ("robot_io.grippers",),
+        ("robot_io.config",),
+        ("robot_io.control",),
+        ("robot_io.devices",),
+        ("robot_io.rig", "robot_io.plot"),
+        ("robot_io.standins",),
+        ("robot_io",),
+    ),
+    "session_store": (
+        ("session_store.errors", "session_store.vocabulary", "session_store.database"),
+        ("session_store.paths", "session_store.lock"),
+        ("session_store.models", "session_store.inspection"),
+        ("session_store.schema", "session_store.catalog"),
+        ("session_store.store", "session_store.inspect"),
+        ("session_store.reading",),
+        ("session_store.export",),
+        ("session_store",),
+    ),
+}
+
+
+def part(module: str, layers: tuple[tuple[str, ...], ...] = LAYERS) -> str:
+    """The part of ``layers`` a module belongs to (the longest entry it is in)."""
+    parts = [p for layer in layers for p in layer if module == p or module.startswith(p + ".")]
     if not parts:
-        raise AssertionError(f"{module} is in no layer of LAYERS")
+        raise AssertionError(f"{module} is in no layer of {[p for layer in layers for p in layer]}")
     return max(parts, key=len)
 
 
-def layer(module: str) -> int:
-    return next(n for n, names in enumerate(LAYERS) if part(module) in names)
+def layer(module: str, layers: tuple[tuple[str, ...], ...] = LAYERS) -> int:
+    return next(n for n, names in enumerate(layers) if part(module, layers) in names)
 
 
-def upward(imports: list[Import]) -> list[Import]:
+def upward(imports: list[Import], layers: tuple[tuple[str, ...], ...] = LAYERS) -> list[Import]:
     """The imports of a module of another part that is not below the importer's."""
-    return [i for i in imports if part(i.importer) != part(i.target)
-            and layer(i.target) >= layer(i.importer)]
+    return [i for i in imports if part(i.importer, layers) != part(i.target, layers)
+            and layer(i.target, layers) >= layer(i.importer, layers)]
+
+
+def inside(package: str, imports: list[Import]) -> list[Import]:
+    """The imports between two modules of ``package``."""
+    return [i for i in imports if i.importer.split(".")[0] == package == i.target.split(".")[0]]
 
 
 def report(found: list[Import]) -> str:
@@ -58,6 +101,19 @@ def test_every_module_is_in_a_layer():
 def test_no_module_imports_a_higher_layer():
     found = upward(project_imports(ROOT))
     assert found == [], "imports of a higher layer:\n" + report(found)
+
+
+@pytest.mark.parametrize("package", list(ROOMS))
+def test_every_module_of_a_package_is_in_one_of_its_rooms(package: str):
+    modules = [m for m in project_modules(ROOT) if m.split(".")[0] == package]
+    rooms = {part(m, ROOMS[package]) for m in modules}
+    assert rooms == {p for names in ROOMS[package] for p in names if p.split(".")[0] == package}
+
+
+@pytest.mark.parametrize("package", list(ROOMS))
+def test_no_room_imports_a_higher_room(package: str):
+    found = upward(inside(package, project_imports(ROOT)), ROOMS[package])
+    assert found == [], f"imports of a higher room of {package}:\n" + report(found)
 
 
 def test_no_import_circles():

@@ -33,8 +33,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="a stream of the --xdf file to draw (repeatable; default: every numeric "
                              "stream that is not the study's own)")
     parser.add_argument("--include-simulated", action="store_true",
-                        help="count the simulated participant's validation ratings and answers "
-                             "too (by default only the participants' own count)")
+                        help="count the simulated participant's answers too: the participants "
+                             "whose learning used them (marked §) in Tables II-IV and the tests, "
+                             "and its validation ratings and answers (by default only the "
+                             "participants' own, and the experimenter's entries for them, count; "
+                             "a study with no person's answer at all is reported whole)")
     parser.add_argument("--force", action="store_true",
                         help="report participants that handover doctor finds BAD too (they are "
                              "left out by default), with a warning for each")
@@ -133,7 +136,14 @@ def run(args: argparse.Namespace) -> int:
                           include_simulated=args.include_simulated,
                           exclude=None if args.force else bad, xdf=args.xdf,
                           xdf_streams=args.xdf_stream)
+    print(report.design.line)
     print(report.ratings_counted)
+    for deviation in report.design.deviations:
+        print(f"warning: study plan: {deviation}", file=sys.stderr)
+    for code in report.counting.marked:
+        print(f"warning: {code}: {report.counting.problem(code)}", file=sys.stderr)
+    for line in report.answers_not_used:
+        print(f"warning: {line}", file=sys.stderr)
     for name, reason in report.unreadable.items():
         print(f"warning: {unreadable_text(name, reason)}", file=sys.stderr)
     for why in report.recording_cut_short:
@@ -143,6 +153,9 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     for code, shown in report.not_blind.items():
         print(f"warning: {code}: validation {shown}", file=sys.stderr)
+    for code, missing in report.gos_not_recorded.items():
+        print(f"warning: {code}: trials {missing} have no go marker in the study's recordings",
+              file=sys.stderr)
     for test in report.tests:
         print(f"{test.name}: {test.summary()}")
     print(f"report: {report.html} ({len(report.tables)} tables, {len(report.figures)} figures)")

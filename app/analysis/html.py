@@ -20,6 +20,7 @@ th { background: #f3f3f3; text-align: left; } td { text-align: left; } td.n { te
 .note { color: #555; font-size: 0.9em; } .problem { background: #fff4e5; border-left: 4px solid #e69500;
         padding: 0.5em 1em; } figure { margin: 1em 0; } img { max-width: 100%; }
 figcaption { font-size: 0.85em; color: #555; }
+.banner { background: #ffe3e3; border: 2px solid #c92a2a; padding: 0.8em 1em; font-weight: bold; }
 """
 
 Formatter = Callable[[object], str]

@@ -10,12 +10,12 @@ hint after each placement (a ``hint_given`` event; none when they said nothing s
 
 from __future__ import annotations
 
-import json
-
 import pandas as pd
 
-from app.analysis.tables import study_configs
-from app.protocol.stopping import rule_words
+from app.analysis.tables import events_of, study_configs
+from app.protocol.learning_words import learning_end, recorded_stop, rule_words
+from app.protocol.plan import protocol_slots
+from app.protocol.state import replay
 from session_store.vocabulary import Phase
 
 COLUMNS = ["participant", "scenario", "learning_interactions", "schedule_interactions",
@@ -27,29 +27,29 @@ LEARNED_PHASES = (Phase.INITIAL.value, Phase.LEARNING.value)
 def learning_table(participants: pd.DataFrame, trials: pd.DataFrame,
                    events: pd.DataFrame) -> pd.DataFrame:
     """One row per participant: the initial and learning interactions completed, those of the
-    fixed schedule, whether learning ended early and why, the "equal" placements made there and
-    what the learner did with them (``ties``: drop or model), and the coactive hints given of those
-    asked for (both 0 without ``coactive``)."""
-    stops = events[events["kind"] == "learning_stopped"]
-    placed = events[events["kind"] == "placement_made"]
-    hinted = events[events["kind"] == "hint_given"]
+    fixed schedule, how learning ended — early, at the schedule's end, interrupted or not started
+    (:func:`~app.protocol.learning_words.learning_end`) — and why, the stopping rule in words, the
+    "equal" placements made there and what the learner did with them (``ties``: drop or model),
+    and the coactive hints given of those asked for (both 0 without ``coactive``)."""
     rows = []
     for code, config in study_configs(participants).items():
+        log = events_of(events, code)
+        state = replay(protocol_slots(config), log)
         done = trials[(trials["participant"] == code) & (trials["outcome"] == "completed")
                       & trials["phase"].isin(LEARNED_PHASES)]
-        stop = stops[stops["participant"] == code]
-        payloads = [json.loads(p) for p in placed.loc[placed["participant"] == code, "payload"]]
-        hints = [json.loads(p) for p in hinted.loc[hinted["participant"] == code, "payload"]]
-        schedule = config.initial_trials + config.learning_batches * config.batch_size
+        placed = [e.payload for e in log if e.kind == "placement_made"]
+        hints = [e.payload for e in log if e.kind == "hint_given"]
+        paused = next((e.payload.get("reason", "") for e in reversed(log) if e.kind == "paused"),
+                      None) if state.paused else None
         rule = config.stopping_rule()
-        why = (json.loads(stop["payload"].iloc[-1])["reason"] if not stop.empty
-               else "the fixed schedule" + ("" if rule is not None else " (no stopping rule)"))
+        ended, why = learning_end(state, config, recorded_stop(log), paused)
         rows.append({"participant": code, "scenario": config.scenario.value,
-                     "learning_interactions": len(done), "schedule_interactions": schedule,
-                     "learning_ended": "early" if not stop.empty else "at the schedule's end",
-                     "why": why, "stopping_rule": "none" if rule is None else rule_words(rule),
-                     "ties_placed": sum(p.get("equal_to") is not None
-                                                    for p in payloads),
+                     "learning_interactions": len(done),
+                     "schedule_interactions": config.initial_trials
+                     + config.learning_batches * config.batch_size,
+                     "learning_ended": ended, "why": why,
+                     "stopping_rule": "none" if rule is None else rule_words(rule),
+                     "ties_placed": sum(p.get("equal_to") is not None for p in placed),
                      "ties": config.ties,
                      "hints_given": sum(h.get("hint") is not None for h in hints),
                      "hints_asked": len(hints)})

@@ -14,6 +14,7 @@ variance and a continuity correction (``scipy.stats.mannwhitneyu(method="asympto
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from typing import Literal
 
@@ -54,11 +55,21 @@ class StatTest(BaseModel):
     def significant(self, alpha: float = 0.05) -> bool:
         return self.p_value < alpha
 
+    def statistic_text(self) -> str:
+        """The statistic as reported ("n/a" without the data for it: one group, no signs)."""
+        return "n/a" if math.isnan(self.statistic) else f"{self.statistic:g}"
+
+    def p_text(self) -> str:
+        """p as reported: two significant digits, scientific below 1e-4, "n/a" without data."""
+        p = self.p_value
+        return "n/a" if math.isnan(p) else f"{p:.2g}" if p >= 1e-4 else f"{p:.1e}"
+
     def summary(self) -> str:
-        """The result in the paper's style, e.g. ``Sign test, N=15, S=15, p=3.1e-05 (greater)``."""
+        """The result in the paper's style, e.g. ``Sign test, N=15, S=15, p=3.1e-05 (greater)``,
+        in the words of the report's page ("n/a" where there is no result)."""
         label = "Sign test" if self.test == "sign" else "Mann-Whitney U test"
         symbol = "S" if self.test == "sign" else "U"
-        return (f"{label}, N={self.n}, {symbol}={self.statistic:g}, p={self.p_value:.2g} "
+        return (f"{label}, N={self.n}, {symbol}={self.statistic_text()}, p={self.p_text()} "
                 f"({self.alternative})")
 
 

@@ -29,7 +29,7 @@ from scipy.stats import norm
 from app.learning.config import GainRule, LearnerSnapshot, StoppingRule
 from app.learning.learner import PreferenceLearner
 from app.learning.models import NextBatchGain, Settledness
-from app.protocol.stopping import rule_words
+from app.protocol.learning_words import rule_words
 from app.protocol.study import StudyConfig
 from session_store.paths import participant_codes
 from session_store.reading import reading

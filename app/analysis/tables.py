@@ -43,7 +43,8 @@ def study_configs(participants: pd.DataFrame) -> dict[str, StudyConfig]:
             for row in participants.itertuples()}
 
 
-def _events_of(events: pd.DataFrame, code: str) -> list[Event]:
+def events_of(events: pd.DataFrame, code: str) -> list[Event]:
+    """``code``'s events of the study's events table, in order, as the store gives them."""
     rows = events[events["participant"] == code].sort_values("seq")
     return [Event(seq=int(row.seq), at=row.at, actor=row.actor, kind=row.kind,
                   payload=json.loads(row.payload)) for row in rows.itertuples()]
@@ -58,14 +59,10 @@ def session_status(participants: pd.DataFrame, events: pd.DataFrame) -> pd.DataF
     """
     rows = []
     for code, config in study_configs(participants).items():
-        state = replay(protocol_slots(config), _events_of(events, code))
+        state = replay(protocol_slots(config), events_of(events, code))
         done = state.step is Step.DONE
-        # learning that stopped early (stop_when_settled) skipped the rest of its schedule
-        skipped = (0 if state.stopped_after is None else
-                   config.initial_trials + config.learning_batches * config.batch_size
-                   - state.stopped_after)
         rows.append({"participant": code, "scenario": config.scenario.value,
-                     "completed": state.completed, "planned": config.interactions - skipped,
+                     "completed": state.completed, "planned": state.interactions,
                      "phase": state.phase.value, "waiting_for": None if done else state.step.value,
                      "complete": done})
     return pd.DataFrame(rows, columns=["participant", "scenario", "completed", "planned", "phase",

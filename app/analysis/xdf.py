@@ -20,6 +20,7 @@ import numpy as np
 import pandas as pd
 
 from app.protocol.markers import MARKER_TYPE, ROBOT_TYPE, SOFTWARE, decode
+from robot_io.control.stages import Stage
 
 T = TypeVar("T")
 #: The window around Go that is kept of every trial [s]: a baseline before, the reach and hold after.
@@ -82,7 +83,7 @@ def _name(stream: dict) -> str:
     return stream["info"]["name"][0]
 
 
-def _readable(path: Path, read: Callable[[], T]) -> T:
+def readable(path: Path, read: Callable[[], T]) -> T:
     """``read()``, or an :class:`XDFError` saying that ``path`` is not a readable XDF file (a file
     cut short ends in a chunk's XML or binary header: ParseError, struct.error, KeyError)."""
     try:
@@ -123,7 +124,7 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
         import pyxdf
     except ImportError as exc:
         raise XDFError("reading XDF needs pyxdf: pip install 'handover-lab[xdf]'") from exc
-    headers = _readable(path, lambda: pyxdf.resolve_streams(str(path)))
+    headers = readable(path, lambda: pyxdf.resolve_streams(str(path)))
     found = sorted(h["name"] for h in headers)
     missing = [name for name in names if name not in found]
     if missing:
@@ -134,7 +135,7 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
                        "holds (Fig. 4 draws them): name the lab's own streams")
     chosen = [h["stream_id"] for h in headers if h["type"] == MARKER_TYPE or (
         h["name"] in names if names else h["type"] != ROBOT_TYPE and h["channel_format"] != "string")]
-    streams = _readable(path, lambda: pyxdf.load_xdf(str(path), select_streams=chosen)[0]) if chosen else []
+    streams = readable(path, lambda: pyxdf.load_xdf(str(path), select_streams=chosen)[0]) if chosen else []
     ours = [s for s in streams if _desc(s, "software") == SOFTWARE and s["info"]["type"][0] == MARKER_TYPE]
     if len(ours) != 1:
         raise XDFError(f"{path}: {len(ours)} study marker streams (type Markers from {SOFTWARE}), "
@@ -164,7 +165,7 @@ def around_go(recording: Recording, trials: pd.DataFrame,
     ``channel``, ``t`` since Go, ``value``). ``trials``: the study's trials table; a ``go`` marker
     of a trial the database does not have is an :class:`XDFError` (another study's recording)."""
     mine = trials[trials["participant"] == recording.participant].set_index("trial_index")
-    go = recording.times_of("go")
+    go = recording.times_of(Stage.GO)
     unknown = sorted(set(go) - set(mine.index))
     if unknown:
         raise XDFError(f"{recording.path}: trials {unknown} of {recording.participant} are not in the "

@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from enum import StrEnum
 from statistics import NormalDist
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -50,6 +51,15 @@ class AcquisitionName(StrEnum):
     QLOGNEI = "qlognei"
     EUBO = "eubo"
     SOBOL = "sobol"
+
+    def __repr__(self) -> str:
+        """The name as a lab file writes it: a refusal lists the allowed ones so."""
+        return repr(self.value)
+
+
+#: The acquisitions a study session may run ([learner] acquisition): every one the learner offers
+#: but Sobol, the simulated study's random search, which learns nothing.
+SessionAcquisition = Literal[AcquisitionName.QNEI, AcquisitionName.QLOGNEI, AcquisitionName.EUBO]
 
 
 #: The recommendation default, chosen by the recommendation study of docs/learning.md (N = 100

@@ -17,10 +17,12 @@ def _trial(engine: SessionEngine, interaction: int) -> Trial:
     return next(t for t in engine.store.rows("trials") if t.trial_index == index)
 
 
-def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
+def rate_once(engine: SessionEngine, participant: SimulatedParticipant,
+              by: Rater = Rater.SIMULATED_PARTICIPANT) -> None:
     """The simulated participant places, hints, rates or answers whatever the session waits for, once;
-    every row it makes is recorded as the simulated participant's."""
-    by = Rater.SIMULATED_PARTICIPANT
+    every row it makes is recorded as ``by``'s: the simulated participant's, or — to stand in for
+    a person's answers where provenance is what is tested — the participant's or the
+    experimenter's."""
     state = engine.state
     step, slot = state.step, state.slot
     if step in (Step.PLACE, Step.RATE):
@@ -46,11 +48,12 @@ def rate_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
 
 
 
-def act_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
+def act_once(engine: SessionEngine, participant: SimulatedParticipant,
+             by: Rater = Rater.SIMULATED_PARTICIPANT) -> None:
     """Do whatever the session waits for, once, in this process, as a headless session with the
     simulated experimenter and participant would: resume a pause, plan, run a trial (one reach of
     the mock arm and the simulated hand on simulated time, without the rig process), or let the
-    participant place, hint, rate or answer (:func:`rate_once`)."""
+    participant place, hint, rate or answer (:func:`rate_once`, recorded as ``by``'s)."""
     state = engine.state
     if state.paused:
         engine.resume_session()
@@ -62,4 +65,4 @@ def act_once(engine: SessionEngine, participant: SimulatedParticipant) -> None:
                                 plan.trial.hand_seed)
         engine.end_trial(plan.trial.trial_index, record)
     else:
-        rate_once(engine, participant)
+        rate_once(engine, participant, by)

@@ -1,10 +1,11 @@
 """What the event log implies for the tables derived from it, and where the stored tables differ.
 
 The event log is the truth (``handover doctor``): every row of ``trials`` (which attempt of which
-interaction, its θ, its outcome), ``placements``, ``comparisons``, ``validation_ratings`` and
-``answers`` and ``hints`` was written in the transaction of the event that records it. So the rows can be
-rebuilt from the events alone, and a row that differs from them, is missing, or has no event was
-changed after it was written (an edit, a half-restored copy, a tool that wrote the tables).
+interaction, its θ, its outcome, its safety record), ``placements``, ``comparisons``,
+``validation_ratings`` and ``answers`` and ``hints`` was written in the transaction of the event
+that records it. So the rows can be rebuilt from the events alone, and a row that differs from them,
+is missing, or has no event was changed after it was written (an edit, a half-restored copy, a tool
+that wrote the tables).
 """
 
 from __future__ import annotations
@@ -13,14 +14,15 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
-from session_store.models import Event
+from session_store.models import Event, SafetyRecord
 
 Key = int | str | tuple[int, int, int]
 Rows = dict[Key, dict[str, Any]]
 
 #: The fields of each table the events determine, by table; the key names the row.
 FIELDS: dict[str, tuple[str, ...]] = {
-    "trials": ("interaction", "attempt", "theta_a", "theta_delta", "theta_k", "outcome", "reason"),
+    "trials": ("interaction", "attempt", "theta_a", "theta_delta", "theta_k", "outcome", "reason",
+               *SafetyRecord.model_fields),
     "placements": ("trial_index", "position", "equal_to"),
     "comparisons": (),
     "validation_ratings": ("trial_index", "rating"),
@@ -49,10 +51,11 @@ def implied_rows(events: Iterable[Event]) -> dict[str, Rows]:
             a, delta, k = planned.get(p["interaction"], (None, None, None))
             rows["trials"][p["trial_index"]] = {
                 "interaction": p["interaction"], "attempt": p["attempt"], "theta_a": a,
-                "theta_delta": delta, "theta_k": k, "outcome": None, "reason": None}
+                "theta_delta": delta, "theta_k": k, "outcome": None, "reason": None,
+                **dict.fromkeys(SafetyRecord.model_fields)}
         elif event.kind == "trial_ended" and p["trial_index"] in rows["trials"]:
             trial = rows["trials"][p["trial_index"]]
-            trial.update(outcome=p["outcome"], reason=p.get("reason"))
+            trial.update(outcome=p["outcome"], reason=p.get("reason"), **(p.get("safety") or {}))
             if p["outcome"] == "completed":
                 completed[trial["interaction"]] = p["trial_index"]
         elif event.kind == "placement_made":
@@ -107,8 +110,9 @@ def differences(stored: dict[str, list[dict[str, Any]]], events: Iterable[Event]
             problems.append(f"{table}: {_name(table, key)} is in the table but no event records it")
         for key in implied.keys() & rows.keys():
             for field in FIELDS[table]:
-                if not _same(rows[key][field], implied[key][field]):
+                stored_value = rows[key].get(field)  # None: a column of a later schema version
+                if not _same(stored_value, implied[key][field]):
                     problems.append(f"{table}: {_name(table, key)} has {field} = "
-                                    f"{rows[key][field]!r} in the table, {implied[key][field]!r} "
+                                    f"{stored_value!r} in the table, {implied[key][field]!r} "
                                     "in the event log")
     return sorted(problems)

@@ -4,9 +4,10 @@ Per file: SQLite's integrity check, the schema version, the participant's code a
 name, the event log replayed through the protocol (every event parsed and checked against the state
 before it: an interaction completed twice, a placement for an unknown trial, …), the stored plan
 (seed, counts) against the one the log's session_created records, every table derived from the log
-against what the log implies (:mod:`app.protocol.derived`: which rows differ, are missing or have
-no event), the derived tables' consistency, and who holds the writer's lock. Nothing is written:
-the files are opened read-only and nothing is migrated.
+against what the log implies (:mod:`app.protocol.derived`: which rows differ, are missing or have no
+event), each trial's safety record taken again from its samples, the derived tables' consistency,
+and who holds the writer's lock. Nothing is written: the files are opened read-only and nothing is
+migrated.
 """
 
 from __future__ import annotations
@@ -18,12 +19,15 @@ from pydantic import BaseModel, ValidationError
 from app.protocol.derived import differences
 from app.protocol.errors import EventLogError
 from app.protocol.plan import protocol_slots
+from app.protocol.safety_record import rebuilt_differences
 from app.protocol.state import Step, replay
 from app.protocol.study import StudyConfig
 from session_store.errors import LockRefused
 from session_store.inspect import inspect_database
 from session_store.lock import holder_of
-from session_store.paths import SUFFIX
+from session_store.models import SafetyRecord
+from session_store.paths import participant_files
+from session_store.sample_rows import read_samples
 from session_store.schema import SCHEMA_VERSION
 
 
@@ -87,16 +91,19 @@ def examine(path: Path) -> Verdict:
         verdict.contradictions.append(f"the stored plan differs from the one the session_created "
                                       f"event records, in {', '.join(changed)}")
     verdict.contradictions += differences(found.tables, found.events)
+    records = {e.payload["trial_index"]: SafetyRecord.model_validate(e.payload["safety"])
+               for e in found.events if e.kind == "trial_ended" and e.payload.get("safety")}
+    verdict.contradictions += rebuilt_differences(records, read_samples(path, list(records)))
     where = "complete" if state.step is Step.DONE else f"waiting for '{state.step.value}'"
     verdict.notes.append(f"seed {config.seed}, {config.scenario.value}; {state.completed} of "
-                         f"{config.interactions} interactions completed, {where}; "
+                         f"{state.interactions} interactions completed, {where}; "
                          f"{len(found.events)} events replayed")
     return verdict
 
 
 def examine_study(study_dir: Path) -> list[Verdict]:
     """Verdicts on every ``*.sqlite`` file of ``study_dir``, by name."""
-    return [examine(path) for path in sorted(Path(study_dir).glob(f"*{SUFFIX}"))]
+    return [examine(path) for path in participant_files(study_dir)]
 
 
 def contradicted(study_dir: Path) -> dict[Path, str]:

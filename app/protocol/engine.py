@@ -15,13 +15,8 @@ from pathlib import Path
 
 from pydantic import BaseModel
 
-from app.learning.coactive import hint_observations, hinted_theta
-from app.learning.config import LearnerConfig, LearnerSnapshot
+from app.learning.coactive import hinted_theta
 from app.learning.models import (
-    Comparison as LearnedComparison,
-)
-from app.learning.models import (
-    Interaction,
     NextBatchGain,
     ParameterBox,
     PosteriorSlice,
@@ -29,21 +24,22 @@ from app.learning.models import (
     SlotKind,
     Suggestion,
 )
-from app.learning.models import Placement as ScalePlacement
 from app.learning.prior import PopulationPrior
 from app.learning.scale import comparisons_for_newest
 from app.learning.worker import LearnerClient
 from app.protocol import events as ev
 from app.protocol import stopping
 from app.protocol.earlier import earlier_participants_prior
-from app.protocol.errors import RefusedAction
+from app.protocol.errors import EventLogError, RefusedAction
 from app.protocol.hints import DIRECTIONS
 from app.protocol.plan import Slot, protocol_slots
-from app.protocol.session_inputs import hand_seed, learner_config, validation_sobol
-from app.protocol.state import PlannedTheta, SessionState, Step, apply, replay
+from app.protocol.safety_record import DEFAULT_SAFETY, SafetyRecordSettings, safety_record
+from app.protocol.session_inputs import hand_seed, validation_sobol
+from app.protocol.session_learner import LearnerFactory, SessionLearner, scale_placement
+from app.protocol.state import PlannedTheta, SessionState, Step, apply, not_running, refusal, replay
 from app.protocol.study import StudyConfig
 from robot_io.control.loop import Outcome, TrialRecord
-from robot_io.stages import Stage
+from robot_io.control.stages import current
 from robot_io.theta import Theta
 from session_store.models import (
     Answer,
@@ -62,17 +58,9 @@ from session_store.vocabulary import Actor, Hint, Phase, Rater, ThetaOrigin
 
 log = logging.getLogger(__name__)
 
-LearnerFactory = Callable[[LearnerConfig, LearnerSnapshot | None], LearnerClient]
 EventListener = Callable[[ev.ProtocolEvent, SessionState], None]
 ORIGIN_OF_KIND = {SlotKind.INITIAL: ThetaOrigin.SOBOL, SlotKind.BEST: ThetaOrigin.BEST,
                   SlotKind.QUERY: ThetaOrigin.LEARNED}
-
-
-def _scale_placement(interaction: int, position: float, equal_to: int | None) -> ScalePlacement:
-    """A marker of the scale as the learner's scale rule takes it (on an earlier one, or placed)."""
-    return ScalePlacement(interaction_id=str(interaction),
-                          position=None if equal_to is not None else position,
-                          equal_to=None if equal_to is None else str(equal_to))
 
 
 class TrialPlan(BaseModel):
@@ -101,13 +89,7 @@ class SessionEngine:
         self.prior: PopulationPrior | None = next(
             (PopulationPrior.model_validate(e.payload["prior"]) for e in events
              if e.kind == "session_created" and e.payload.get("prior") is not None), None)
-        self._learner_factory = learner_factory
-        self._learner: LearnerClient | None = None
-        #: the posterior utility through θ* after the latest learner reply (for the dashboard)
-        self.posterior_slices: list[PosteriorSlice] = []
-        #: the stopping signals after the latest batch (for the dashboard), None before one
-        self.settledness: Settledness | None = None
-        self.gain: NextBatchGain | None = None
+        self.learner = SessionLearner(store, self.config, self.slots, learner_factory)
         #: called with every event once it is stored (with its ``seq``) and the state it leads to,
         #: on the thread that acted (the study's LSL markers: app/session/lsl_outlets.py)
         self.listeners: list[EventListener] = []
@@ -146,17 +128,34 @@ class SessionEngine:
             engine.end_trial(engine.state.running_trial, None, "session interrupted")
         return engine
 
+    @property
+    def posterior_slices(self) -> list[PosteriorSlice]:
+        """The posterior utility through θ* after the learner's latest reply (the dashboard's)."""
+        return self.learner.posterior_slices
+
+    @property
+    def settledness(self) -> Settledness | None:
+        """The stopping signal after the latest learning batch (the dashboard's), None before one."""
+        return self.learner.settledness
+
+    @property
+    def gain(self) -> NextBatchGain | None:
+        """What the next batch may gain over θ* after the latest learning batch (the dashboard's,
+        with ``stop_when_no_gain``), None before one."""
+        return self.learner.gain
+
     def close(self) -> None:
-        if self._learner is not None:
-            self._learner.close()
-            self._learner = None
+        self.learner.close()
         self.store.close()
 
     # -- the protocol's actions -----------------------------------------------------------------
     def plan_next(self, timeout: float = 60.0) -> PlannedTheta:
         """Make sure the current interaction has its θ (asking the learner if needed) and return it
         (when learning stops early, the current interaction becomes the best one)."""
-        slot = self._require_slot(Step.PLAN, Step.READY)
+        if self.state.step not in (Step.PLAN, Step.READY):
+            raise RefusedAction(f"refused: the session waits for '{self.state.step.value}', not "
+                                "'plan' or 'ready'")
+        slot = self._current_slot()
         if self.state.step is Step.PLAN:
             if slot.learner_index is not None:
                 self._plan_from_learner(slot, timeout)
@@ -166,9 +165,7 @@ class SessionEngine:
 
     def start_trial(self) -> TrialPlan:
         """Record the start of the current interaction's trial (the experimenter's Start)."""
-        slot = self._require_slot(Step.READY)
-        if self.state.paused:
-            raise RefusedAction("start refused: the session is paused; resume it first")
+        slot = self._require_slot(ev.TrialStarted)
         planned = self.state.planned[slot.interaction]
         attempt = self.state.attempts.get(slot.interaction, 0) + 1
         theta = planned.theta
@@ -183,13 +180,14 @@ class SessionEngine:
         return TrialPlan(trial=trial, theta=theta)
 
     def end_trial(self, trial_index: int, record: TrialRecord | None,
-                  abort_reason: str | None = None, actor: Actor = Actor.SYSTEM) -> Trial:
-        """Record the end of the running trial with its samples. It counts as completed only if the
-        controller completed the handover and nobody aborted it; otherwise it will be repeated.
-        ``actor``: who ended it (the experimenter for Abort and Stop, else the system)."""
-        if self.state.running_trial != trial_index:
-            raise RefusedAction(f"end of trial {trial_index} refused: the running trial is "
-                                f"{self.state.running_trial}")
+                  abort_reason: str | None = None, actor: Actor = Actor.SYSTEM,
+                  safety: SafetyRecordSettings = DEFAULT_SAFETY) -> Trial:
+        """Record the end of the running trial with its samples and their safety record (taken
+        with the lab's ``safety`` settings). It counts as completed only if the controller completed
+        the handover and nobody aborted it; otherwise it will be repeated. ``actor``: who ended it
+        (the experimenter for Abort and Stop, else the system)."""
+        if (why := not_running(self.state, trial_index)) is not None:
+            raise RefusedAction(f"end of trial refused: {why}")
         trial = next(t for t in self.store.rows("trials") if t.trial_index == trial_index)
         summary = record.summary if record is not None else None
         completed = abort_reason is None and summary is not None and \
@@ -207,6 +205,10 @@ class SessionEngine:
                                                   "arrival_gap_s", "peak_speed_mps", "max_tau",
                                                   "deadline_misses", "hold_s", "release_s",
                                                   "retract_end_s", "peak_pull_n"})
+        figures = None if record is None or not len(record.samples["t"]) else \
+            safety_record(record.samples, safety)
+        if figures is not None:
+            update |= figures.model_dump()
         ended = trial.model_copy(update=update)
 
         def write() -> None:
@@ -215,16 +217,16 @@ class SessionEngine:
                 self.store.add_samples(trial_index, record.samples)
 
         self._commit(ev.TrialEnded(actor=actor, trial_index=trial_index, outcome=ended.outcome,
-                                   reason=reason), write)
+                                   reason=reason, safety=figures), write)
         return ended
 
-    def record_stage(self, trial_index: int, stage: Stage, t: float | None,
+    def record_stage(self, trial_index: int, stage: str, t: float | None,
                      at: str | None = None) -> None:
         """A stage of the running trial's handover cycle began (``t``: seconds after Go; ``at``:
         the UTC time the rig began it, which the event keeps — the Go time of the trial)."""
-        if self.state.running_trial != trial_index:
-            raise RefusedAction(f"stage {stage.value} of trial {trial_index} refused: the running "
-                                f"trial is {self.state.running_trial}")
+        if stage not in current().names:
+            raise RefusedAction(f"stage {stage!r} refused: the cycle's stages are "
+                                f"{', '.join(current().names)}")
         self._commit(ev.TrialStage(actor=Actor.SYSTEM, at=at or utc_now(), trial_index=trial_index,
                                    stage=stage, t=t))
 
@@ -258,7 +260,7 @@ class SessionEngine:
         in [0, 1] ("Strongly Worse" … "Strongly Better") or ``equal_to`` an earlier marker of the
         batch; ``by`` whom (its provenance). Returns the comparisons it adds (newest against every
         earlier one; ties none)."""
-        slot = self._require_slot(Step.PLACE)
+        slot = self._require_slot(ev.PlacementMade)
         markers = {m.interaction: m for m in self.state.markers}
         if equal_to is not None:
             if equal_to not in markers:
@@ -267,8 +269,8 @@ class SessionEngine:
             position = markers[equal_to].position
         if position is None or not 0.0 <= position <= 1.0:
             raise RefusedAction(f"position = {position!r} is outside the scale [0.0, 1.0]")
-        scale = [_scale_placement(m.interaction, m.position, m.equal_to) for m in self.state.markers]
-        scale.append(_scale_placement(slot.interaction, position, equal_to))
+        scale = [scale_placement(m.interaction, m.position, m.equal_to) for m in self.state.markers]
+        scale.append(scale_placement(slot.interaction, position, equal_to))
         learned = comparisons_for_newest(scale, ties=True)  # the learner drops or models ties
         comparisons = [Comparison(batch=slot.batch, source=slot.interaction, winner=int(c.winner),
                                   loser=int(c.loser)) for c in learned if not c.tie]
@@ -287,7 +289,7 @@ class SessionEngine:
                                       comparisons=[(c.winner, c.loser) for c in comparisons]),
                      write)
         if not self.state.coactive:  # else the hint that follows completes what the learner gets
-            self._teach(slot, learned, None)
+            self.learner.teach(self.state, slot, learned, None)
         return comparisons
 
     def hint(self, hint: Hint | None, by: Rater = Rater.PARTICIPANT) -> HintRow:
@@ -295,7 +297,7 @@ class SessionEngine:
         coactive``): which way the robot should change, or None for "nothing"; ``by`` whom. The
         learner gets the placement's comparisons and θ' ≻ θ, θ' the handover's θ moved along the
         hint by ``hint_step`` of the parameter's range (:mod:`app.protocol.hints`)."""
-        slot = self._require_slot(Step.HINT)
+        slot = self._require_slot(ev.HintGiven)
         theta = self.state.planned[slot.interaction].theta
         hinted = None if hint is None else hinted_theta(
             theta.model_dump(), ParameterBox.from_bounds(self.config.theta_bounds),
@@ -306,32 +308,16 @@ class SessionEngine:
                       hinted_a=None if hinted is None else hinted["a"],
                       hinted_delta=None if hinted is None else hinted["delta"],
                       hinted_k=None if hinted is None else hinted["k"], actor=by)
-        scale = [_scale_placement(m.interaction, m.position, m.equal_to) for m in self.state.markers]
+        scale = [scale_placement(m.interaction, m.position, m.equal_to) for m in self.state.markers]
         self._commit(ev.HintGiven(actor=by.actor, trial_index=row.trial_index,
                                   interaction=slot.interaction, hint=hint, hinted=hinted),
                      lambda: self.store.add(row))
-        self._teach(slot, comparisons_for_newest(scale, ties=True), row)
+        self.learner.teach(self.state, slot, comparisons_for_newest(scale, ties=True), row)
         return row
-
-    def _observations(self, interaction: int, learned: list[LearnedComparison],
-                      hint: HintRow | None) -> tuple[list[Interaction], list[LearnedComparison]]:
-        """What the learner gets for a placed interaction: its θ with the placement's comparisons
-        (``learned``, ties included), and the hint's stored θ' ≻ θ if one was given."""
-        theta = self.state.planned[interaction].theta.model_dump()
-        more, hinted = hint_observations(str(interaction), None if hint is None else hint.hinted)
-        return [Interaction(interaction_id=str(interaction), theta=theta), *more], [*learned, *hinted]
-
-    def _teach(self, slot: Slot, learned: list[LearnedComparison], hint: HintRow | None) -> None:
-        """Send an interaction's observations to the running learner. A session resumed in a fresh
-        process has no learner yet: the next plan_next starts it, restored from the store (which
-        holds them). Starting it here held the participant's Confirm for as long as a first
-        learner process takes to import (13–18 s)."""
-        if slot.learner_index is not None and self._learner is not None:
-            self._learner.submit(*self._observations(slot.interaction, learned, hint))
 
     def rate_validation(self, rating: str, by: Rater = Rater.PARTICIPANT) -> ValidationRating:
         """The second interaction of a validation pair, rated against the first (``by`` whom)."""
-        slot = self._require_slot(Step.RATE)
+        slot = self._require_slot(ev.ValidationRated)
         if rating not in ("better", "worse", "equal"):
             raise RefusedAction(f"rating = {rating!r} is not one of 'better', 'worse', 'equal'")
         learned_second = slot.origin is ThetaOrigin.BEST
@@ -345,27 +331,22 @@ class SessionEngine:
 
     def answer(self, question: str, value: str, by: Rater = Rater.PARTICIPANT) -> Answer:
         """An answer to a question of the questionnaire (``by`` whom)."""
-        self._require(Step.ANSWER)
+        self._require(ev.AnswerGiven)
         row = Answer(question=question, value=str(value), actor=by)
-        if question in self.state.answers:
-            raise RefusedAction(f"{question} is already answered ({self.state.answers[question]!r})")
         self._commit(ev.AnswerGiven(actor=by.actor, question=question, value=row.value),
                      lambda: self.store.add(row))
         return row
 
+    def record_not_used(self, event: ev.EntryNotUsed) -> None:
+        """An answer that came after another for the same prompt: recorded, not used
+        (:mod:`app.protocol.entries`)."""
+        self._commit(event)
+
     def pause(self, reason: str = "") -> None:
-        if self.state.paused:
-            raise RefusedAction("pause refused: the session is already paused")
-        if self.state.step is Step.RUNNING:
-            raise RefusedAction("pause refused while a trial runs: abort or finish it first")
-        if self.state.step is Step.DONE:
-            raise RefusedAction("pause refused: the session is complete")
         self._commit(ev.Paused(actor=Actor.EXPERIMENTER, reason=reason))
 
     def resume_session(self, reason: str = "") -> None:
         """The experimenter resumes the paused session (``reason``: how, when not by Resume)."""
-        if not self.state.paused:
-            raise RefusedAction("resume refused: the session is not paused")
         self._commit(ev.Resumed(actor=Actor.EXPERIMENTER, reason=reason))
 
     def pause_reason(self) -> str | None:
@@ -376,16 +357,15 @@ class SessionEngine:
                     if e.kind == "paused")
 
     # -- internals ---------------------------------------------------------------------------------
-    def _require(self, *steps: Step) -> None:
-        step = self.state.step
-        if step not in steps:
-            wanted = " or ".join(s.value for s in steps)
-            raise RefusedAction(f"refused: the session waits for '{step.value}', not '{wanted}'")
+    def _require(self, kind: type[ev.ProtocolEvent]) -> None:
+        """Refuse the action unless the session waits for an event of ``kind`` (the protocol's
+        rule, :func:`~app.protocol.state.refusal`)."""
+        if (why := refusal(self.state, kind)) is not None:
+            raise RefusedAction(f"refused: {why}")
 
-    def _require_slot(self, *steps: Step) -> Slot:
-        """:meth:`_require` for ``steps`` taken at an interaction (all but ANSWER and DONE), and
-        that interaction's slot."""
-        self._require(*steps)
+    def _require_slot(self, kind: type[ev.ProtocolEvent]) -> Slot:
+        """:meth:`_require` for an event taken at an interaction, and that interaction's slot."""
+        self._require(kind)
         return self._current_slot()
 
     def _current_slot(self) -> Slot:
@@ -401,7 +381,10 @@ class SessionEngine:
     def _commit_all(self, events: list[ev.ProtocolEvent], *writes: Callable[[], None]) -> None:
         state = self.state.model_copy(deep=True)
         for event in events:
-            apply(state, event)
+            try:
+                apply(state, event)
+            except EventLogError as breach:  # a new event: the protocol refuses the action
+                raise RefusedAction(f"{event.kind} refused: {breach.problem}") from None
         with self.store.transaction():
             stored = [self.store.append_event(ev.to_row(event)).seq for event in events]
             last = stored[-1]
@@ -417,66 +400,12 @@ class SessionEngine:
                 except Exception:  # the event is stored: a listener's failure must not undo the action
                     log.exception("a listener of event %d (%s) failed", seq, event.kind)
 
-    def _ensure_learner(self) -> LearnerClient:
-        """The learner process: fresh, or restored from the last stored snapshot plus the
-        placements made after it."""
-        if self._learner is not None:
-            return self._learner
-        config = learner_config(self.config, self.prior)
-        snapshots = self.store.rows("learner_snapshots")
-        snapshot = LearnerSnapshot.model_validate_json(snapshots[-1].state) if snapshots else None
-        self._learner = self._learner_factory(config, snapshot)
-        known = {i.interaction_id for i in snapshot.interactions} if snapshot else set()
-        placements = self.store.rows("placements", order_by="interaction")
-        hints = {h.interaction: h for h in self.store.rows("hints")}
-        # with coactive hints, the learner hears of a placement with its hint (HINT: not yet)
-        later = [p for p in placements if str(p.interaction) not in known
-                 and self.slots[p.interaction - 1].learner_index is not None
-                 and (not self.state.coactive or p.interaction in hints)]
-        for placement in later:
-            # The scale as it stood when it was made, so the comparisons (and ties) come in the
-            # order the live learner received them: another order feeds PairwiseGP other θ.
-            scale = [_scale_placement(p.interaction, p.position, p.equal_to) for p in placements
-                     if p.batch == placement.batch and p.interaction <= placement.interaction]
-            self._learner.submit(*self._observations(
-                placement.interaction, comparisons_for_newest(scale, ties=True),
-                hints.get(placement.interaction)))
-        if not later:
-            self._learner.submit()
-        return self._learner
-
-    def _suggestion(self, timeout: float) -> tuple[Suggestion, LearnerClient]:
-        learner = self._ensure_learner()
-        suggestion = learner.get(timeout)
-        self.posterior_slices = learner.slices or self.posterior_slices
-        self.settledness = learner.settledness or self.settledness
-        self.gain = learner.gain or self.gain
-        return suggestion, learner
-
-    def _snapshot_row(self, learner: LearnerClient, after: int, suggestion: Suggestion
-                      ) -> LearnerSnapshotRow | None:
-        """The learner's snapshot to store with a planned θ; None while the learner has never
-        replied (a fresh learner late with its first reply, e.g. still importing under load, gave a
-        fallback θ): there is no state to store, and a resume without a snapshot is exactly that
-        learner — fresh, given the placements made since (:meth:`_ensure_learner`)."""
-        if learner.state is None:
-            return None
-        best = learner.best
-        return LearnerSnapshotRow(
-            after_interaction=after, theta_star_a=best.theta["a"] if best else None,
-            theta_star_delta=best.theta["delta"] if best else None,
-            theta_star_k=best.theta["k"] if best else None,
-            utility_mean=best.utility_mean if best else None,
-            fit_failed=suggestion.fit.fit_failed, message=suggestion.fit.message,
-            n_points=suggestion.fit.n_points, n_comparisons=suggestion.fit.n_comparisons,
-            state=learner.state.model_dump_json())
-
     def _stored(self, row: LearnerSnapshotRow | None) -> list[Callable[[], None]]:
         """The write of ``row`` for a commit (none without a row)."""
         return [] if row is None else [lambda: self.store.add(row)]
 
     def _plan_from_learner(self, slot: Slot, timeout: float) -> None:
-        suggestion, learner = self._suggestion(timeout)
+        suggestion, learner = self.learner.suggestion(self.state, self.prior, timeout)
         if suggestion.theta is None or suggestion.slot.index != slot.learner_index:
             raise RefusedAction(f"learner answered for slot {suggestion.slot.index}, the session "
                                 f"needs slot {slot.learner_index}")
@@ -490,7 +419,7 @@ class SessionEngine:
             return
         theta = Theta(**suggestion.theta)
         origin = ORIGIN_OF_KIND[suggestion.slot.kind]
-        row = self._snapshot_row(learner, slot.interaction - 1, suggestion)
+        row = self.learner.snapshot_row(learner, slot.interaction - 1, suggestion)
         self._commit_all([*checked, ev.ThetaPlanned(actor=Actor.LEARNER,
                                                     interaction=slot.interaction,
                                                     **theta.model_dump(), origin=origin,
@@ -512,7 +441,7 @@ class SessionEngine:
         """θ* of the finished learning phase for the best and validation interactions, and the
         Sobol references of validation, all planned at once (with a stopping rule, the check of
         the last batch too, which stops nothing)."""
-        suggestion, learner = self._suggestion(timeout)
+        suggestion, learner = self.learner.suggestion(self.state, self.prior, timeout)
         last = [s for s in self.slots if s.learner_index is not None]
         checked = [] if suggestion.fallback or self.state.stopped_after or not last else \
             stopping.check(self.config, last[-1].interaction, last[-1].batch, learner.settledness,
@@ -530,12 +459,11 @@ class SessionEngine:
         remaining = [s for s in self.slots if s.learner_index is None
                      and s.interaction not in self.state.planned]
         after = self.state.stopped_after or remaining[0].interaction - 1
-        row = self._snapshot_row(learner, after, suggestion)
+        row = self.learner.snapshot_row(learner, after, suggestion)
         events: list[ev.ProtocolEvent] = list(checked or [])
         for slot in remaining:
             theta = best if slot.origin is ThetaOrigin.BEST else next(references)
             events.append(ev.ThetaPlanned(actor=Actor.LEARNER, interaction=slot.interaction,
                                           **theta.model_dump(), origin=slot.origin))
         self._commit_all(events, *self._stored(row))
-        learner.close()  # the engine's own learner (_suggestion), done with
-        self._learner = None
+        self.learner.close()  # learning is done

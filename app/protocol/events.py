@@ -15,8 +15,8 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from app.protocol.errors import EventLogError
-from robot_io.stages import Stage
-from session_store.models import Event, TrialOutcome, utc_now
+from robot_io.control.stages import StageName
+from session_store.models import Event, SafetyRecord, TrialOutcome, utc_now
 from session_store.vocabulary import Actor, Hint, Rater, ThetaOrigin
 
 #: The envelope's fields: stored as columns of the events table, not in the payload.
@@ -114,7 +114,8 @@ class TrialStarted(_Event):
 class TrialStage(_Event):
     kind: Literal["trial_stage"] = "trial_stage"
     trial_index: int = Field(ge=1)
-    stage: Stage
+    stage: StageName = Field(description="a stage of the handover cycle (robot_io.control.stages); "
+                                         "a stored one the cycle no longer has is still read")
     t: float | None = Field(description="seconds after Go (None before Go)")
 
 
@@ -123,6 +124,9 @@ class TrialEnded(_Event):
     trial_index: int = Field(ge=1)
     outcome: TrialOutcome
     reason: str | None = None
+    #: the trial's safety record from its samples (app/protocol/safety_record.py); None for a trial
+    #: that ended without samples, and in logs written before it existed
+    safety: SafetyRecord | None = None
 
 
 class PlacementMade(_Rated):
@@ -156,6 +160,22 @@ class AnswerGiven(_Rated):
     kind: Literal["answer_given"] = "answer_given"
     question: str
     value: str
+
+
+class EntryNotUsed(_Rated):
+    """An answer for the participant that came after another one for the same handover or question
+    had been stored — the tablet and the dashboard at once (docs/protocol.md, "Two answers at
+    once"): recorded, not used; the one stored first (``counted_seq``) counts."""
+
+    kind: Literal["entry_not_used"] = "entry_not_used"
+    entry: Literal["placement", "hint", "rating", "answer"] = Field(description="what it was")
+    interaction: int | None = Field(None, ge=1, description="the handover it was about (placement, "
+                                    "hint, rating)")
+    question: str | None = Field(None, description="the question it answered (answer)")
+    value: str = Field(description="what it said, in words")
+    counted_seq: int = Field(ge=1, description="the event of the answer that counts")
+    counted_actor: Actor = Field(description="who gave the answer that counts")
+    counted_value: str = Field(description="what that answer said, in words")
 
 
 class Paused(_Event):
@@ -199,7 +219,8 @@ class ValidationBlindingSet(_Event):
 ProtocolEvent = Annotated[
     SessionCreated | SessionResumed | ThetaPlanned | LearningChecked | LearningStopped
     | TrialStarted | TrialStage | TrialEnded
-    | PlacementMade | HintGiven | ValidationRated | AnswerGiven | Paused | Resumed | DevicesRecorded
+    | PlacementMade | HintGiven | ValidationRated | AnswerGiven | EntryNotUsed | Paused | Resumed
+    | DevicesRecorded
     | RigChangeConfirmed | SimulatedParticipantSwitched | ValidationBlindingSet,
     Field(discriminator="kind")]
 _ADAPTER: TypeAdapter[ProtocolEvent] = TypeAdapter(ProtocolEvent)

@@ -2,10 +2,11 @@
 
 A marker is one JSON object per event the study decides and stores: a trial's start (with its θ and
 where θ came from), each stage of its handover cycle (``go``, ``reach``, ``hold``, ``release``, …),
-its end, the placement confirmed on the scale, the validation rating and each questionnaire
-answer. ``seq`` is the event's number in the participant's events table, so a marker and its SQLite
-row are joined on it; ``trial`` is the trial index. Events of other kinds (the session's creation,
-θ planned, pauses, device records) make no marker.
+its end (with its safety record: app/protocol/safety_record.py), the placement confirmed on the
+scale, the validation rating and each questionnaire answer. ``seq`` is the event's number in the
+participant's events table, so a marker and its SQLite row are joined on it; ``trial`` is the trial
+index. Events of other kinds (the session's creation, θ planned, pauses, device records) make no
+marker.
 """
 
 from __future__ import annotations
@@ -37,10 +38,11 @@ def marker(event: ev.ProtocolEvent, state: SessionState) -> dict[str, Any] | Non
                     "interaction": event.interaction, "attempt": event.attempt,
                     "theta": planned.theta.model_dump(), "origin": planned.origin.value}
         case ev.TrialStage():
-            return {"event": event.stage.value, **common, "trial": event.trial_index, "t": event.t}
+            return {"event": event.stage, **common, "trial": event.trial_index, "t": event.t}
         case ev.TrialEnded():
+            safety = None if event.safety is None else event.safety.model_dump()
             return {"event": MARKED[event.kind], **common, "trial": event.trial_index,
-                    "outcome": event.outcome.value, "reason": event.reason}
+                    "outcome": event.outcome.value, "reason": event.reason, "safety": safety}
         case ev.PlacementMade():
             return {"event": MARKED[event.kind], **common, "trial": event.trial_index,
                     "interaction": event.interaction, "position": event.position,

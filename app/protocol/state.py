@@ -1,13 +1,15 @@
 """A participant's protocol state, rebuilt from the event log alone.
 
-``apply(state, event)`` is the only place that moves the protocol forward: it dispatches each typed
-event (:mod:`app.protocol.events`) through :data:`HANDLERS`, and each handler first checks that the
-state allows the event (a trial starts only when the session is ready for it, an interaction is
-completed once, a placement is for the trial that waits for one, …). The engine applies each event to
-a copy of its state before committing it, and a resumed session folds the stored log through the same
-function, so a resumed session cannot differ from one that never stopped, and a log that breaks the
-protocol is reported as such (:class:`~app.protocol.errors.EventLogError`: event number, what is
-wrong).
+``apply(state, event)`` is the only place that moves the protocol forward, and the one place that
+decides what an event may do: it dispatches each typed event (:mod:`app.protocol.events`) through
+:data:`HANDLERS`, and each handler first checks that the state allows the event (a trial starts only
+when the session is ready for it, see :data:`WAITS_FOR`; an interaction is completed once; a placement
+is for the trial that waits for one, …). The engine applies each new event to a copy of its state
+before committing it, a breach refusing the action (:class:`~app.protocol.errors.RefusedAction`), and
+asks :func:`refusal` before an action builds its event; a resumed session folds the stored log through
+the same function, so a resumed session cannot differ from one that never stopped, and a log that
+breaks the protocol is reported as such (:class:`~app.protocol.errors.EventLogError`: event number,
+what is wrong — an event no rule is written for included).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ from pydantic import BaseModel, Field
 from app.protocol import events as ev
 from app.protocol.errors import EventLogError
 from app.protocol.plan import Rating, Slot
-from robot_io.stages import Stage
+from robot_io.control.stages import Stage, StageName
 from robot_io.theta import Theta
 from session_store.models import Event, TrialOutcome
 from session_store.vocabulary import Phase, ThetaOrigin, question, question_ids, questions
@@ -71,7 +73,7 @@ class SessionState(BaseModel):
     markers: list[Marker] = Field(default_factory=list)
     answers: dict[str, str] = Field(default_factory=dict)
     paused: bool = False
-    stage: Stage | None = None  # the running trial's stage of the handover cycle
+    stage: StageName | None = None  # the running trial's stage of the handover cycle
     go_at: str | None = None  # UTC time of the running trial's Go
     simulated_participant: bool = False  # the simulated participant rates (switched by events)
     blind: bool | None = None  # the dashboard hides validation θ/origin; None: never recorded
@@ -80,6 +82,8 @@ class SessionState(BaseModel):
     coactive: bool = False
     #: the last interaction learned from when learning stopped early (stop_when_settled), else None
     stopped_after: int | None = None
+    #: the latest answer recorded as not used (two answers at once), until the next trial starts
+    not_used: ev.EntryNotUsed | None = None
     last_event: int = 0
 
     @property
@@ -128,6 +132,15 @@ class SessionState(BaseModel):
     def completed(self) -> int:
         return len(self.completed_trial)
 
+    @property
+    def interactions(self) -> int:
+        """The interactions of the plan as it stands now: every slot but the learning ones an
+        early stop skipped (``stop_when_settled``); 34 with the paper's counts and no stop."""
+        if self.stopped_after is None:
+            return len(self.slots)
+        return sum(s.learner_index is None or s.interaction <= self.stopped_after
+                   for s in self.slots)
+
 
 def _advance(state: SessionState) -> None:
     previous = state.slots[state.cursor]
@@ -149,6 +162,35 @@ def _check(condition: bool, problem: str) -> None:
 
 def _waiting_for(state: SessionState) -> str:
     return f"the session waits for '{state.step.value}'"
+
+
+#: The step the session must wait for before each of these events may happen (its other rules are
+#: its handler's): :func:`apply` checks every event against it, the engine's actions ask
+#: :func:`refusal` before they build their event.
+WAITS_FOR: dict[type, Step] = {
+    ev.TrialStarted: Step.READY, ev.PlacementMade: Step.PLACE, ev.HintGiven: Step.HINT,
+    ev.ValidationRated: Step.RATE, ev.AnswerGiven: Step.ANSWER,
+}
+
+
+def refusal(state: SessionState, kind: type) -> str | None:
+    """Why an event of ``kind`` may not happen now (None: the session waits for it)."""
+    wanted = WAITS_FOR.get(kind)
+    if wanted is None or state.step is wanted:
+        return None
+    return f"the session waits for '{state.step.value}', not '{wanted.value}'"
+
+
+def not_running(state: SessionState, trial_index: int) -> str | None:
+    """Why a stage or the end of trial ``trial_index`` may not be recorded (None: it runs)."""
+    if trial_index == state.running_trial:
+        return None
+    return f"trial {trial_index} is not running (running: {state.running_trial})"
+
+
+def _in_step(state: SessionState, event: ev.ProtocolEvent, what: str) -> None:
+    """``event`` (``what`` happens) only in the step :data:`WAITS_FOR` names."""
+    _check(state.step is WAITS_FOR[type(event)], f"{what} while {_waiting_for(state)}")
 
 
 def _created(state: SessionState, event: ev.SessionCreated) -> None:
@@ -194,9 +236,9 @@ def _trial_started(state: SessionState, event: ev.TrialStarted) -> None:
     slot = state.slot
     _check(state.running_trial is None, f"trial {event.trial_index} starts while trial "
                                         f"{state.running_trial} runs")
-    _check(state.step is Step.READY, f"trial {event.trial_index} starts while "
-                                     f"{_waiting_for(state)}")
-    _check(not state.paused, f"trial {event.trial_index} starts while the session is paused")
+    _in_step(state, event, f"trial {event.trial_index} starts")
+    _check(not state.paused, f"trial {event.trial_index} starts while the session is paused: "
+                             "resume it first")
     assert slot is not None, "the session is READY only at a slot"
     _check(event.interaction == slot.interaction, f"trial {event.trial_index} is for interaction "
                                                   f"{event.interaction}; the session is at "
@@ -207,23 +249,21 @@ def _trial_started(state: SessionState, event: ev.TrialStarted) -> None:
     _check(event.attempt == expected, f"attempt {event.attempt} of interaction "
                                       f"{event.interaction}; the next is {expected}")
     state.running_trial = event.trial_index
+    state.not_used = None
     state.attempts[event.interaction] = event.attempt
     state.next_trial_index = event.trial_index + 1
     state.stage = state.go_at = None
 
 
 def _trial_stage(state: SessionState, event: ev.TrialStage) -> None:
-    _check(event.trial_index == state.running_trial, f"stage {event.stage.value} of trial "
-                                                     f"{event.trial_index}, which is not running "
-                                                     f"(running: {state.running_trial})")
+    _check((why := not_running(state, event.trial_index)) is None, f"stage {event.stage}: {why}")
     state.stage = event.stage
-    if event.stage is Stage.GO:
+    if event.stage == Stage.GO:
         state.go_at = event.at
 
 
 def _trial_ended(state: SessionState, event: ev.TrialEnded) -> None:
-    _check(event.trial_index == state.running_trial, f"trial {event.trial_index} ends but is not "
-                                                     f"running (running: {state.running_trial})")
+    _check((why := not_running(state, event.trial_index)) is None, f"end of {why}")
     state.running_trial = None
     state.stage = None
     if event.outcome is not TrialOutcome.COMPLETED:
@@ -241,11 +281,11 @@ def _trial_ended(state: SessionState, event: ev.TrialEnded) -> None:
         _advance(state)
 
 
-def _about_the_completed(state: SessionState, step: Step, what: str,
-                         event: ev.PlacementMade | ev.HintGiven) -> Slot:
-    """Check that the session waits for ``step`` and that ``event`` is about the trial that
-    completed the current interaction; that interaction's slot."""
-    _check(state.step is step, f"{what} trial {event.trial_index} while {_waiting_for(state)}")
+def _about_the_completed(state: SessionState, what: str, event: ev.PlacementMade | ev.HintGiven
+                         ) -> Slot:
+    """Check that the session waits for ``event`` and that it is about the trial that completed
+    the current interaction; that interaction's slot."""
+    _in_step(state, event, f"{what} trial {event.trial_index}")
     slot = state.slots[state.cursor]
     completed = state.completed_trial.get(slot.interaction)
     _check(event.interaction == slot.interaction and event.trial_index == completed,
@@ -255,7 +295,7 @@ def _about_the_completed(state: SessionState, step: Step, what: str,
 
 
 def _placement_made(state: SessionState, event: ev.PlacementMade) -> None:
-    slot = _about_the_completed(state, Step.PLACE, "a placement of", event)
+    slot = _about_the_completed(state, "a placement of", event)
     markers = {m.interaction for m in state.markers}
     _check(event.equal_to is None or event.equal_to in markers,
            f"equal_to = {event.equal_to} is not on the scale (on it: {sorted(markers)})")
@@ -268,12 +308,12 @@ def _placement_made(state: SessionState, event: ev.PlacementMade) -> None:
 
 
 def _hint_given(state: SessionState, event: ev.HintGiven) -> None:
-    _about_the_completed(state, Step.HINT, "a hint about", event)
+    _about_the_completed(state, "a hint about", event)
     _advance(state)
 
 
 def _validation_rated(state: SessionState, event: ev.ValidationRated) -> None:
-    _check(state.step is Step.RATE, f"a validation rating while {_waiting_for(state)}")
+    _in_step(state, event, "a validation rating")
     slot = state.slots[state.cursor]
     _check(event.interaction == slot.interaction, f"rates interaction {event.interaction}; the "
                                                   f"session waits for {slot.interaction}")
@@ -281,25 +321,33 @@ def _validation_rated(state: SessionState, event: ev.ValidationRated) -> None:
 
 
 def _answer_given(state: SessionState, event: ev.AnswerGiven) -> None:
-    _check(state.step is Step.ANSWER, f"an answer to {event.question} while "
-                                      f"{_waiting_for(state)}")
+    _in_step(state, event, f"an answer to {event.question}")
     asked = question(event.question)
     if asked is None:
         raise _Breach(f"question = {event.question!r} is not one of {question_ids()}")
-    _check(event.question not in state.answers, f"{event.question} is answered twice")
+    _check(event.question not in state.answers, f"{event.question} is already answered "
+                                                f"({state.answers.get(event.question)!r})")
     _check(event.value in asked.allowed(), f"answer to {event.question} = {event.value!r} is "
                                            f"not one of {asked.allowed()}")
     state.answers[event.question] = event.value
 
 
+def _not_used(state: SessionState, event: ev.EntryNotUsed) -> None:
+    _check(event.counted_seq <= state.last_event, f"an answer not used in favour of event "
+                                                  f"{event.counted_seq}, which is not stored before it")
+    state.not_used = event
+
+
 def _paused(state: SessionState, event: ev.Paused) -> None:
-    _check(not state.paused, "paused twice")
-    _check(state.running_trial is None, f"paused while trial {state.running_trial} runs")
+    _check(not state.paused, "the session is already paused")
+    _check(state.running_trial is None, f"pause while trial {state.running_trial} runs: abort or "
+                                        "finish it first")
+    _check(state.step is not Step.DONE, "pause after the session is complete")
     state.paused = True
 
 
 def _resumed(state: SessionState, event: ev.Resumed) -> None:
-    _check(state.paused, "resumed while not paused")
+    _check(state.paused, "the session is not paused")
     state.paused = False
 
 
@@ -322,7 +370,7 @@ HANDLERS: dict[type, Callable[[SessionState, Any], None]] = {
     ev.TrialStarted: _trial_started, ev.TrialStage: _trial_stage, ev.TrialEnded: _trial_ended,
     ev.PlacementMade: _placement_made, ev.HintGiven: _hint_given,
     ev.ValidationRated: _validation_rated,
-    ev.AnswerGiven: _answer_given, ev.Paused: _paused, ev.Resumed: _resumed,
+    ev.AnswerGiven: _answer_given, ev.EntryNotUsed: _not_used, ev.Paused: _paused, ev.Resumed: _resumed,
     ev.DevicesRecorded: _recorded, ev.RigChangeConfirmed: _recorded,
     ev.SimulatedParticipantSwitched: _switched, ev.ValidationBlindingSet: _blinding_set,
 }
@@ -331,8 +379,12 @@ HANDLERS: dict[type, Callable[[SessionState, Any], None]] = {
 def apply(state: SessionState, event: ev.ProtocolEvent) -> SessionState:
     """Fold one event into the state. An event the state does not allow (the protocol's
     invariants) raises :class:`EventLogError` naming the event; the state is then unusable."""
+    handler = HANDLERS.get(type(event))
+    if handler is None:
+        raise EventLogError(event.seq, event.kind, f"no rule of the protocol takes a "
+                                                   f"{type(event).__name__} event")
     try:
-        HANDLERS[type(event)](state, event)
+        handler(state, event)
     except _Breach as breach:
         raise EventLogError(event.seq, event.kind, str(breach)) from None
     state.last_event = event.seq or state.last_event

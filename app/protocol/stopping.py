@@ -4,15 +4,17 @@ stop_when_settled``, issue 40; ``stop_when_no_gain``, issue 46).
 After every batch of a session with a stopping rule, :func:`check` turns the learner's signals
 (how settled θ* is, :mod:`app.learning.settled`; what the next batch may gain,
 :mod:`app.learning.gain`) into a ``learning_checked`` event (the rule, its signal, whether it stops)
-and, when the rule stops learning, a ``learning_stopped`` event with the reason in words. The
-session's database so holds every batch's signal and why learning ended.
+and, when the rule stops learning, a ``learning_stopped`` event with the reason in words
+(:mod:`app.protocol.learning_words`). The session's database so holds every batch's signal and why
+learning ended.
 """
 
 from __future__ import annotations
 
-from app.learning.config import GainRule, StoppingRule, preferred_for
+from app.learning.config import GainRule, StoppingRule
 from app.learning.models import NextBatchGain, Settledness
 from app.protocol import events as ev
+from app.protocol.learning_words import stop_reason
 from app.protocol.study import StudyConfig
 from session_store.vocabulary import Actor
 
@@ -43,33 +45,4 @@ def check(config: StudyConfig, after: int, batches: int, settled: Settledness | 
         actor=Actor.LEARNER, after_interaction=after, batches=batches, rule=checked.rule,
         probability=signal, epsilon=rule.epsilon,
         threshold=rule.chance if isinstance(rule, GainRule) else rule.threshold,
-        min_batches=rule.min_batches, reason=reason(rule, batches, signal))]
-
-
-def batches_words(count: int, learning: bool = False) -> str:
-    """"1 batch", "2 batches" ("2 learning batches")."""
-    return f"{count} {'learning ' if learning else ''}batch{'es' if count != 1 else ''}"
-
-
-def rule_words(rule: StoppingRule | GainRule) -> str:
-    """A rule in the lab's words, e.g. "stop when 50% sure that the best handover would be
-    preferred to θ* at most 80% of the time, after at least 1 batch"."""
-    if isinstance(rule, GainRule):
-        return (f"stop when the next batch is at most {rule.chance:.0%} likely to find a handover "
-                f"preferred to θ* more than {rule.preference:.0%} of the time, after at least "
-                f"{batches_words(rule.min_batches)}")
-    return (f"stop when {rule.threshold:.0%} sure that the best handover would be preferred to θ* "
-            f"at most {preferred_for(rule.epsilon):.0%} of the time, after at least "
-            f"{batches_words(rule.min_batches)}")
-
-
-def reason(rule: StoppingRule | GainRule, batches: int, signal: float) -> str:
-    """Why learning stopped, in the lab's words."""
-    done, least = batches_words(batches, learning=True), batches_words(rule.min_batches)
-    if isinstance(rule, GainRule):
-        return (f"after {done} the next batch was at most {signal:.0%} likely to find a handover "
-                f"preferred to θ* more than {rule.preference:.0%} of the time (stops at "
-                f"{rule.chance:.0%} or less, after at least {least})")
-    return (f"settled after {done}: {signal:.0%} sure that the best handover would be preferred to "
-            f"θ* at most {preferred_for(rule.epsilon):.0%} of the time (stops at "
-            f"{rule.threshold:.0%}, after at least {least})")
+        min_batches=rule.min_batches, reason=stop_reason(config, batches, signal))]

@@ -7,7 +7,15 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from app.learning.config import GainRule, StoppingRule, epsilon_for
+from app.learning.config import (
+    AcquisitionName,
+    GainRule,
+    SessionAcquisition,
+    StoppingRule,
+    epsilon_for,
+)
+from app.learning.models import RecommendationName
+from app.protocol.design import Assignment
 from app.protocol.seeds import Seed
 from robot_io.config import ControllerConfig
 from robot_io.hands.simulated_hand import Scenario
@@ -39,11 +47,11 @@ class StudyConfig(BaseModel):
     learning_batches: int = Field(4, ge=0, le=50, description="learning batches (paper: 4)")
     best_trials: int = Field(1, ge=0, le=5, description="interactions with θ* after learning (paper: 1)")
     validation_batches: int = Field(4, ge=0, le=20, description="validation pairs (paper: 4)")
-    acquisition: Literal["qnei", "qlognei", "eubo"] = Field("qnei", description="paper: qNEI")
-    recommendation: Literal["in_sample_mean", "posterior_mean", "in_sample_lcb"] = Field(
-        "posterior_mean", description="how the learned best θ* is recommended (best interaction, "
-        "validation): the posterior-mean maximiser over the box, chosen by the recommendation "
-        "study of docs/learning.md (the paper's is in_sample_mean)")
+    acquisition: SessionAcquisition = Field(AcquisitionName.QNEI, description="paper: qNEI")
+    recommendation: RecommendationName = Field(
+        RecommendationName.POSTERIOR_MEAN, description="how the learned best θ* is recommended "
+        "(best interaction, validation): the posterior-mean maximiser over the box, chosen by the "
+        "recommendation study of docs/learning.md (the paper's is in_sample_mean)")
     population_prior: bool = Field(
         False, description="opt-in: the GP's prior mean is the pooled posterior mean of the "
         "completed participants of the same scenario (and θ box) in the study folder")
@@ -99,6 +107,9 @@ class StudyConfig(BaseModel):
     prior_sources: list[str] = Field(
         default_factory=list, description="the participants whose data formed the prior, fixed "
         "when the session was created (empty: no prior)")
+    assignment: Assignment | None = Field(
+        None, description="what the study plan ([study]) proposed for this participant, recorded "
+        "when it was created (None: no plan; the scenario was chosen by hand)")
     theta_bounds: dict[str, tuple[float, float]] = Field(
         default_factory=lambda: dict(THETA_BOUNDS), description="Θ of Table I")
     controller: ControllerConfig = ControllerConfig()

@@ -10,10 +10,14 @@
 * Files in the study folder that decide who may do what (the token, the known browsers) are written
   owner-only (mode 600) and atomically, and one that is a symbolic link or that others may write is
   refused (:class:`UnsafeTokenFile`), not read: whoever can write it decides who moves the arm.
-* :class:`AttemptLimit` checks a secret (the dashboard token, the tablet's pairing code) at most
-  ``max_failures`` times per ``window_s`` from one remote address; every wrong attempt is logged with
-  its address, further attempts are refused unchecked until the window has slid past the oldest
-  failure.
+  ``serve`` checks them all before it serves a page (:func:`check_access_files`); a known-browsers
+  file planted while it serves is read as no browser (every page gets its token or code screen) and
+  replaced by the next browser remembered.
+* :class:`AttemptLimit` counts the wrong tries of a secret (the dashboard token, the tablet's
+  pairing code) per remote address, each logged with its address: ``max_failures`` per
+  ``window_s`` are free; past them the tablet's code is refused unchecked until the window has slid
+  past the oldest, and the dashboard's token waits before it is checked (longer with each wrong
+  one), so that others on the experimenter's address cannot lock the right token out.
 """
 
 from __future__ import annotations
@@ -76,15 +80,34 @@ def write_private(path: Path, text: str) -> None:
 def dashboard_token(study: Path, override: str | None = None) -> str:
     """``override`` if given; else the study's stored token, created (random) on first use. A token
     file that is a symbolic link, or that others may write, is refused (:class:`UnsafeTokenFile`):
-    whoever can write it chooses the token of the dashboard that moves the arm."""
+    whoever can write it chooses the token of the dashboard that moves the arm. One that others may
+    read is made owner-only, as the writer's lock file is, with a warning: whoever read it knows the
+    token."""
     if override:
         return override
     path = Path(study) / TOKEN_FILE
     token = (read_private(path) or "").strip()
+    if token and (mode := path.stat().st_mode & 0o777) & 0o077:
+        try:
+            path.chmod(0o600)
+        except OSError as exc:
+            raise UnsafeTokenFile(f"{path} is readable by others (mode {mode:o}) and this user "
+                                  f"cannot make it owner-only ({exc.strerror}): chmod 600 it, or "
+                                  "delete it and serve makes a new one") from None
+        log.warning("%s was readable by others (mode %o): made owner-only (600). Anyone who read "
+                    "it knows the token: delete it for a new one", path, mode)
     if not token:
         token = secrets.token_urlsafe(9)
         write_private(path, token + "\n")
     return token
+
+
+def check_access_files(study: Path) -> None:
+    """Refuse (:class:`UnsafeTokenFile`, naming the file and what to do) a study whose known-browser
+    files are symbolic links or writable by others, before any page is served: read while serving,
+    they would fail every page's start."""
+    for name in (DASHBOARD_BROWSERS_FILE, TABLET_BROWSER_FILE):
+        read_private(Path(study) / name)
 
 
 class KnownBrowsers:
@@ -99,7 +122,13 @@ class KnownBrowsers:
         return hashlib.sha256(f"{self.salt}\n{browser}".encode()).hexdigest()
 
     def _stored(self) -> list[str]:
-        return (read_private(self.path) or "").split()
+        """The stored hashes; none from a file planted since the start (:func:`check_access_files`):
+        it grants nothing, and the next :meth:`remember` replaces it."""
+        try:
+            return (read_private(self.path) or "").split()
+        except UnsafeTokenFile as exc:
+            log.error("%s; no browser is known by it until one is remembered anew", exc)
+            return []
 
     def known(self, browser: str | None) -> bool:
         if browser is None:
@@ -116,8 +145,17 @@ class KnownBrowsers:
             write_private(self.path, "\n".join(stored[-self.keep:]) + "\n")
 
 
+#: Wrong tries past the free ones make each further try from that address wait: FIRST_WAIT_S for
+#: the first, doubled with each wrong one, at most MAX_WAIT_S [s].
+FIRST_WAIT_S, MAX_WAIT_S = 1.0, 8.0
+
+
 class AttemptLimit:
-    """Rate-limited checks of a secret, per remote address (thread-safe)."""
+    """Checks of a secret, per remote address (thread-safe): ``max_failures`` wrong ones per
+    ``window_s`` are free; past them, :meth:`check` refuses the address's tries unchecked (the
+    tablet's code, which is replaced after CODE_GUESSES wrong ones anyway), while :meth:`wait_s`
+    says how long a try should wait before :meth:`judge` checks it (the dashboard's token: a right
+    token is never refused, only slowed down with the wrong ones around it)."""
 
     def __init__(self, max_failures: int = 5, window_s: float = 60.0,
                  clock: Callable[[], float] = time.monotonic, what: str = "code",
@@ -130,13 +168,31 @@ class AttemptLimit:
         #: every wrong attempt so far
         self.wrong = 0
 
+    def _recent(self, source: str, now: float) -> deque[float]:
+        """``source``'s wrong tries within the window (under the lock)."""
+        failures = self._failures.setdefault(source, deque())
+        while failures and now - failures[0] >= self.window_s:
+            failures.popleft()
+        return failures
+
+    def recent(self, source: str) -> int:
+        """How many wrong tries ``source`` made within the window."""
+        with self._lock:
+            return len(self._recent(source, self._clock()))
+
+    def wait_s(self, source: str) -> float:
+        """How long a try from ``source`` waits before it is checked: 0 while its wrong tries in the
+        window are fewer than ``max_failures``, then FIRST_WAIT_S doubled with each further one, at
+        most MAX_WAIT_S."""
+        beyond = self.recent(source) - self.max_failures
+        return 0.0 if beyond < 0 else min(FIRST_WAIT_S * 2.0 ** beyond, MAX_WAIT_S)
+
     def check(self, source: str, given: str, secret: str) -> str | None:
-        """None if ``given`` is ``secret``; otherwise why not, for the screen."""
+        """None if ``given`` is ``secret``; otherwise why not, for the screen: past ``max_failures``
+        wrong tries in the window, refused unchecked until the window slides past the oldest."""
         now = self._clock()
         with self._lock:
-            failures = self._failures.setdefault(source, deque())
-            while failures and now - failures[0] >= self.window_s:
-                failures.popleft()
+            failures = self._recent(source, now)
             if len(failures) >= self.max_failures:
                 self.refused_unchecked += 1
                 wait = self.window_s - (now - failures[0])
@@ -145,12 +201,23 @@ class AttemptLimit:
                                 "%d refused so far)", self.role, self.what, source, len(failures),
                                 self.window_s, self.refused_unchecked)
                 return f"Too many wrong attempts from this address: try again in {wait:.0f} s."
+        refusal = self.judge(source, given, secret)
+        if refusal is None:
+            with self._lock:
+                self._recent(source, now).clear()  # a typo before the right code is no guessing
+        return refusal
+
+    def judge(self, source: str, given: str, secret: str) -> str | None:
+        """None if ``given`` is ``secret``; otherwise "Wrong …", counted and logged with its
+        address."""
+        now = self._clock()
+        with self._lock:
+            failures = self._recent(source, now)
             if secrets.compare_digest(given.encode(), secret.encode()):
-                failures.clear()
                 log.info("%s: %s accepted from %s", self.role, self.what, source)
                 return None
             failures.append(now)
             self.wrong += 1
-            log.warning("%s: wrong %s from %s (%d of %d allowed in %g s)", self.role, self.what,
-                        source, len(failures), self.max_failures, self.window_s)
+            log.warning("%s: wrong %s from %s (%d in %g s; %d free)", self.role, self.what,
+                        source, len(failures), self.window_s, self.max_failures)
             return f"Wrong {self.what}."

@@ -70,15 +70,21 @@ class Autopilot:
         self._closing.set()
         self._wake.set()
 
-    def join(self, timeout: float) -> None:
-        self._thread.join(timeout)
+    def join(self) -> None:
+        """Wait for the worker's end (after :meth:`stop` and the runner's refusal of every job)."""
+        self._thread.join()
 
     def _work(self) -> None:
         while not self._closing.is_set():
             self._wake.wait()
             self._wake.clear()
-            while not self._closing.is_set() and self._next_job():
-                pass
+            try:
+                while not self._closing.is_set() and self._next_job():
+                    pass
+            except RefusedAction as exc:  # the session closed under the job (SessionClosed), or
+                if self._closing.is_set():  # another refusal: looked at again on the next view
+                    return
+                log.warning("the session worker's job was refused: %s", exc)
 
     def _next_job(self) -> bool:
         """Act once on the latest view; True if it should look again at once."""

@@ -19,6 +19,7 @@ from app.protocol.state import Step
 from app.session.config import LabConfig
 from app.session.rehearsal import HandKind, Rehearsal
 from app.session.runner import RunnerView, SessionRunner
+from app.session.signals import uninterrupted
 from robot_io.clock import resolve_priority
 from robot_io.errors import ConfigError
 
@@ -110,12 +111,18 @@ def open_runner(args: argparse.Namespace, lab: LabConfig, *, realtime: bool,
     priority = rig_priority(args, lab, realtime=realtime)
     rehearsal = (Rehearsal(lab, hand=rehearsed_hand(args, lab), series=args.rehearse_series)
                  if args.rehearse else None)
-    runner = SessionRunner(args.study, lab, realtime=realtime, rehearsal=rehearsal,
-                           realtime_priority=priority, auto_experimenter=auto_experimenter)
+    try:
+        runner = SessionRunner(args.study, lab, realtime=realtime, rehearsal=rehearsal,
+                               realtime_priority=priority, auto_experimenter=auto_experimenter)
+    except BaseException:  # a signal or a failure before the runner owns the rehearsal
+        if rehearsal is not None:
+            rehearsal.close()
+        raise
     try:
         yield runner
     finally:
-        runner.close()
+        with uninterrupted("closing the session"):
+            runner.close()
 
 
 def wait_until_done(runner: SessionRunner, progress: bool) -> RunnerView:

@@ -1,10 +1,12 @@
 """One configuration file for a lab (``--config lab.toml``), read by ``serve``, ``run-session``,
-``simulate-trial`` and ``check-devices``: the controller's tables (``[arm]``, ``[cycle]``, ``[dmp]``,
-``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``, ``[gripper]``,
-``[release]``, see :mod:`robot_io.config`) plus ``[protocol]`` (the study's counts, Sect. V-C),
-``[learner]`` (acquisition, θ box, recommendation, prior) and ``[record]`` (the study's LSL
-outlets). Every key has a documented default (the paper's where it has one); an unknown table or key
-is an error naming it.
+``simulate-trial`` and ``check-devices``: the controller's tables (``[arm]``, ``[cycle]``,
+``[dmp]``, ``[scene]``, ``[safety]``, ``[hand]``, ``[loop]``, ``[ur]``, ``[hand_source]``,
+``[gripper]``, ``[release]``, see :mod:`robot_io.config`) plus ``[protocol]`` (the study's counts,
+Sect. V-C), ``[learner]`` (acquisition, θ box, recommendation, prior), ``[record]`` (the study's LSL
+outlets), ``[recording]`` (the session's own XDF recording), ``[safety_record]`` (each trial's
+safety record and the lab's limits) and ``[study]`` (the design and counterbalancing of new
+participants). Every key has a documented default (the paper's where it has one; ``[study]`` has
+none: without it there is no plan); an unknown table or key is an error naming it.
 ``docs/hardware.md`` has a full example.
 """
 
@@ -15,7 +17,7 @@ import re
 import stat
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import annotated_types
 from pydantic import (
@@ -29,6 +31,8 @@ from pydantic import (
 )
 from pydantic.fields import FieldInfo
 
+from app.protocol.design import Assignment, StudyPlan
+from app.protocol.safety_record import SafetyRecordSettings
 from app.protocol.study import PRESETS, StudyConfig
 from robot_io.config import ControllerConfig
 from robot_io.errors import ConfigError
@@ -152,8 +156,46 @@ class RecordSettings(BaseModel):
         return value
 
 
+class RecordingSettings(BaseModel):
+    """[recording]: the XDF recording the session itself starts and stops (docs/hardware.md, "The
+    session's own recording"): none, LabRecorder's engine in a process of the session
+    (``labrecorder``, the ``record`` extra), or the lab's LabRecorder over its remote control port
+    (``labrecorder_rcs``)."""
+
+    model_config = _FROZEN
+
+    kind: Literal["none", "labrecorder", "labrecorder_rcs"] = Field(
+        "none", description="none: the session records nothing itself; labrecorder: it records with "
+                            "LabRecorder's engine into the study folder; labrecorder_rcs: it drives "
+                            "the lab's LabRecorder over its remote control (EnableRCS)")
+    streams: list[Annotated[str, Field(min_length=1, max_length=200)]] = Field(
+        [], max_length=50, description="the lab's streams to record beside the session's own, each "
+                                       "by its name or its type (e.g. \"Mocap\", \"EEG\")")
+    task: str = Field("handover", description="the BIDS task label of the file names (letters and "
+                                              "digits)")
+    resolve_s: float = Field(2.0, gt=0, le=30, description="how long the lab's streams are looked for "
+                                                          "when the session opens [s]")
+    start_timeout_s: float = Field(4.0, gt=0, le=30, description="the file must appear within this "
+                                                                "long of the start, or the session "
+                                                                "does not open [s]")
+    stall_s: float = Field(2.0, gt=0, le=60, description="while a trial streams, a file that does not "
+                                                        "grow for this long is warned about [s]")
+    rcs_host: str = Field("127.0.0.1", min_length=1, description="labrecorder_rcs: the machine "
+                                                                "LabRecorder runs on")
+    rcs_port: Annotated[int, _whole_number_in(1, 65535)] = Field(
+        22345, description="labrecorder_rcs: LabRecorder's remote control port (its RCSPort)")
+
+    @field_validator("task")
+    @classmethod
+    def _label(cls, value: str) -> str:
+        if not re.fullmatch(r"[A-Za-z0-9]{1,64}", value):
+            raise ValueError(f"task = {value!r}: must be 1 to 64 letters or digits (a BIDS label)")
+        return value
+
+
 #: The tables of a lab config that are not the controller's.
-APPLICATION_TABLES = frozenset({"protocol", "learner", "record"})
+APPLICATION_TABLES = frozenset({"protocol", "learner", "record", "recording", "safety_record",
+                                "study"})
 
 
 class LabConfig(ControllerConfig):
@@ -162,15 +204,32 @@ class LabConfig(ControllerConfig):
     protocol: ProtocolSettings = ProtocolSettings()
     learner: LearnerSettings = LearnerSettings()
     record: RecordSettings = RecordSettings()
+    #: [study]: the design and the counterbalanced assignment of new participants (None: no plan,
+    #: the experimenter chooses every scenario; app.protocol.design)
+    study: StudyPlan | None = None
+    recording: RecordingSettings = RecordingSettings()
+    safety_record: SafetyRecordSettings = SafetyRecordSettings()
+
+    @model_validator(mode="after")
+    def _records_its_outlets(self) -> LabConfig:
+        """The session's recording always holds its own streams."""
+        if self.recording.kind != "none" and not self.record.lsl_outlets:
+            raise ValueError(f"[recording] kind = {self.recording.kind!r} records the session's LSL "
+                             "outlets: set [record] lsl_outlets = true, or [recording] kind = "
+                             "\"none\"")
+        return self
 
     @property
     def controller(self) -> ControllerConfig:
         return ControllerConfig.model_validate(self.model_dump(exclude=set(APPLICATION_TABLES)))
 
-    def study_config(self, scenario: Scenario, seed: int) -> StudyConfig:
-        """A new participant's session plan under this configuration."""
+    def study_config(self, scenario: Scenario, seed: int,
+                     assignment: Assignment | None = None) -> StudyConfig:
+        """A new participant's session plan under this configuration (``assignment``: what the
+        study plan proposed for it)."""
         return StudyConfig(scenario=scenario, seed=seed, controller=self.controller,
-                           **self.protocol.counts(), **self.learner.model_dump())
+                           assignment=assignment, **self.protocol.counts(),
+                           **self.learner.model_dump())
 
     def with_rig(self, **tables: BaseModel) -> LabConfig:
         """A copy with some controller tables replaced (rehearsal, ``--ur-host``)."""

@@ -18,18 +18,21 @@ import numpy as np
 
 from app.learning.worker import warm_up
 from app.protocol.auto import rate_once
+from app.protocol.design import Participant, PlanStatus
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
+from app.protocol.learning_words import learning_line, recorded_stop, stop_headline
+from app.protocol.safety_record import over_limits
 from app.protocol.simulated_participant import SimulatedParticipant
-from app.protocol.state import Step
+from app.protocol.state import PlannedTheta, Step
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig
 from app.session.drawing import with_links
-from app.session.learning_words import learning_line
 from app.session.lsl_outlets import StudyOutlets
 from app.session.opening import open_session, trial_config
 from app.session.overview import ParticipantSummary, StudyOverview
-from app.session.replay import stored_rows
+from app.session.rcs_client import RecorderError
+from app.session.recording import RecordingStatus, SessionRecording
 from app.session.view import SessionFacts, ThetaStar
 from robot_io.control.loop import TrialRecord
 from robot_io.hands.simulated_hand import Scenario
@@ -38,6 +41,7 @@ from robot_io.rig.stream import SampleStream
 from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError
 from session_store.models import Trial
+from session_store.sample_rows import stored_rows
 from session_store.vocabulary import Actor
 
 log = logging.getLogger(__name__)
@@ -55,6 +59,7 @@ class EngineSide:
         self.study, self.lab, self.realtime = study, lab, realtime
         self.engine: SessionEngine | None = None
         self.outlets: StudyOutlets | None = None  # the open session's LSL outlets ([record])
+        self.recording: SessionRecording | None = None  # its XDF recording ([recording])
         self.failed: str | None = None  # storing failed, or the simulated experimenter gave up
         self._participant: SimulatedParticipant | None = None
         self._lock: writer_lock.WriterLock | None = None
@@ -79,24 +84,15 @@ class EngineSide:
             raise RefusedAction("no participant is open: create or resume one first")
         return self.engine
 
-    def require_current(self, interaction: int, step: Step) -> SessionEngine:
-        """The engine, if it still waits for ``step`` of ``interaction`` (a stale screen's action
-        is refused, so a reload or a double tap never rates twice)."""
-        engine = self.require()
-        slot = engine.state.slot
-        if engine.state.step is not step or slot is None or slot.interaction != interaction:
-            raise RefusedAction(f"refused: interaction {interaction} is not waiting for "
-                                f"'{step.value}' (the session waits for "
-                                f"'{engine.state.step.value}')")
-        return engine
-
     def open(self, code: str, scenario: Scenario | None, seed: int | None, *, identity: dict,
              confirm_rig_change: bool, confirm_seed_reuse: bool,
              open_rig: Callable[[StudyConfig], DeviceReport], auto: bool, blind: bool | None,
-             stream: Callable[[], SampleStream | None]) -> None:
+             stream: Callable[[], SampleStream | None],
+             notify: Callable[[str], None] = log.warning) -> None:
         """Open ``code``'s session (:func:`~app.session.opening.open_session`) and record the
         devices it runs on, the simulated participant's switch (``auto``) and the validation's
-        blinding (``blind``; None: no dashboard). ``stream``: the rig's samples, for the outlets."""
+        blinding (``blind``; None: no dashboard). ``stream``: the rig's samples, for the outlets;
+        ``notify``: where the recording's warnings go (any thread)."""
         if self.engine is not None:
             raise RefusedAction(f"participant {self.engine.participant.code!r} is open: end "
                                 "that session first (End session)")
@@ -106,7 +102,7 @@ class EngineSide:
             open_rig=open_rig)
         lab = self.lab.model_dump(mode="json")
         used = {**trial_config(self.lab, engine.config).model_dump(mode="json"),
-                **{table: lab[table] for table in ("protocol", "learner")}}
+                **{table: lab[table] for table in ("protocol", "learner", "safety_record")}}
         engine.record_devices(used, devices.model_dump(mode="json"), identity,
                               changed_from=changed)
         engine.switch_simulated_participant(auto)
@@ -116,6 +112,7 @@ class EngineSide:
             engine.resume_session(REOPEN_REASON)
         self.engine = engine
         self._open_outlets(engine, devices.rate_hz, stream)
+        self._open_recording(engine, notify)
         self._participant = SimulatedParticipant(engine.config.seed)
         if engine.state.step is not Step.DONE:
             warm_up()  # the learner's imports run while the experimenter pairs the tablet
@@ -138,6 +135,30 @@ class EngineSide:
             return
         engine.listeners.append(self.outlets.on_event)
 
+    def _open_recording(self, engine: SessionEngine, notify: Callable[[str], None]) -> None:
+        """The session's recording, when the lab has one ([recording]): it starts before the first
+        trial, or the session does not open (its file must appear); on simulated time there are
+        no outlets and no LSL time to record."""
+        if self.lab.recording.kind == "none":
+            return
+        if self.outlets is None:
+            log.warning("[recording] kind = %r: nothing is recorded, the session has no LSL "
+                        "outlets (simulated time, or they could not open)", self.lab.recording.kind)
+            return
+        try:
+            self.recording = SessionRecording(self.lab.recording, self.study,
+                                              engine.participant.code, self.outlets.source_ids,
+                                              notify)
+        except RecorderError as exc:
+            self.close()
+            raise RefusedAction(f"the session's recording did not start: {exc}") from exc
+        engine.listeners.append(self.recording.on_event)
+
+    def recording_status(self) -> RecordingStatus | None:
+        """The recording now (any thread: a single reference, its status immutable)."""
+        recording = self.recording
+        return None if recording is None else recording.status()
+
     def end(self, trial_running: bool, close_rig: Callable[[], None]) -> str:
         """End the open session (paused if not complete) and close its rig; its code."""
         engine = self.require()
@@ -154,7 +175,11 @@ class EngineSide:
         return code
 
     def close(self) -> None:
-        """Close the outlets, the engine and its store, and release the writer lock."""
+        """Stop the recording (it takes the last markers first), close the outlets, the engine and
+        its store, and release the writer lock."""
+        if self.recording is not None:
+            self.recording.close()
+            self.recording = None
         if self.outlets is not None:
             self.outlets.close()
             self.outlets = None
@@ -182,7 +207,7 @@ class EngineSide:
         engine = self.engine
         if engine is None or engine.state.running_trial != trial_index:
             return None
-        ended = engine.end_trial(trial_index, record, reason, actor)
+        ended = engine.end_trial(trial_index, record, reason, actor, self.lab.safety_record)
         self._overview = None
         return ended
 
@@ -191,6 +216,18 @@ class EngineSide:
         if auto and self.engine is not None and self.engine.state.step is step:
             assert self._participant is not None, "opened with the engine, dropped when it ends"
             rate_once(self.engine, self._participant)
+
+    def plan(self, timeout: float) -> tuple[PlannedTheta, str | None]:
+        """Plan the current interaction's θ (:meth:`SessionEngine.plan_next`), and the news it
+        brings for the experimenter: that learning stopped early, and why (None: no news)."""
+        engine = self.require()
+        before = engine.state.stopped_after
+        planned = engine.plan_next(timeout)
+        headline = stop_headline(engine.state)
+        if before is not None or headline is None:
+            return planned, None
+        self._overview = None  # the Study table's count follows the shortened plan
+        return planned, f"{headline}: {recorded_stop(engine.store.events())}"
 
     def planning(self, preparing: bool, fault: str | None) -> None:
         self._learner = (preparing, fault)
@@ -234,6 +271,15 @@ class EngineSide:
                               self._study_overview.lines(engine.store, engine.participant.code))
         return self._overview
 
+    def plan_status(self) -> PlanStatus | None:
+        """The study against its plan (``[study]``): the groups' counts, the next proposal, the
+        deviations (None: the lab has no plan)."""
+        if self.lab.study is None:
+            return None
+        return PlanStatus.of(self.lab.study, [
+            Participant(code=line.code, scenario=line.scenario, assignment=line.assignment)
+            for line in self.overview() if line.scenario is not None])
+
     def facts(self) -> SessionFacts | None:
         """The open session's part of the view (None: none open)."""
         engine = self.engine
@@ -246,9 +292,21 @@ class EngineSide:
                 ThetaStar(after_interaction=r.after_interaction, a=r.theta_star_a,
                           delta=r.theta_star_delta, k=r.theta_star_k)
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
-            self._learning = learning_line(engine)
+            self._learning = learning_line(
+                state, engine.config, engine.settledness, recorded_stop(engine.store.events()),
+                engine.store.rows("learner_snapshots", order_by="after_interaction"), engine.gain)
+        trials = engine.store.rows("trials", order_by="trial_index")
         return SessionFacts(
             code=engine.participant.code, scenario=engine.config.scenario, seed=engine.config.seed,
-            state=state.model_copy(deep=True), interactions=engine.config.interactions,
-            trials=engine.store.rows("trials", order_by="trial_index"),
-            theta_star=self._theta_star, posterior=engine.posterior_slices, learning=self._learning)
+            state=state.model_copy(deep=True), trials=trials, theta_star=self._theta_star,
+            posterior=engine.posterior_slices, learning=self._learning,
+            safety_flags=self._safety_flags(trials))
+
+    def _safety_flags(self, trials: list[Trial]) -> list[str]:
+        """Each trial over the lab's [safety_record] limits, in words (newest first)."""
+        flags = []
+        for trial in reversed(trials):
+            over = over_limits(trial.model_dump(), self.lab.safety_record)
+            if over:
+                flags.append(f"trial {trial.trial_index}: {'; '.join(over)}")
+        return flags

@@ -104,14 +104,10 @@ class RobotFeed:
         if stream is None or self._go is None:
             return
         trial, go = self._go
-        if stream.trial_index != trial:
+        rows = stream.rows_of(trial, self._pushed)  # none once the next trial began
+        if len(rows) == 0:
             return
-        # the row being written is the last counted one; a finished trial's are all written
-        end = stream.count if stream.finished else stream.count - 1
-        rows = stream.rows[self._pushed:end].copy()
-        if stream.trial_index != trial or len(rows) == 0:
-            return  # the next trial began meanwhile: its rows are not this one's
-        self._pushed = end
+        self._pushed += len(rows)
         rows = rows[np.isfinite(rows[:, T])]
         chunk = np.column_stack([np.full(len(rows), float(trial)), rows[:, ROBOT_INDEX]])
         self._outlet.push_chunk(chunk, (go + rows[:, T]).tolist())
@@ -124,12 +120,14 @@ class StudyOutlets:
                  samples: Callable[[], SampleStream | None]) -> None:
         session = f"{code}:{created_at}"
         self.robot_name, self.markers_name = f"{settings.lsl_name}-robot", f"{settings.lsl_name}-markers"
+        #: the streams' source_ids, which name this session (the session's recording finds them by it)
+        self.source_ids = [f"{self.markers_name}:{session}", f"{self.robot_name}:{session}"]
         self._markers = pylsl.StreamOutlet(stream_info(
             self.markers_name, MARKER_TYPE, (("marker", "JSON"),), pylsl.IRREGULAR_RATE, pylsl.cf_string,
-            f"{self.markers_name}:{session}", code))
+            self.source_ids[0], code))
         self._robot = pylsl.StreamOutlet(stream_info(
             self.robot_name, ROBOT_TYPE, ROBOT_CHANNELS, rate_hz, pylsl.cf_double64,
-            f"{self.robot_name}:{session}", code))
+            self.source_ids[1], code))
         self.feed = RobotFeed(self._robot, samples)
         log.info("LSL outlets %r and %r for participant %s (%d Hz)", self.robot_name,
                  self.markers_name, code, rate_hz)

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
+from app.protocol.design import PlanStatus, plan_participants
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
 from app.protocol.recorded import describe_change, recorded_session
@@ -22,6 +23,7 @@ from robot_io.config import ControllerConfig
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.messages import DeviceReport
 from session_store import lock as writer_lock
+from session_store.catalog import stored_configs
 from session_store.paths import refuse_case_twin
 from session_store.store import ParticipantStore, participant_path
 
@@ -52,15 +54,17 @@ def trial_config(lab: LabConfig, session: StudyConfig) -> ControllerConfig:
 def open_session(study: Path, lab: LabConfig, identity: dict, code: str, scenario: Scenario | None,
                  seed: int | None, *, confirm_rig_change: bool, confirm_seed_reuse: bool,
                  open_rig: Callable[[StudyConfig], DeviceReport]) -> Opened:
-    """Resume ``code``'s session, or create it (with ``scenario``) if it has none; refused at once
-    while another writer holds the participant. A new session gets ``seed`` (a fresh random one
-    when None; one another participant has only with ``confirm_seed_reuse``). ``open_rig`` opens
+    """Resume ``code``'s session, or create it (with ``scenario``; None: the one the study plan
+    proposes) if it has none, with the plan's proposal recorded (``[study]``: app.protocol.design);
+    refused at once while another writer holds the participant. A new session gets ``seed`` (a
+    fresh random one when None; one another participant has only with ``confirm_seed_reuse``).
+    ``open_rig`` opens
     the rig for the session's plan before the engine (its devices); a session recorded on a rig other than
     ``identity`` is refused unless ``confirm_rig_change``."""
     exists = ParticipantStore.exists(study, code)
     if not exists:
         refuse_case_twin(study, code)
-    if not exists and scenario is None:
+    if not exists and scenario is None and lab.study is None:
         raise RefusedAction(f"participant {code!r} has no session yet: choose a scenario "
                             "to create one")
     with contextlib.ExitStack() as creation:
@@ -74,13 +78,23 @@ def open_session(study: Path, lab: LabConfig, identity: dict, code: str, scenari
                     "one, confirm the rig change (dashboard: 'Confirm a rig change'; "
                     "run-session: --accept-rig-change)")
         else:
-            # the plan is validated before anything is written (with the seed asked for, or
-            # 0); the seed is checked and the session created in one step for the study folder
-            assert scenario is not None, "a new session without a scenario is refused above"
-            config, changed = lab.study_config(scenario, seed or 0), None
+            # the session plan is validated before anything is written (with the scenario and
+            # seed asked for, or stand-ins); the seed and the study plan's next proposal are read,
+            # and the session created, in one step for the study folder
+            stand_in = scenario or (None if lab.study is None else lab.study.scenarios[0])
+            assert stand_in is not None, "a new session without a scenario or a plan is refused above"
+            config, changed = lab.study_config(stand_in, seed or 0), None
             creation.enter_context(writer_lock.creating_participant(study))
-            config = config.model_copy(
-                update={"seed": choose_seed(study, seed, confirm_seed_reuse)})
+            assignment = None if lab.study is None else PlanStatus.of(
+                lab.study, plan_participants(stored_configs(study))).next
+            if scenario is None:  # run-session or serve without --scenario: the plan's proposal
+                if assignment is None:
+                    raise RefusedAction(f"participant {code!r} has no session yet and every "
+                                        "session of the study plan is created: choose a scenario")
+                scenario = assignment.proposed
+            config = config.model_copy(update={
+                "scenario": scenario, "assignment": assignment,
+                "seed": choose_seed(study, seed, confirm_seed_reuse)})
         lock = writer_lock.reserve(participant_path(study, code))
         try:
             devices = open_rig(config)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from pydantic import BaseModel, ConfigDict
 
+from app.protocol.design import Assignment
 from app.protocol.state import Step
 from app.protocol.stored import stored_session
 from robot_io.hands.simulated_hand import Scenario
@@ -38,10 +39,11 @@ class ParticipantSummary(BaseModel):
     code: str
     scenario: Scenario | None = None
     completed: int = 0  # handovers completed
-    interactions: int = 0  # handovers in the plan
+    interactions: int = 0  # handovers in the plan as it stands (an early stop skips some)
     status: SessionStatus
     last_activity: str | None = None  # UTC ISO-8601 time of the last event
     detail: str = ""  # why it is unreadable, or the pause's reason
+    assignment: Assignment | None = None  # what the study plan proposed for it ([study])
 
 
 def summarise(study: Path, code: str, open_code: str | None = None) -> ParticipantSummary:
@@ -65,7 +67,7 @@ def summary_of(store: ParticipantStore, code: str, open_code: str | None = None)
               SessionStatus.PAUSED if state.paused else SessionStatus.INTERRUPTED)
     return ParticipantSummary(
         code=code, scenario=config.scenario, completed=state.completed,
-        interactions=config.interactions, status=status,
+        interactions=state.interactions, status=status, assignment=config.assignment,
         last_activity=events[-1].at if events else None,
         detail=paused[-1].payload.get("reason", "") if state.paused and paused else "")
 

@@ -1,11 +1,13 @@
 """One tablet per session: which page on the tablet port is the participant's tablet.
 
 The dashboard shows a short pairing code; a page on the tablet port becomes the study's tablet when
-the code is typed on it. The pairing belongs to the device's address, so the paired tablet stays
-paired across a reload (a new page from the same address); a page from any other address must type
-the code, which moves the session to it (a tablet swapped mid-study, or taken over: the dashboard's
-status line says so from then on). Of several open pages of the paired address, the one that
-connected first is the tablet; every other page is offered nothing to rate. Wrong codes are
+the code is typed on it. The pairing belongs to the browser it was typed in (the id its page keeps,
+app/ui/client_page.py; a page without one: to its address), so the paired tablet stays paired across
+a reload; a page of any other browser must type the code — another browser behind the same address
+(a NAT, a second device on the lab's network) too — which moves the session to it (a tablet swapped
+mid-study, or taken over: the dashboard's status line says so from then on). Of several open pages of
+the paired browser, the one that connected first is the tablet; every other page is offered nothing
+to rate. Wrong codes are
 rate-limited per address (:class:`~app.session.access.AttemptLimit`), and after
 :data:`CODE_GUESSES` wrong codes from all addresses together the code is replaced by a new one (the
 dashboard shows it and says why): however many addresses guess, one code is guessed at most that
@@ -56,7 +58,7 @@ class TabletStatus(BaseModel):
     code: str
     pages: int = 0  # pages open on the tablet port
     paired: bool = False  # one of them is the paired tablet
-    address: str | None = None  # the paired device's address
+    address: str | None = None  # the paired device's address (None: none paired yet)
     taken_over_from: str | None = None  # the address a later pairing moved the session from
     wrong_codes: int = 0  # recent wrong codes of addresses not paired since (WRONG_CODE_ALERT_S)
     guessers: int = 0  # the addresses they came from
@@ -84,6 +86,9 @@ class TabletStatus(BaseModel):
     def blocker(self) -> str | None:
         """Why a trial may not start as far as the tablet is concerned, in the experimenter's words
         (None: it may)."""
+        if self.pages == 0 and self.address is not None:
+            return ("the paired tablet's page is closed: open the tablet page on it again (no code "
+                    f"needed; another device types the code {self.code})")
         if self.pages == 0:
             return f"no tablet is connected: open the tablet page and type the code {self.code}"
         if not self.paired:
@@ -105,6 +110,7 @@ class TabletPairing:
         self._browsers: dict[int, str | None] = {}  # page → its browser's id
         self._known = known
         self._address: str | None = None
+        self._browser: str | None = None  # the paired browser's id (None: its page had none)
         self._taken_over_from: str | None = None
         self._guessed = 0  # wrong codes since the code was made
         self._code_changes = 0
@@ -118,10 +124,10 @@ class TabletPairing:
         restart or from a new address (the same browser: not a take-over)."""
         with self._lock:
             self._pages[page], self._browsers[page] = address, browser
-            if (self._known is None or address == self._address
+            if (self._known is None or (address, browser) == (self._address, self._browser)
                     or not self._known.known(browser)):
                 return False
-            self._address = address
+            self._address, self._browser = address, browser
             log.info("tablet paired again: page %d at %s is the browser paired before", page,
                      address)
             return True
@@ -151,7 +157,7 @@ class TabletPairing:
                 if self._address is not None and self._address != address:
                     self._taken_over_from = self._address
                     log.warning("tablet taken over: from %s to %s", self._address, address)
-                self._address = address
+                self._address, self._browser = address, self._browsers.get(page)
                 self._wrong = [(when, a) for when, a in self._wrong if a != address]
                 if self._known is not None:
                     self._known.remember(self._browsers.get(page))
@@ -160,18 +166,26 @@ class TabletPairing:
                 log.info("tablet paired: page %d at %s", page, address)
             return refusal
 
+    def _of_tablet(self, page: int) -> bool:
+        """Whether ``page`` is of the paired browser (of its address, if it paired with no id)."""
+        if self._address is None or page not in self._pages:
+            return False
+        if self._browser is not None:
+            return self._browsers.get(page) == self._browser
+        return self._pages[page] == self._address
+
     def role(self, page: int) -> Literal["tablet", "unused", "pair"]:
-        """What ``page`` is: the study's tablet (the first open page of the paired address),
-        another page of that device ("not in use"), or a page that may pair with the code."""
+        """What ``page`` is: the study's tablet (the first open page of the paired browser),
+        another page of that browser ("not in use"), or a page that may pair with the code."""
         with self._lock:
-            tablet = next((p for p, a in self._pages.items() if a == self._address), None)
+            tablet = next((p for p in self._pages if self._of_tablet(p)), None)
             if page == tablet:
                 return "tablet"
-            return "unused" if self._pages.get(page) == self._address else "pair"
+            return "unused" if self._of_tablet(page) else "pair"
 
     def status(self) -> TabletStatus:
         with self._lock:
-            paired = any(a == self._address for a in self._pages.values())
+            paired = any(self._of_tablet(p) for p in self._pages)
             now = self._clock()
             self._wrong = [(when, a) for when, a in self._wrong if now - when < WRONG_CODE_ALERT_S]
             return TabletStatus(code=self.code, pages=len(self._pages), paired=paired,

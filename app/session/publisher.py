@@ -11,9 +11,10 @@ A view is published two ways, and the difference is whether it waits for the eng
   engine's part of the view shown, with the devices' status as it is now. It never waits for the
   engine thread, which may be busy with the learner for up to a minute.
 
-Any thread publishes; the view shown and the subscribers are changed only under the publishing
-lock, which the engine thread never takes (a subscriber may wait for the engine thread), and the
-events only under their own lock (docs/architecture.md, "Threads and who owns what")."""
+Any thread but the engine thread publishes; the view shown and the subscribers are changed only
+under the publishing lock, which the engine thread never takes (a subscriber may wait for the engine
+thread: checked, ``forbid`` raises on it), and the events only under their own lock
+(docs/architecture.md, "Threads and who owns what")."""
 
 from __future__ import annotations
 
@@ -23,6 +24,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 
+from app.session.engine_thread import SessionClosed
 from app.session.view import RunnerView, Status, with_news
 
 log = logging.getLogger(__name__)
@@ -35,10 +37,11 @@ Listener = Callable[[RunnerView], None]
 
 class Publisher:
     """``make`` makes a numbered view on the engine thread (and waits for it); ``status`` reads the
-    devices' status without it."""
+    devices' status without it; ``forbid(what)`` raises when called on the engine thread."""
 
-    def __init__(self, make: Callable[[], RunnerView], status: Callable[[], Status]) -> None:
-        self._make, self._status = make, status
+    def __init__(self, make: Callable[[], RunnerView], status: Callable[[], Status],
+                 forbid: Callable[[str], None]) -> None:
+        self._make, self._status, self._forbid = make, status, forbid
         self._publishing = threading.RLock()
         self._listeners: list[Listener] = []
         self._view = RunnerView()
@@ -52,6 +55,7 @@ class Publisher:
         return self._view
 
     def subscribe(self, listener: Listener) -> None:
+        self._forbid("subscribing to the views (the publishing lock)")
         with self._publishing:
             self._listeners.append(listener)
 
@@ -67,10 +71,14 @@ class Publisher:
     def changed(self, message: str | None = None) -> None:
         """A change, with its ``message`` for the log (None: none): a new view made on the engine
         thread."""
+        self._forbid("publishing a change (the publishing lock)")
         self._log(message)
         if self._closed.is_set():
             return
-        view = self._make()
+        try:
+            view = self._make()
+        except SessionClosed:  # the session closed meanwhile: nothing more is shown
+            return
         with self._publishing:
             if view.version > self._view.version:  # else a view made later is already shown
                 self._notify(with_news(view, self._status()))
@@ -78,6 +86,7 @@ class Publisher:
     def news(self, message: str | None = None) -> None:
         """Device news, with its ``message`` for the log: published at once over the engine's part
         of the view shown, without waiting for the engine thread."""
+        self._forbid("publishing news (the publishing lock)")
         self._log(message)
         if not self._closed.is_set():
             with self._publishing:

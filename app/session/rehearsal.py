@@ -1,7 +1,7 @@
 """Rehearsal without hardware on the real code path (``serve --rehearse``, ``run-session --rehearse``).
 
 It starts the project's stand-in UR controller (:mod:`robot_io.standins.ur`) on a free loopback
-address and a hand publisher (:mod:`robot_io.hands.hand_publisher`) that plays the simulated participant's
+address and a hand publisher (:mod:`robot_io.standins.hand_publisher`) that plays the simulated participant's
 hand on LSL (or UDP, or as a rigid body of a stand-in NatNet server) and makes the stand-in pull on
 the object once the hand holds it at H. The lab configuration is pointed at them — ``[arm] kind =
 "ur"`` at that address, ``[hand_source]`` the publisher's stream, ``[gripper]`` the UR's tool output,
@@ -26,10 +26,13 @@ from typing import Literal
 import numpy as np
 
 from app.session.config import LabConfig
-from robot_io.config import ROBOTIQ_PORT, GripperConfig
+from robot_io.arms.kinds import ARMS
+from robot_io.grippers.gripper import GripperKind, ToolOutputKind
+from robot_io.grippers.kinds import GRIPPERS
+from robot_io.grippers.robotiq import ROBOTIQ_PORT, RobotiqSocketKind
 from robot_io.hands.config import NatNetSource, UDPSource
-from robot_io.hands.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.hands.simulated_hand import Scenario
+from robot_io.standins.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.standins.ur.control import ControlClient
 from robot_io.standins.ur.control_script import MOVEL
 from robot_io.standins.ur.standin import RTDE_PORT
@@ -77,24 +80,32 @@ def rehearsal_rig(rig: dict) -> dict:
             for table, values in rig.items()}
 
 
-def rehearsal_gripper(gripper: GripperConfig, host: str) -> GripperConfig:
+def rehearsal_gripper(gripper: GripperKind, host: str) -> RobotiqSocketKind | ToolOutputKind:
     """The lab's gripper on the stand-in at ``host``: a Robotiq on the stand-in's URCap socket; any
     other kind (none included) on the stand-in's tool output, as the rehearsal always drove it."""
-    if gripper.kind == "robotiq_socket":
+    if isinstance(gripper, RobotiqSocketKind):
         return gripper.model_copy(update={"host": host, "port": ROBOTIQ_PORT})
-    return gripper.model_copy(update={"kind": "tool_output"})
+    output = GRIPPERS.as_kind(gripper, "tool_output")
+    assert isinstance(output, ToolOutputKind), "the tool_output kind's model"
+    return output
 
 
-def gripper_moves(gripper: GripperConfig, events: list[str]) -> tuple[int, int]:
+def tool_output_of(gripper: GripperKind) -> ToolOutputKind:
+    """The tool output the stand-in watches: a tool-output gripper's, else the kind's default."""
+    return gripper if isinstance(gripper, ToolOutputKind) else ToolOutputKind(kind="tool_output")
+
+
+def gripper_moves(gripper: GripperKind, events: list[str]) -> tuple[int, int]:
     """How often the stand-in's events show the gripper opened and closed."""
-    if gripper.kind == "robotiq_socket":
+    if isinstance(gripper, RobotiqSocketKind):
         return (sum(event.startswith("robotiq: opening") for event in events),
                 sum(event.startswith("robotiq: closing") for event in events))
+    output = tool_output_of(gripper)
     opened = closed = 0
     previous = None
     for event in events:
         if event.startswith("tool digital outputs = "):
-            state = bool(int(event.rsplit(" ", 1)[1], 2) >> gripper.tool_output & 1) == gripper.open_level
+            state = bool(int(event.rsplit(" ", 1)[1], 2) >> output.tool_output & 1) == output.open_level
             if state != previous:
                 opened, closed = opened + state, closed + (not state)
             previous = state
@@ -129,7 +140,7 @@ class Rehearsal:
                 played = {"lsl_stream_name": stream, "resolve_timeout_s": resolve}
             source = lab.hand_source.as_kind(hand, **played)
             self.lab = lab.with_rig(
-                arm=lab.arm.model_copy(update={"kind": "ur"}),
+                arm=ARMS.as_kind(lab.arm, "ur"),
                 ur=lab.ur.model_copy(update={"host": self.host}),
                 hand_source=source,
                 gripper=rehearsal_gripper(lab.gripper, self.host))
@@ -160,8 +171,9 @@ class Rehearsal:
                                                       - scene.point("handover_point")),
                      pull_n=self.lab.hand.pull_n if taken else 0.0,
                      grasp_delay_s=self.lab.hand.grasp_delay_s,
-                     tool_output=self.lab.gripper.tool_output,
-                     open_level=self.lab.gripper.open_level, gripper=self.lab.gripper.kind)
+                     tool_output=tool_output_of(self.lab.gripper).tool_output,
+                     open_level=tool_output_of(self.lab.gripper).open_level,
+                     gripper=self.lab.gripper.kind)
 
     def play(self, scenario: Scenario, seed: int, go_monotonic: float) -> None:
         self.hand_publisher().play(scenario, seed, go_monotonic)

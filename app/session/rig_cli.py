@@ -13,6 +13,7 @@ import numpy as np
 
 from app.arguments import argument_type
 from app.session.config import load_lab_config
+from robot_io.arms.kinds import ARMS
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.theta import Theta
 
@@ -29,6 +30,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "simulate-trial", help="run one handover with the simulated hand and the mock arm",
         description="Run one handover of the simulated participant with the kinematic mock arm.")
     parser.add_argument("--scenario", required=True, type=argument_type(Scenario.parse),
+                        choices=list(Scenario),
                         help="straightforward or perturbed (Sect. V-A)")
     parser.add_argument("--theta", required=True, type=argument_type(Theta.parse), metavar="A,DELTA,K",
                         help="coupling θ = (a, δ, k); a in [1, 10], δ in [-1, 1], k in [0.01, 15]")
@@ -40,9 +42,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.add_argument("--plot", type=Path, metavar="FILE.png",
                         help="write the Fig. 4 style distance plot")
-    parser.add_argument("--arm", choices=("mock", "ur"),
-                        help="mock: the kinematic mock arm; ur: a UR over RTDE (real time, moves it!); "
-                             "default: [arm] kind of the config")
+    parser.add_argument("--arm", choices=tuple(ARMS),
+                        help="[arm] kind (robot_io.arms.kinds); mock: the kinematic mock arm; ur: a UR "
+                             "over RTDE (real time, moves it!); default: [arm] kind of the config")
     parser.add_argument("--ur-host", help="UR controller address (default: [ur] host of the config); "
                              "implies [arm] kind = ur")
     parser.add_argument("--samples", type=Path, metavar="FILE.npz", help="write the per-cycle samples")
@@ -116,18 +118,17 @@ def run_check_devices(args: argparse.Namespace) -> int:
     return 0 if ok else 1
 
 
-def _run_on_ur(config, args: argparse.Namespace):
-    from robot_io.arms.ur_arm import URArm
-    from robot_io.devices import ur_trial
+def _run_on_arm(config, args: argparse.Namespace):
+    from robot_io.devices import arm_trial
     from robot_io.hands.simulated_hand import SimulatedHand
 
-    arm = URArm(config.ur, config.safety)
+    arm = config.arm.connect(config)
     try:
         if args.rate is not None and args.rate != arm.rate_hz:
-            raise ValueError(f"--rate = {args.rate} but the controller at {config.ur.host} runs at "
+            raise ValueError(f"--rate = {args.rate} but the arm ({arm.describe()}) runs at "
                              f"{arm.rate_hz} Hz")
         hand = SimulatedHand(args.scenario, config.scene, config.hand, args.seed)
-        return ur_trial(config, args.theta, hand, arm)
+        return arm_trial(config, args.theta, hand, arm)
     finally:
         arm.close()
 
@@ -140,8 +141,8 @@ def run(args: argparse.Namespace) -> int:
     if args.rate is not None:
         config = config.model_copy(
             update={"loop": config.loop.model_copy(update={"rate_hz": args.rate})})
-    if config.arm.kind == "ur":
-        record = _run_on_ur(config, args)
+    if not config.arm.simulated:
+        record = _run_on_arm(config, args)
     else:
         record = simulate_trial(config, args.theta, args.scenario, args.seed, realtime=args.realtime)
     summary = record.summary

@@ -10,6 +10,8 @@ import time
 from pathlib import Path
 
 from app.arguments import argument_type
+from app.protocol.design import recorded_assignment
+from app.protocol.learning_words import recorded_stop
 from app.protocol.recorded import recorded_session
 from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
@@ -36,8 +38,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "simulated time unless --realtime. --resume continues an interrupted session.")
     run.add_argument("--study", type=Path, required=True, help="study folder (one .sqlite per code)")
     run.add_argument("--participant", required=True, help="pseudonymous participant code")
-    run.add_argument("--scenario", type=argument_type(Scenario.parse),
-                     help="straightforward or perturbed (required for a new session)")
+    run.add_argument("--scenario", type=argument_type(Scenario.parse), choices=list(Scenario),
+                     help="straightforward or perturbed (required for a new session, unless the "
+                          "--config has a [study] plan: then the plan's proposal; another choice "
+                          "is recorded as a deviation)")
     run.add_argument("--auto", action="store_true",
                      help="the simulated participant rates and answers (required headless)")
     run.add_argument("--seed", type=argument_type(parse_seed), default=None,
@@ -82,10 +86,11 @@ def run_session(args: argparse.Namespace) -> int:
     elif exists:
         raise StoreError(f"participant {args.participant!r} already has a session in "
                          f"{args.study}: add --resume to continue it")
-    elif args.scenario is None:
-        raise StoreError("--scenario is required for a new session")
     lab = load_lab_config(args.config)
-    simulated = lab.arm.kind == "mock" and lab.hand_source.kind == "simulated"
+    if not (exists or resume) and args.scenario is None and lab.study is None:
+        raise StoreError("--scenario is required for a new session (or a [study] plan in "
+                         "--config, which proposes it)")
+    simulated = lab.arm.simulated and lab.hand_source.simulated
     began = time.monotonic()
     try:
         with interruptible(), open_runner(
@@ -110,9 +115,12 @@ def run_session(args: argparse.Namespace) -> int:
     with reading(args.study, args.participant) as store:  # read, never written: a plain file stays
         counts = store.counts()
         snapshot = store.rows("learner_snapshots")[-1]
-        stopped = next((e.payload["reason"] for e in store.events()
-                        if e.kind == "learning_stopped"), None)
-    summary = {"participant": args.participant, "seed": view.seed, "completed": view.state.completed,
+        stopped = recorded_stop(store.events())
+        assignment = recorded_assignment(store.participant().config)
+    assert view.scenario is not None, "the view of an open session has its scenario"
+    summary = {"participant": args.participant, "scenario": view.scenario.value,
+               "study_plan": None if assignment is None else assignment.words(),
+               "seed": view.seed, "completed": view.state.completed,
                "rig": view.arm, "hand": view.hand,
                "theta_star": {"a": snapshot.theta_star_a, "delta": snapshot.theta_star_delta,
                               "k": snapshot.theta_star_k},
@@ -126,8 +134,12 @@ def run_session(args: argparse.Namespace) -> int:
         print(json.dumps(summary))
     else:
         star = summary["theta_star"]
-        print(f"{args.participant} (seed {view.seed}): {summary['completed']} handovers completed "
-              f"on {view.arm}; "
+        planned = "" if assignment is None else (
+            f"; study plan: {assignment.words()}" + (
+                "" if assignment.proposed is view.scenario else
+                f" — DEVIATION: ran {view.scenario.value}"))
+        print(f"{args.participant} ({view.scenario.value}, seed {view.seed}{planned}): "
+              f"{summary['completed']} handovers completed on {view.arm}; "
               f"θ* = (a {star['a']:.2f}, δ {star['delta']:.2f}, k {star['k']:.2f}); "
               f"{summary['seconds']} s; database {summary['database_bytes'] / 1e6:.1f} MB")
         if stopped is not None:

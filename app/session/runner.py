@@ -23,7 +23,6 @@ import itertools
 import logging
 import threading
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TypeVar
 
@@ -31,6 +30,7 @@ import numpy as np
 
 from app.learning.errors import LearningError
 from app.protocol.engine import TrialPlan
+from app.protocol.entries import Entry, EntryNotUsed, enter
 from app.protocol.errors import RefusedAction
 from app.protocol.state import Step
 from app.protocol.study import StudyConfig
@@ -39,16 +39,18 @@ from app.session.access import TABLET_BROWSER_FILE, KnownBrowsers
 from app.session.autopilot import Autopilot
 from app.session.config import LabConfig
 from app.session.engine_side import END_REASON, REOPEN_REASON, EngineSide
+from app.session.engine_thread import EngineThread, SessionClosed
 from app.session.faults import StagedFault
 from app.session.opening import rig_identity, trial_config
 from app.session.pairing import TabletPairing
 from app.session.publisher import Listener, Publisher
 from app.session.rehearsal import Rehearsal
 from app.session.supervisor import Recording, TrialSupervisor
-from app.session.view import RunnerView, Status, Waiting, build_view
+from app.session.view import RunnerView, Status, build_view
 from robot_io.clock import utc_of_monotonic
 from robot_io.config import SceneConfig
 from robot_io.control.loop import TrialRecord
+from robot_io.control.stages import current
 from robot_io.errors import RobotIOError
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.client import RigClient
@@ -87,8 +89,7 @@ class SessionRunner:
         self.lab = rehearsal.lab if rehearsal is not None else lab
         self.realtime = realtime
         self.auto_experimenter = auto_experimenter
-        self._executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="engine")
-        self._engine_thread = self._executor.submit(threading.get_ident).result()
+        self._engine = EngineThread()  # created here, closed last by close()
         self._side = EngineSide(study, self.lab, realtime=realtime)  # on the engine thread only
         self._made = itertools.count(1)  # views, numbered as they are made (on the engine thread)
         # the experimenter's switches, from any thread under the switches' lock (one read or write)
@@ -98,7 +99,8 @@ class SessionRunner:
         self._refusing_object = False
         self._pairing: TabletPairing | None = None  # set once, by attach_tablet before serving
         self._closing = threading.Event()
-        self._publisher = Publisher(lambda: self._call(self._make_view), self._status)
+        self._publisher = Publisher(lambda: self._call(self._make_view), self._status,
+                                    self._engine.forbid)
         self._supervisor = TrialSupervisor(
             Recording(stage=self._record_stage, trial_end=self._record_trial_end,
                       outlets=lambda: self._side.outlets, changed=self._publisher.changed,
@@ -183,7 +185,7 @@ class SessionRunner:
     def tablet_required(self) -> bool:
         """Whether a trial needs the paired tablet: always with a tablet screen, except when the
         simulated participant rates on a simulated rig (mock arm or rehearsal)."""
-        simulated_rig = self.rehearsal is not None or self.lab.arm.kind == "mock"
+        simulated_rig = self.rehearsal is not None or self.lab.arm.simulated
         return self._pairing is not None and not (self._auto_on() and simulated_rig)
 
     def _auto_on(self) -> bool:
@@ -206,15 +208,15 @@ class SessionRunner:
                       f"{plan.trial.interaction}, attempt {plan.trial.attempt})")
         return plan.trial
 
-    def object_loaded(self) -> None:
-        """The experimenter confirms the object is in the gripper."""
-        self._require_waiting("loaded").object_loaded()
-        self._changed("object loaded")
-
-    def go(self) -> None:
-        """The experimenter gives Go: the tablet's cue and the robot's start."""
-        self._require_waiting("go").go()
-        self._changed("Go")
+    def confirm(self, stage: str) -> None:
+        """The experimenter gives the confirmation the running trial's ``stage`` waits for (its
+        gate: Object loaded in prepare, Go in ready — the tablet's cue and the robot's start)."""
+        rig = self._supervisor.rig
+        gate = current().gate(stage)
+        if gate is None or self.view.waiting_for != stage or rig is None:
+            raise RefusedAction(f"refused: the trial is not waiting in '{stage}'")
+        rig.confirm(stage)
+        self._changed(gate.button)
 
     def recover_arm(self, inspected: bool = True) -> None:
         """Clear the arm's fault once its cause is inspected (moves nothing); a UR's protective stop
@@ -264,8 +266,8 @@ class SessionRunner:
         this)."""
         with self._switches:
             self._auto = on
-        self._executor.submit(self._side.record, "the simulated participant's switch",
-                              lambda engine: engine.switch_simulated_participant(on))
+        self._post(lambda: self._side.record("the simulated participant's switch",
+                                             lambda engine: engine.switch_simulated_participant(on)))
         self._news(f"simulated participant {'on' if on else 'off'}")
 
     def set_blinding(self, blind: bool) -> None:
@@ -274,8 +276,8 @@ class SessionRunner:
         one opened later, so each session says how its validation was run."""
         with self._switches:
             self._blind = blind
-        self._executor.submit(self._side.record, "the validation's blinding",
-                              lambda engine: engine.set_blinding(blind))
+        self._post(lambda: self._side.record("the validation's blinding",
+                                             lambda engine: engine.set_blinding(blind)))
 
     def stage_fault(self, fault: StagedFault) -> None:
         """A rehearsal stages ``fault`` now (see :mod:`app.session.faults`); refused on the rig."""
@@ -289,43 +291,49 @@ class SessionRunner:
         self._news(message)
 
     # -- the participant's actions (each names the interaction its screen showed) -----------------
-    # ``by``: the participant on the tablet, or the experimenter entering it for them (dashboard)
+    # ``by``: the participant on the tablet, or the experimenter entering it for them (dashboard);
+    # an answer after another for the same prompt is recorded as not used (app.protocol.entries)
     def place(self, interaction: int, position: float | None = None,
               equal_to: int | None = None, by: Rater = Rater.PARTICIPANT) -> None:
-        self._call(lambda: self._side.require_current(interaction, Step.PLACE).place(
-            position=position, equal_to=equal_to, by=by))
-        self._changed(None)
+        self._enter(Entry(kind="placement", interaction=interaction, position=position,
+                          equal_to=equal_to, by=by))
 
     def hint(self, interaction: int, hint: Hint | None, by: Rater = Rater.PARTICIPANT) -> None:
         """A coactive hint about ``interaction`` (None: nothing to change)."""
-        self._call(lambda: self._side.require_current(interaction, Step.HINT).hint(hint, by=by))
-        self._changed(None)
+        self._enter(Entry(kind="hint", interaction=interaction, hint=hint, by=by))
 
     def rate(self, interaction: int, rating: str, by: Rater = Rater.PARTICIPANT) -> None:
-        self._call(lambda: self._side.require_current(interaction, Step.RATE).rate_validation(
-            rating, by=by))
-        self._changed(None)
+        self._enter(Entry(kind="rating", interaction=interaction, rating=rating, by=by))
 
     def answer(self, question: str, value: str, by: Rater = Rater.PARTICIPANT) -> None:
-        self._call(lambda: self._side.require().answer(question, value, by=by))
+        self._enter(Entry(kind="answer", question=question, value=value, by=by))
+
+    def _enter(self, entry: Entry) -> None:
+        """Take the participant's answer; one that came after another's for the same prompt is
+        news for the experimenter (and refused, with what counts instead)."""
+        try:
+            self._call(lambda: enter(self._side.require(), entry))
+        except EntryNotUsed as exc:
+            self._changed(f"⚠ {exc}")
+            raise
         self._changed(None)
 
     # -- the background worker's actions (app.session.autopilot) ----------------------------------
     def plan_next(self) -> None:
         """The learner plans the next θ (the view says "fitting the next θ" meanwhile, and then
-        whether the learner was late or failed)."""
+        whether the learner was late or failed, or that learning stopped early)."""
         self._call(lambda: self._side.planning(True, self._side.learner()[1]))
         self._changed()
-        fault = None
+        fault = news = None
         try:
-            planned = self._call(lambda: self._side.require().plan_next(PLAN_TIMEOUT_S))
+            planned, news = self._call(lambda: self._side.plan(PLAN_TIMEOUT_S))
             fault = "the learner was late: a Sobol point was used (fallback)" if planned.fallback else None
         except (LearningError, RefusedAction, StoreError) as exc:
             log.exception("planning the next θ failed")
             fault = f"{type(exc).__name__}: {exc}"
         finally:
             self._call(lambda: self._side.planning(False, fault))
-            self._changed(None)
+            self._changed(news)
 
     def simulated_turn(self, step: Step) -> None:
         """The simulated participant places, rates or answers, if it is on and the session still
@@ -345,33 +353,52 @@ class SessionRunner:
     # -- shutdown ---------------------------------------------------------------------------------
     def close(self, reason: str = CLOSE_REASON) -> None:
         """Stop the arm first, then close the rig, the engine and its store, and the rehearsal; a
-        running trial is recorded aborted with ``reason``. Closing twice does nothing more."""
+        running trial is recorded aborted with ``reason``. Closing twice does nothing more. Not
+        from the engine thread nor from a subscriber (it waits for both).
+
+        The order is each shared object's users before its releaser (docs/architecture.md,
+        "Shared objects and their lifetimes"): the worker is told to stop and the screens get no
+        more views; the supervisor stops the arm and closes the rig, waiting until its last reports
+        (a stopped trial's end) are recorded on the engine thread; the engine thread closes the
+        outlets, the store and the writer lock, and then ends, refusing every later job
+        (:class:`~app.session.engine_thread.SessionClosed`, which the worker takes as its end);
+        the worker is joined; the rehearsal's stand-ins go last, after the rig that spoke to them."""
+        self._engine.forbid("closing the session")
         if self._closing.is_set():
             return
         self._closing.set()
         self._autopilot.stop()
         self._publisher.close()
         self._supervisor.close(reason)
-        self._call(self._side.close)
-        self._executor.shutdown()
-        self._autopilot.join(2.0)
-        if self.rehearsal is not None:
-            self.rehearsal.close()
+        try:
+            self._call(self._side.close)
+        finally:
+            self._engine.close()
+            self._autopilot.join()
+            if self.rehearsal is not None:
+                self.rehearsal.close()
 
     # -- internals: on the engine thread ----------------------------------------------------------
     def _call(self, job: Callable[[], T]) -> T:
         """Run ``job`` on the engine thread and return its result (or raise its exception; a
         failed write to the study stops the session: :meth:`EngineSide.storage_failed`, published
         here the first time)."""
-        if threading.get_ident() == self._engine_thread:
+        if self._engine.on_it():
             return job()
         try:
-            return self._executor.submit(self._guarded, job).result()
+            return self._engine.call(lambda: self._guarded(job))
         except _SessionStopped as stopped:
             if stopped.first:
                 log.error("the session stops: %s", stopped.reason)
                 self._changed(stopped.reason)
             raise RefusedAction(stopped.reason) from stopped.__cause__
+
+    def _post(self, job: Callable[[], object]) -> None:
+        """Queue ``job`` on the engine thread without waiting (nothing once the session closed)."""
+        try:
+            self._engine.post(job)
+        except SessionClosed:
+            log.info("not recorded: the session is closed")
 
     def _guarded(self, job: Callable[[], T]) -> T:
         try:
@@ -391,7 +418,7 @@ class SessionRunner:
         identity = rig_identity(self.lab, self.rehearsal is not None)
         self._side.open(code, scenario, seed, identity=identity, confirm_rig_change=confirm,
                         confirm_seed_reuse=confirm_seed, open_rig=self._open_rig, auto=auto,
-                        blind=blind, stream=self._stream)
+                        blind=blind, stream=self._stream, notify=self._news)
 
     def _stream(self) -> SampleStream | None:
         """The open rig's samples (for the study's LSL outlets)."""
@@ -434,7 +461,7 @@ class SessionRunner:
             at = utc_of_monotonic(report.monotonic).isoformat(timespec="microseconds")
             self._call(lambda: self._side.record_stage(report, at))
         except (RefusedAction, StoreError) as exc:
-            log.warning("stage %s not recorded: %s", report.stage.value, exc)
+            log.warning("stage %s not recorded: %s", report.stage, exc)
         self._changed()
 
     def _record_trial_end(self, trial_index: int, record: TrialRecord, reason: str | None,
@@ -442,16 +469,10 @@ class SessionRunner:
         """Record the trial's end, unless it was already recorded (from the rig's reader thread)."""
         return self._call(lambda: self._side.trial_end(trial_index, record, reason, actor))
 
-    def _require_waiting(self, what: Waiting) -> RigClient:
-        rig = self._supervisor.rig
-        if self.view.waiting_for != what or rig is None:
-            raise RefusedAction(f"refused: the trial is not waiting for '{what}'")
-        return rig
-
     def _make_view(self) -> RunnerView:
         """A new view, numbered (on the engine thread)."""
         return build_view(next(self._made), self._status(), self._side.overview(),
-                          self._side.facts(), self.auto_experimenter)
+                          self._side.facts(), self.auto_experimenter, self._side.plan_status())
 
     def _status(self) -> Status:
         """The view's fields that do not come from the engine (read without its thread)."""
@@ -463,7 +484,7 @@ class SessionRunner:
                       preparing=preparing, learner_fault=learner_fault, failed=self._side.failed,
                       tablet=None if self._pairing is None else self._pairing.status(),
                       tablet_required=self.tablet_required, messages=self._publisher.messages(),
-                      auto=auto)
+                      auto=auto, recording=self._side.recording_status())
 
 
 class _SessionStopped(Exception):

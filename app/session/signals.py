@@ -1,4 +1,5 @@
-"""Waiting for the signal that ends ``handover serve``: SIGINT (Ctrl-C) or SIGTERM.
+"""Waiting for the signal that ends ``handover serve``: SIGINT (Ctrl-C) or SIGTERM; and a close
+that no such signal cuts short.
 
 The kernel hands a process's signal to any of its threads that does not block it. Python runs the
 handler in the main thread, but only once that thread runs again: a main thread asleep in
@@ -9,11 +10,16 @@ handler on whichever thread the signal lands, and wakes the main thread's ``sele
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import select
 import signal
 import socket
 import threading
+from collections.abc import Iterator
 from types import TracebackType
+
+log = logging.getLogger(__name__)
 
 #: The signals that close serve as Ctrl-C does.
 QUIT_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -51,3 +57,25 @@ class QuitSignal:
         signal.set_wakeup_fd(self._wakeup_before)
         self._reader.close()
         self._writer.close()
+
+
+@contextlib.contextmanager
+def uninterrupted(what: str) -> Iterator[None]:
+    """Inside, SIGINT and SIGTERM only say that ``what`` is under way: a close that stops the arm,
+    records the last trial and releases the rig and the database in order is never cut short half
+    way (which would leave its objects to the interpreter's exit, in no order). Off the main
+    thread, where no handler can be set, it changes nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def note(signum: int, _frame: object) -> None:
+        log.warning("%s: %s is under way (the arm is stopped first)", signal.Signals(signum).name,
+                    what)
+
+    before = {signum: signal.signal(signum, note) for signum in QUIT_SIGNALS}
+    try:
+        yield
+    finally:
+        for signum, handler in before.items():
+            signal.signal(signum, handler)

@@ -29,6 +29,7 @@ from app.session.view import RigStatus, StopState
 from robot_io.config import ControllerConfig
 from robot_io.control.cycle import not_started
 from robot_io.control.loop import Outcome, TrialRecord
+from robot_io.control.stages import Stage
 from robot_io.errors import RobotIOError, explain
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.client import RigClient
@@ -43,7 +44,6 @@ from robot_io.rig.messages import (
     StageReached,
     TrialDone,
 )
-from robot_io.stages import Stage
 from session_store.models import Trial
 from session_store.vocabulary import Actor
 
@@ -84,6 +84,7 @@ class TrialSupervisor:
         self._plan: TrialPlan | None = None
         self._abort_reason: str | None = None
         self._abort_actor = Actor.SYSTEM
+        self._closed = False  # close() has begun: no rig opens any more
 
     # -- reading (any thread, never blocks) --------------------------------------------------------
     @property
@@ -126,8 +127,13 @@ class TrialSupervisor:
                 self._set(fault=explain(exc))
             raise RefusedAction(f"the rig could not start: {explain(exc)}") from exc
         with self._state_lock:
-            self._rig = rig
-            self._set(devices=rig.devices, fault=None, timing=None, hand_link=None)
+            closed = self._closed
+            if not closed:
+                self._rig = rig
+                self._set(devices=rig.devices, fault=None, timing=None, hand_link=None)
+        if closed:  # the session closed while this rig started: it never runs a trial
+            rig.close()
+            raise RefusedAction("the session closed while its rig started")
 
     def close_rig(self) -> None:
         """Close the rig process at the end of a session."""
@@ -151,7 +157,7 @@ class TrialSupervisor:
                                 "press Recover arm")
 
     def run(self, plan: TrialPlan, automatic: bool) -> None:
-        """Send ``plan``'s trial to the rig (``automatic``: no Object loaded nor Go to wait for).
+        """Send ``plan``'s trial to the rig (``automatic``: no confirmation of the cycle to wait for).
         Refused if a Stop came since Start was checked: the lock makes a Stop land either before
         (refused here) or after the rig has the trial (the Stop ends it). Held over the send only
         (the rig's inbox reads commands at once)."""
@@ -162,8 +168,7 @@ class TrialSupervisor:
             rig = self._rig
             assert rig is not None, "ready_rig opened it on this (the engine) thread"
             rig.run_trial(RunTrial(trial_index=plan.trial.trial_index, theta=plan.theta,
-                                   hand_seed=plan.trial.hand_seed, auto_loaded=automatic,
-                                   auto_go=automatic))
+                                   hand_seed=plan.trial.hand_seed, automatic=automatic))
 
     # -- the experimenter (screens' threads; never wait for the engine) -----------------------------
     def _halting(self, reason: str) -> RigClient | None:
@@ -227,6 +232,7 @@ class TrialSupervisor:
         """Stop the arm first (a running trial is recorded aborted with ``reason``), then close the
         rig and wait until its last reports are handed on."""
         with self._state_lock:
+            self._closed = True
             rig = self._rig
             if rig is not None and rig.running is not None:
                 self._abort_reason = self._abort_reason or reason
@@ -240,9 +246,17 @@ class TrialSupervisor:
                       "recorded aborted when the session resumes")
 
     # -- the rig's reports (its reader thread) -----------------------------------------------------
-    def _on_report(self, report: Report | RigDied) -> None:
-        if isinstance(report, StageReached):
-            self._on_stage(report)
+    def _on_report(self, rig: RigClient, report: Report | RigDied) -> None:
+        """``rig``'s report. A trial's end is recorded from whichever rig ran it; what the other
+        reports say of the arm is dropped when they come from a rig already replaced."""
+        if isinstance(report, TrialDone):
+            self._on_trial_done(rig, report)
+        elif isinstance(report, RigDied):
+            self._on_death(rig, report)
+        elif rig is not self._rig:
+            log.info("a report of a closed rig left out: %s", type(report).__name__)
+        elif isinstance(report, StageReached):
+            self._on_stage(rig, report)
         elif isinstance(report, ReadyWaiting):
             with self._state_lock:
                 self._set(ready_wait=report.why)
@@ -253,35 +267,34 @@ class TrialSupervisor:
             with self._state_lock:
                 self._set(hand_link=report.notice)
             self._recording.news(None)
-        elif isinstance(report, TrialDone):
-            with self._state_lock:
-                timing = self._status.timing
-                if timing is not None and timing.trial_index != report.trial_index:
-                    self._set(timing=None)  # this trial ran on time
-                rig = self._rig
-            assert rig is not None, "its reader reports a trial's end before the rig is closed"
-            self._flush_outlets()
-            self._finish(report.trial_index, TrialRecord(report.summary, rig.stream.columns()))
-        elif isinstance(report, RigDied):
-            self._on_death(report)
+
+    def _on_trial_done(self, rig: RigClient, report: TrialDone) -> None:
+        with self._state_lock:
+            timing = self._status.timing
+            if timing is not None and timing.trial_index != report.trial_index:
+                self._set(timing=None)  # this trial ran on time
+        self._flush_outlets()
+        self._finish(report.trial_index, TrialRecord(report.summary, rig.stream.columns()))
 
     def _on_timing(self, report: RigTiming) -> None:
         with self._state_lock:
             timing = self._status.timing
             first = timing is None or timing.trial_index != report.trial_index
             self._set(timing=report)
-        if first:  # the whole of it on stderr (headless too); the dashboard shows it by the devices
+        # on stderr (headless too) as it begins and as the trial ended, the figures the dashboard
+        # then keeps by the devices
+        if first or report.final:
             log.warning("%s", report.describe())
         self._recording.changed(f"trial {report.trial_index}: the rig's timing runs late (see "
                                 "Devices)" if first else None)
 
-    def _on_death(self, report: RigDied) -> None:
+    def _on_death(self, rig: RigClient, report: RigDied) -> None:
         with self._state_lock:
-            self._set(fault=report.reason)
-            rig, reason = self._rig, self._abort_reason or report.reason
+            if rig is self._rig:
+                self._set(fault=report.reason)
+            reason = self._abort_reason or report.reason
         self._flush_outlets()
         if report.trial_index is not None:
-            assert rig is not None, "a trial ran on it: the rig is closed only once none runs"
             record = not_started(rig.spec.config, self._realtime, Outcome.ERROR, report.reason)
             self._finish(report.trial_index, TrialRecord(record.summary, rig.stream.columns()),
                          reason)
@@ -295,16 +308,16 @@ class TrialSupervisor:
         if outlets is not None:
             outlets.feed.flush()
 
-    def _on_stage(self, report: StageReached) -> None:
+    def _on_stage(self, rig: RigClient, report: StageReached) -> None:
         with self._state_lock:
-            plan, rig = self._plan, self._rig
-            if report.stage is Stage.READY:
+            plan = self._plan
+            if report.stage == Stage.READY:
                 self._set(ready_wait=None)
         outlets = self._recording.outlets()
-        if report.stage is Stage.GO and outlets is not None:
+        if report.stage == Stage.GO and outlets is not None:
             outlets.feed.go(report.trial_index, report.monotonic)
-        if report.stage is Stage.GO and self._rehearsal is not None and plan is not None:
-            assert rig is not None and rig.spec.scenario is not None, \
+        if report.stage == Stage.GO and self._rehearsal is not None and plan is not None:
+            assert rig.spec.scenario is not None, \
                 "the rig that reports its plan's trial, opened with the session's scenario"
             self._rehearsal.play(rig.spec.scenario, plan.trial.hand_seed, report.monotonic)
         self._recording.stage(report)

@@ -12,15 +12,16 @@ from typing import Literal, NamedTuple
 from pydantic import BaseModel, ConfigDict
 
 from app.learning.models import PosteriorSlice
+from app.protocol.design import PlanStatus
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary
 from app.session.pairing import TabletStatus
+from app.session.recording import RecordingStatus
+from robot_io.control.stages import StageName, current
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.messages import DeviceReport, RigTiming
-from robot_io.stages import AWAITS, Stage
 from session_store.models import Trial
 
-Waiting = Literal["loaded", "go"]
 #: After STOP ARM: "stopping" until the arm has stopped (the running trial has ended), then
 #: "stopped" until the experimenter re-arms (the scene is safe); only "armed" lets a trial start.
 StopState = Literal["armed", "stopping", "stopped"]
@@ -43,7 +44,6 @@ class RunnerView(BaseModel):
     scenario: Scenario | None = None
     seed: int | None = None
     state: SessionState | None = None
-    interactions: int = 0
     preparing: bool = False
     auto: bool = False
     rehearsal: bool = False
@@ -55,7 +55,7 @@ class RunnerView(BaseModel):
     gripper: str = ""
     timing: str = ""  # the rig's scheduling: real-time priority or not
     timing_warning: str | None = None  # the latest trial's cycles or hand samples ran late: how
-    waiting_for: Waiting | None = None  # the cycle waits for the experimenter's confirmation
+    waiting_for: StageName | None = None  # the stage that waits for the experimenter's confirmation
     ready_wait: str | None = None  # why the hand is not ready at the start A
     learner: str = "idle"
     learner_fault: str | None = None
@@ -64,18 +64,26 @@ class RunnerView(BaseModel):
     tablet: TabletStatus | None = None  # None: no tablet screen (headless)
     tablet_required: bool = True  # exactly one paired tablet before a trial may start
     overview: list[ParticipantSummary] = []  # every participant of the study folder
+    plan: PlanStatus | None = None  # the study against its plan ([study]; None: no plan)
     messages: list[str] = []  # the latest events, newest last
     trials: list[Trial] = []
     theta_star: list[ThetaStar] = []
     posterior: list[PosteriorSlice] = []  # posterior utility through θ*, per parameter
     learning: str | None = None  # how settled the learner's θ* is, in words (after a learning batch)
+    safety_flags: list[str] = []  # the trials over the lab's [safety_record] limits, in words
+    recording: RecordingStatus | None = None  # the session's XDF recording ([recording]; None: none)
 
     @property
     def step(self) -> Step | None:
         return None if self.state is None else self.state.step
 
     @property
-    def stage(self) -> Stage | None:
+    def interactions(self) -> int:
+        """The interactions of the open session's plan as it stands now (0: none open)."""
+        return 0 if self.state is None else self.state.interactions
+
+    @property
+    def stage(self) -> str | None:
         return None if self.state is None else self.state.stage
 
 
@@ -104,6 +112,7 @@ class Status(NamedTuple):
     tablet_required: bool
     messages: list[str]
     auto: bool
+    recording: RecordingStatus | None = None
 
 
 class SessionFacts(NamedTuple):
@@ -113,11 +122,11 @@ class SessionFacts(NamedTuple):
     scenario: Scenario
     seed: int
     state: SessionState  # a copy: the engine goes on changing its own
-    interactions: int
     trials: list[Trial]
     theta_star: list[ThetaStar]
     posterior: list[PosteriorSlice]
-    learning: str | None  # app.session.learning_words.learning_line
+    learning: str | None  # app.protocol.learning_words.learning_line
+    safety_flags: list[str]  # the trials over the lab's limits (app.protocol.safety_record)
 
 
 def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
@@ -130,12 +139,13 @@ def timing_words(devices: DeviceReport | None, realtime: bool) -> str:
             "no real-time priority (normal scheduling): trials may run late on a busy machine")
 
 
-def waiting_for(state: SessionState, automatic: bool) -> Waiting | None:
-    """What the running cycle waits for the experimenter to confirm: the object loaded (at prepare)
-    or Go (at ready); nothing when the trials confirm themselves (``automatic``)."""
-    if automatic or state.step is not Step.RUNNING or state.stage is None:
+def waiting_for(state: SessionState, automatic: bool) -> str | None:
+    """The running trial's stage if it waits for the experimenter's confirmation (its gate in the
+    cycle's table: Object loaded in prepare, Go in ready); nothing when the trials confirm
+    themselves (``automatic``)."""
+    if automatic or state.step is not Step.RUNNING or current().gate(state.stage) is None:
         return None
-    return AWAITS.get(state.stage)
+    return state.stage
 
 
 def status_fields(status: Status) -> dict:
@@ -152,23 +162,25 @@ def status_fields(status: Status) -> dict:
             "learner_fault": status.learner_fault, "failed": status.failed,
             "ready_wait": rig.ready_wait, "stop": rig.stop, "tablet": status.tablet,
             "tablet_required": status.tablet_required, "messages": list(status.messages),
-            "auto": status.auto}
+            "auto": status.auto, "recording": status.recording}
 
 
 def build_view(version: int, status: Status, overview: list[ParticipantSummary],
-               session: SessionFacts | None, auto_experimenter: bool) -> RunnerView:
-    """The view numbered ``version``: the open ``session`` (None: none open) beside ``status``.
+               session: SessionFacts | None, auto_experimenter: bool,
+               plan: PlanStatus | None = None) -> RunnerView:
+    """The view numbered ``version``: the open ``session`` (None: none open) beside ``status``,
+    the study's ``overview`` and where it stands against its ``plan``.
     The cycle waits for the experimenter only when neither the simulated participant
     (``status.auto``) nor the simulated experimenter (``auto_experimenter``) confirms it."""
-    fields = {**status_fields(status), "overview": overview}
+    fields = {**status_fields(status), "overview": overview, "plan": plan}
     if session is None:
         return RunnerView(version=version, **fields)
     return RunnerView(
         version=version, code=session.code, scenario=session.scenario, seed=session.seed,
-        state=session.state, interactions=session.interactions, preparing=status.preparing,
+        state=session.state, preparing=status.preparing,
         waiting_for=waiting_for(session.state, status.auto or auto_experimenter),
         trials=session.trials, theta_star=session.theta_star, posterior=session.posterior,
-        learning=session.learning, **fields)
+        learning=session.learning, safety_flags=session.safety_flags, **fields)
 
 
 def with_news(view: RunnerView, status: Status) -> RunnerView:

@@ -61,7 +61,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     serve.add_argument("--participant",
                        help="open this participant at start (resume it, or create it with "
                             "--scenario); refused at once while another process writes it")
-    serve.add_argument("--scenario", type=argument_type(Scenario.parse),
+    serve.add_argument("--scenario", type=argument_type(Scenario.parse), choices=list(Scenario),
                        help="with --participant: the scenario of a new participant")
     serve.add_argument("--seed", type=argument_type(parse_seed), default=None,
                        help="with --participant: the seed of a new participant (default: fresh)")
@@ -132,7 +132,8 @@ def serve_command(args: argparse.Namespace) -> int:
         servers = HandoverServers(runner, ServeOptions(host=args.host, tablet_port=args.tablet_port,
                                                        dashboard_port=args.dashboard_port,
                                                        token=args.token, blind=not args.unblind))
-        with QuitSignal() as quit_signal:  # from here on, a Ctrl-C is never lost
+        # from here on a Ctrl-C is never lost, and one during the close below does not cut it short
+        with QuitSignal() as quit_signal:
             tablet, dashboard = servers.urls()
             print(f"tablet (participant):     {tablet}", flush=True)
             print(f"dashboard (experimenter): {dashboard}", flush=True)
@@ -145,7 +146,7 @@ def serve_command(args: argparse.Namespace) -> int:
                 print(f"rehearsal:                stand-in UR controller at {runner.rehearsal.host}",
                       flush=True)
             quit_signal.wait()
-        print("stopping the arm and closing the session ...", flush=True)
-        servers.close()
+            print("stopping the arm and closing the session ...", flush=True)
+            servers.close()
     print("closed", flush=True)
     return 0

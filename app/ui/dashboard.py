@@ -35,7 +35,6 @@ import viser
 import viser.uplot
 
 from app.learning.models import PosteriorSlice
-from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
 from app.session.faults import StagedFault
 from app.session.runner import RunnerView, SessionRunner
@@ -43,6 +42,7 @@ from app.session.windows import DashboardWindows
 from app.ui.guard import TokenGate
 from app.ui.live_view import STRIDE, LiveView
 from app.ui.on_behalf import OnBehalf
+from app.ui.participant_form import build_participant_form
 from app.ui.replay import SPEEDS, Replay
 from app.ui.status_text import (
     devices_markdown,
@@ -55,10 +55,9 @@ from app.ui.status_text import (
     tablet_markdown,
 )
 from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, STOP_LABEL, style_block
+from robot_io.control.stages import current
 from robot_io.errors import RobotIOError
-from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
-from session_store.models import check_participant_code
 
 log = logging.getLogger(__name__)
 
@@ -94,6 +93,14 @@ def posterior_data(slices: list[PosteriorSlice]) -> tuple[np.ndarray, ...]:
     return (position, *(np.asarray(s.mean) for s in slices))
 
 
+def gate_buttons(gui: viser.GuiApi) -> dict[str, viser.GuiButtonHandle]:
+    """A button for each confirmation of the cycle (its table's gates, in order): the last one, Go,
+    is the participant's cue and green."""
+    gated = current().gated
+    return {row.name: gui.add_button(row.gate.button, color="green" if row is gated[-1] else "blue")
+            for row in gated if row.gate is not None}
+
+
 def error_key(view: RunnerView) -> tuple:
     """What a refusal was about: when any of it changes, the refusal is no longer current."""
     tablet = view.tablet
@@ -105,8 +112,7 @@ def error_key(view: RunnerView) -> tuple:
 class Controls:
     start: viser.GuiButtonHandle
     start_why: viser.GuiMarkdownHandle
-    loaded: viser.GuiButtonHandle
-    go: viser.GuiButtonHandle
+    gates: dict[str, viser.GuiButtonHandle]  # one per gated stage of the cycle: Object loaded, Go
     abort: viser.GuiButtonHandle
     recover: viser.GuiButtonHandle
     pause: viser.GuiButtonHandle
@@ -123,16 +129,15 @@ class Controls:
         blocker = start_blocker(view) if controlling else VIEW_ONLY
         self.start.disabled = step is not Step.READY or blocker is not None
         self.start_why.content = f"Start is locked: {blocker}." if blocker and state else ""
-        self.loaded.disabled = view.waiting_for != "loaded"
-        self.go.disabled = view.waiting_for != "go"
+        for stage, button in self.gates.items():
+            button.disabled = view.waiting_for != stage or not controlling
         self.abort.disabled = step is not Step.RUNNING
         self.recover.disabled = view.arm_fault is None or step is Step.RUNNING
         self.pause.disabled = state is None or paused or step in (Step.RUNNING, Step.DONE)
         self.resume.disabled = not paused
         self.end.disabled = state is None or step is Step.RUNNING
         if not controlling:
-            for control in (self.loaded, self.go, self.abort, self.recover, self.pause,
-                            self.resume, self.end):
+            for control in (self.abort, self.recover, self.pause, self.resume, self.end):
                 control.disabled = True
         self.auto.disabled = not controlling
         self._show_auto(view.auto)
@@ -172,7 +177,9 @@ class DashboardClient:
         self.replay: Replay | None = None
         self._code: str | None = "-"
         self._error_key: tuple | None = None
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # over every change of this page's panels, and its close
+        self._closed = False  # the page has gone: nothing is drawn for it (a token answered later
+        #                       unlocks nothing then)
         if gate.recognised(client.client_id):  # unlocked in this browser before
             self.refresh(runner.view, rebuild=True)
         else:
@@ -181,28 +188,32 @@ class DashboardClient:
     # -- access -----------------------------------------------------------------------------------
     def _locked_screen(self) -> None:
         gui = self.client.gui
-        gui.add_html(style_block(DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
+        gui.add_html(style_block(DASHBOARD_CSS + DASHBOARD_OFFLINE_CSS) + LIVE_MARKER)
         gui.add_markdown("### handover-lab dashboard\nEnter the dashboard token (printed by "
                          "`handover serve` and kept in the study folder).")
         field = gui.add_text("Token", "")
         unlock = gui.add_button("Unlock")
         error = gui.add_markdown("")
 
-        @unlock.on_click
-        def _(_: viser.GuiEvent) -> None:
-            refusal = self.gate.attempt(self.client.client_id, field.value.strip())
+        def answered(refusal: str | None) -> None:
             if refusal is None:
                 self.refresh(self.runner.view, rebuild=True)
             else:
                 error.content = f"⚠ {refusal}"
+
+        @unlock.on_click
+        def _(_: viser.GuiEvent) -> None:
+            waiting = self.gate.attempt(self.client.client_id, field.value.strip(), answered)
+            if waiting is not None:
+                error.content = waiting
 
     # -- panels -----------------------------------------------------------------------------------
     def refresh(self, view: RunnerView, rebuild: bool = False) -> None:
         """Show ``view``; ``rebuild``: build the panels anew (the first build is the unlock: the
         window is then one of the dashboard windows, and every window is told)."""
         with self._lock:
-            if self.live is None and not rebuild:
-                return  # still locked
+            if self._closed or (self.live is None and not rebuild):
+                return  # gone, or still locked
             unlocking = self.live is None
             if unlocking:
                 self.windows.opened(self.client.client_id, self.address)
@@ -231,8 +242,18 @@ class DashboardClient:
             self._on_windows()
 
     def tick(self) -> None:
-        if self.live is not None and (self.replay is None or not self.replay.running):
-            self.live.update(self.runner.live(STRIDE)[1])
+        """The live view's next frame (the ticker's thread), unless a replay draws or the page left."""
+        with self._lock:
+            if (not self._closed and self.live is not None
+                    and (self.replay is None or not self.replay.running)):
+                self.live.update(self.runner.live(STRIDE)[1])
+
+    def close(self) -> None:
+        """The page has gone: no more refreshes (a token's answer that waited unlocks nothing),
+        frames or replay for it."""
+        with self._lock:
+            self._closed = True
+        self.cancel_replay()
 
     def _build(self, view: RunnerView) -> None:
         gui = self.client.gui
@@ -250,7 +271,7 @@ class DashboardClient:
             self.error = gui.add_markdown("")
             with gui.add_folder("Study"):
                 self.overview = gui.add_markdown("")
-                self._participant(gui, view)
+                build_participant_form(gui, view, self.runner, self._act)
             if view.state is not None:
                 with gui.add_folder("Session"):
                     self.progress = gui.add_markdown("")
@@ -292,53 +313,11 @@ class DashboardClient:
         command.on_trigger(lambda _: self._act(self.runner.stop, control=False))
         return safety
 
-    def _participant(self, gui: viser.GuiApi, view: RunnerView) -> None:
-        if view.code is not None:
-            assert view.scenario is not None, "an open session's view has its scenario"
-            gui.add_markdown(f"Open: **{view.code}** ({view.scenario.value}, seed {view.seed}). "
-                             "End the session to open or create another participant.")
-            return
-        gui.add_markdown("A known code resumes its session; a new code creates one.")
-        code = gui.add_text("Code", "")
-        code_error = gui.add_markdown("")
-        scenario = gui.add_dropdown("Scenario", [s.value for s in Scenario],
-                                    initial_value=Scenario.PERTURBED.value)
-        seed = gui.add_text("Seed (empty: a fresh random one)", "")
-        reuse = gui.add_checkbox("Reuse a seed already used in this study", False)
-        rig_change = gui.add_checkbox("Confirm a rig change (resume on other devices)", False)
-        open_button = gui.add_button("Create or resume")
-
-        def check_code() -> bool:
-            """The code's error under its field while it is wrong (cleared once it is right)."""
-            try:
-                check_participant_code(code.value.strip())
-            except ValueError as exc:
-                code_error.content = f"⚠ {exc}" if code.value.strip() else ""
-                return False
-            code_error.content = ""
-            return True
-
-        @code.on_update
-        def _(_: viser.GuiEvent) -> None:
-            check_code()
-
-        def open_session() -> None:
-            if not check_code():
-                code_error.content = code_error.content or "⚠ enter the participant's code"
-                return
-            self._act(lambda: self.runner.open(
-                code.value.strip(), Scenario(scenario.value),
-                parse_seed(seed.value) if seed.value.strip() else None,
-                confirm_rig_change=rig_change.value, confirm_seed_reuse=reuse.value))
-
-        open_button.on_click(lambda _: open_session())
-
     def _controls(self, gui: viser.GuiApi) -> Controls:
         controls = Controls(
             start=gui.add_button("Start trial", color="green", icon=viser.Icon.PLAYER_PLAY),
             start_why=gui.add_markdown(""),
-            loaded=gui.add_button("Object loaded", color="blue"),
-            go=gui.add_button("Go", color="green"),
+            gates=gate_buttons(gui),
             abort=gui.add_button("Abort trial", color="orange"),
             recover=gui.add_button("Recover arm (cause inspected)", color="yellow"),
             pause=gui.add_button("Pause session"),
@@ -347,8 +326,8 @@ class DashboardClient:
             auto=gui.add_checkbox("Simulated participant rates", False),
         )
         controls.start.on_click(lambda _: self._act(self.runner.start_trial))
-        controls.loaded.on_click(lambda _: self._act(self.runner.object_loaded))
-        controls.go.on_click(lambda _: self._act(self.runner.go))
+        for stage, button in controls.gates.items():
+            button.on_click(self._confirming(stage))
         controls.abort.on_click(lambda _: self._act(self.runner.abort_trial))
         controls.recover.on_click(lambda _: self._act(self.runner.recover_arm))
         controls.pause.on_click(lambda _: self._act(self.runner.pause))
@@ -371,6 +350,9 @@ class DashboardClient:
 
     def _staging(self, fault: StagedFault) -> Callable[[object], None]:
         return lambda _: self._act(lambda: self.runner.stage_fault(fault))
+
+    def _confirming(self, stage: str) -> Callable[[object], None]:
+        return lambda _: self._act(lambda: self.runner.confirm(stage))
 
     # -- replay -----------------------------------------------------------------------------------
     def _replay_controls(self, gui: viser.GuiApi) -> None:
@@ -458,9 +440,10 @@ class Dashboard:
 
     def _disconnect(self, client: viser.ClientHandle) -> None:
         page = self.clients.pop(client.client_id, None)
+        if page is not None:
+            page.close()
         self.windows.closed(client.client_id)
         if page is not None:
-            page.cancel_replay()
             self._windows_changed()
 
     def _windows_changed(self) -> None:

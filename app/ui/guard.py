@@ -9,7 +9,10 @@
   other connection is closed (1008, policy violation) before the server sends or reads a message.
 * **A busy port is an error naming it.** viser moves on to the next free port without a word, so the
   tablet could end up on the dashboard's port; here the port actually bound must be the one asked for.
-* **Token attempts rate-limited and logged** (:class:`TokenGate`), per remote address.
+* **Token attempts slowed down and logged** (:class:`TokenGate`), per remote address; the right
+  token is never refused.
+* **GUI updates a page never sends are refused** (:mod:`app.ui.gui_updates`): a value of the wrong
+  kind or outside an input's range, a property other than the value; one line in the log each.
 * **The browser's id** (:meth:`Guard.browser_of`): the cookie the study's page sets
   (:mod:`app.ui.client_page`), read from the websocket's request headers; an id of any other form
   is no id.
@@ -26,6 +29,7 @@ import ipaddress
 import logging
 import re
 import socket
+import threading
 import time
 from collections.abc import Callable
 from http.cookies import CookieError, SimpleCookie
@@ -33,12 +37,14 @@ from urllib.parse import urlsplit
 
 import viser
 from viser import _messages
-from viser.infra import WebsockClientConnection
+from viser._gui_api import GuiApi
+from viser.infra import WebsockClientConnection, WebsockMessageHandler
 from websockets.asyncio.server import ServerConnection
 from websockets.http11 import Request
 
 from app.session.access import AttemptLimit, KnownBrowsers
 from app.ui.client_page import BROWSER_ID_PATTERN, ClientPage, StudyViserServer, client_folder
+from app.ui.gui_updates import checked
 from app.ui.streams import safe_streams
 
 log = logging.getLogger(__name__)
@@ -84,8 +90,23 @@ class Guard:
         for message in (_messages.ShareUrlRequest, _messages.ShareUrlDisconnect):
             self._infra.unregister_handler(message)  # viser's own: it would open a public tunnel
             self._infra.register_handler(message, self._refuse_share_link)
+        self._guard_gui_updates(self._infra)  # the server's own GUI (the pages use their own)
         self._infra.on_client_connect(self._check_origin)
         self._infra.on_client_disconnect(self._forget)
+
+    def _guard_gui_updates(self, interface: WebsockMessageHandler) -> None:
+        """Put :func:`~app.ui.gui_updates.checked` before each of viser's GUI-update handlers on
+        ``interface`` (the server's, or a page's connection once its ClientHandle registered)."""
+        handlers = interface._incoming_handlers.get(_messages.GuiUpdateMessage, [])
+        for handler in list(handlers):
+            gui = getattr(handler, "__self__", None)
+            if isinstance(gui, GuiApi):
+                interface.unregister_handler(_messages.GuiUpdateMessage, handler)
+                interface.register_handler(_messages.GuiUpdateMessage,
+                                           checked(gui, handler, self._refuse_update))
+
+    def _refuse_update(self, client_id: int, why: str) -> None:
+        self._refuse(f"{why} (client {client_id} at {self.source_of(client_id)})")
 
     def source_of(self, client_id: int) -> str:
         """The remote address of a connected client ("unknown" once it has gone)."""
@@ -133,6 +154,7 @@ class Guard:
             return
         address = connection.remote_address[0] if connection.remote_address else "unknown"
         self._addresses[conn.client_id] = address
+        self._guard_gui_updates(conn)  # viser's ClientHandle has registered its handler by now
         headers = _request(connection).headers
         origin, host = headers.get("Origin"), headers.get("Host")
         if not same_origin(origin, host, self.port):
@@ -175,33 +197,71 @@ def _trusted_name(name: str) -> bool:
     return name.lower() in own or name.lower().removesuffix(".local") in own
 
 
+def later(delay_s: float, then: Callable[[], None]) -> None:
+    """Run ``then`` on a timer thread of its own after ``delay_s`` (never on viser's callback pool,
+    which STOP ARM's click needs)."""
+    timer = threading.Timer(delay_s, then)
+    timer.daemon = True
+    timer.start()
+
+
 class TokenGate:
-    """The dashboard token, checked at most ``max_failures`` times per ``window_s`` from one remote
-    address (:class:`~app.session.access.AttemptLimit`). A browser in which it was given is
-    ``known`` (its id from ``browser_of``) and needs no token again, across restarts."""
+    """The dashboard token, checked per remote address (:class:`~app.session.access.AttemptLimit`):
+    ``max_failures`` wrong tries per ``window_s`` are answered at once; past them each try from that
+    address waits (:meth:`AttemptLimit.wait_s`, up to MAX_WAIT_S) before it is checked, on a timer
+    (``later``), the right token included (a quick answer would tell it apart), and is never
+    refused unchecked: others on the experimenter's address (a shared NAT, the lab PC) slow their
+    own guesses down, not the experimenter out. A page has at most one try waiting, the latest it
+    gave. A browser in which the token was given is ``known`` (its id from ``browser_of``) and needs
+    no token again, across restarts."""
 
     def __init__(self, token: str, source_of: Callable[[int], str], max_failures: int = 5,
                  window_s: float = 60.0, clock: Callable[[], float] = time.monotonic,
                  known: KnownBrowsers | None = None,
-                 browser_of: Callable[[int], str | None] = lambda _: None) -> None:
+                 browser_of: Callable[[int], str | None] = lambda _: None,
+                 later: Callable[[float, Callable[[], None]], None] = later) -> None:
         self._token, self._source_of = token, source_of
-        self._known, self._browser_of = known, browser_of
+        self._known, self._browser_of, self._later = known, browser_of, later
         self._limit = AttemptLimit(max_failures, window_s, clock, what="token", role="dashboard")
-
-    @property
-    def refused_unchecked(self) -> int:
-        return self._limit.refused_unchecked
+        self._waiting: dict[int, tuple[str, Callable[[str | None], None]]] = {}  # page → its try
+        self._lock = threading.Lock()
 
     def recognised(self, client_id: int) -> bool:
         """Whether the client's browser was unlocked before (with this token)."""
         return self._known is not None and self._known.known(self._browser_of(client_id))
 
-    def attempt(self, client_id: int, given: str) -> str | None:
-        """None if ``given`` is the token; otherwise why not, for the screen. Nothing typed is no
-        attempt (not counted)."""
+    def attempt(self, client_id: int, given: str,
+                answer: Callable[[str | None], None]) -> str | None:
+        """Check ``given`` for page ``client_id``: ``answer`` gets None (the token: the page may
+        unlock) or why not, for the screen; at once, or once the address's wait is over. Returns
+        what the page shows meanwhile (None: answered already). Nothing typed is no attempt (not
+        counted)."""
         if not given:
-            return "Type the token first."
-        refusal = self._limit.check(self._source_of(client_id), given, self._token)
+            answer("Type the token first.")
+            return None
+        source = self._source_of(client_id)
+        wait = self._limit.wait_s(source)
+        if wait == 0.0:
+            self._judge(client_id, source, given, answer)
+            return None
+        with self._lock:
+            queued = client_id in self._waiting
+            self._waiting[client_id] = (given, answer)  # the latest try of the page is checked
+        if not queued:
+            log.warning("dashboard: a token from %s waits %.0f s (%d wrong from there in the last "
+                        "%g s)", source, wait, self._limit.recent(source), self._limit.window_s)
+            self._later(wait, lambda: self._checked_later(client_id, source))
+        return (f"Checking the token in {wait:.0f} s: {self._limit.recent(source)} wrong tokens "
+                "came from this address in the last minute, so each try waits.")
+
+    def _checked_later(self, client_id: int, source: str) -> None:
+        with self._lock:
+            given, answer = self._waiting.pop(client_id)
+        self._judge(client_id, source, given, answer)
+
+    def _judge(self, client_id: int, source: str, given: str,
+               answer: Callable[[str | None], None]) -> None:
+        refusal = self._limit.judge(source, given, self._token)
         if refusal is None and self._known is not None:
             self._known.remember(self._browser_of(client_id))
-        return refusal
+        answer(refusal)

@@ -6,7 +6,11 @@ experimenter on the participant's behalf (``Rater.EXPERIMENTER``), so the export
 
 Each entry is its own deliberate button and is enabled only while the session waits for that kind
 of entry; it names the handover (or question) it is for, and the runner refuses it if the session
-has moved on meanwhile (e.g. the tablet answered first)."""
+has moved on meanwhile (e.g. the tablet answered first). The tablet's deliberate-answer rule holds
+here too: the scale's slider starts where the tablet's handle does (never on an earlier marker) for
+each handover to place, and "Store the placement" waits until the experimenter has moved it or
+chosen an earlier handover it is the same as. The hint buttons are shown only in sessions with
+coactive hints."""
 
 from __future__ import annotations
 
@@ -19,6 +23,7 @@ from app.protocol.errors import RefusedAction
 from app.protocol.plan import Slot
 from app.protocol.state import SessionState, Step
 from app.session.runner import RunnerView, SessionRunner
+from app.ui.scale_view import start_position
 from app.ui.tablet import HINTS, RATINGS, answer_options, asked_question, hint_of
 from session_store.vocabulary import Rater
 
@@ -38,6 +43,10 @@ class OnBehalf:
     ratings: list[viser.GuiButtonHandle]
     answer: viser.GuiDropdownHandle
     store_answer: viser.GuiButtonHandle
+    #: The interaction the slider was set for (None: none is being placed), and whether the
+    #: experimenter has moved it since.
+    placing: int | None = None
+    moved: bool = False
 
     @classmethod
     def build(cls, gui: viser.GuiApi, runner: SessionRunner,
@@ -84,6 +93,14 @@ class OnBehalf:
                 raise ValueError("choose the participant's answer first")
             runner.answer(question, labels[entry.answer.value], by=by)
 
+        def moved(event: viser.GuiEvent) -> None:
+            if event.client is not None:  # the experimenter's hand, not show() setting it
+                entry.moved = True
+                entry.show(runner.view)
+
+        entry.position.on_update(moved)
+        entry.same_as.on_update(lambda event: None if event.client is None else
+                                entry.show(runner.view))
         entry.place.on_click(lambda _: act(place))
         for button, (_, value) in zip(entry.hints, HINTS, strict=True):
             button.on_click(entering(hint, value))
@@ -96,8 +113,10 @@ class OnBehalf:
         """Enable the entry the session waits for, and say which handover or question it is."""
         state = view.state
         step = None if state is None or state.paused else state.step
-        self.place.disabled = self.position.disabled = self.same_as.disabled = step is not Step.PLACE
+        self._start_placing(state if step is Step.PLACE else None)
+        self.position.disabled = self.same_as.disabled = step is not Step.PLACE
         for button in self.hints:
+            button.visible = state is not None and state.coactive
             button.disabled = step is not Step.HINT
         for button in self.ratings:
             button.disabled = step is not Step.RATE
@@ -109,6 +128,8 @@ class OnBehalf:
             self.same_as.options = options
             # viser 1.1.1 defines the value's setter apart from its getter, so mypy reads it as read-only
             self.same_as.value = NOT_EQUAL  # type: ignore[misc]
+        self.place.disabled = step is not Step.PLACE or not (
+            self.moved or self.same_as.value != NOT_EQUAL)
         if placing is not None:
             self.what.content = f"The participant places **handover {_slot(placing).position}**."
         elif step is Step.HINT:
@@ -126,6 +147,18 @@ class OnBehalf:
             if step is Step.ANSWER else ("—",)
         if tuple(self.answer.options) != labels:
             self.answer.options = labels
+
+
+    def _start_placing(self, placing: SessionState | None) -> None:
+        """A new handover to place: the slider where the tablet's handle starts, untouched."""
+        interaction = None if placing is None else _slot(placing).interaction
+        if interaction == self.placing:
+            return
+        self.placing, self.moved = interaction, False
+        if placing is not None:
+            # viser 1.1.1 defines the value's setter apart from its getter, so mypy reads it as read-only
+            self.position.value = start_position(placing.markers)  # type: ignore[misc]
+            self.same_as.value = NOT_EQUAL  # type: ignore[misc]
 
 
 def _question(view: RunnerView) -> str:

@@ -82,9 +82,12 @@ def _marker(label: int, left: float, level: int, newest: bool) -> str:
             f"{label}</div>")
 
 
-def render_scale(markers: Sequence[Marker], newest_label: int, position: float) -> str:
+def render_scale(markers: Sequence[Marker], newest_label: int, position: float,
+                 hint: str = "") -> str:
     """The scale with the earlier ``markers`` and the newest one at ``position`` (stacked on an
-    earlier marker when it snaps to it, else at the lowest level clear of close markers)."""
+    earlier marker when it snaps to it, else at the lowest level clear of close markers); ``hint``
+    in the caption's place until the handle lands on a marker (the caption's height is kept, so
+    nothing below it moves when the hint goes)."""
     columns = _columns(markers)
     base = _levels(columns)
     landed = snap(position, markers)
@@ -100,7 +103,8 @@ def render_scale(markers: Sequence[Marker], newest_label: int, position: float) 
     parts.append(_marker(newest_label, position if landed is None else landed.position, level, True))
     # The stack step depends only on the earlier markers, so nothing moves when the newest snaps.
     gaps = max([base[left] + len(labels) for left, labels in columns.items()] + [1])
-    caption = f"Same as {landed.label}" if landed is not None else "&nbsp;"
+    caption = (f"Same as {landed.label}" if landed is not None
+               else f'<span class="hl-hint">{escape(hint)}</span>' if hint else "&nbsp;")
     return (f'<div class="hl-scale"><div class="hl-caption">{caption}</div>'
             f'<div class="hl-lane" style="--hl-gaps:{gaps}">{"".join(parts)}</div>'
             f'<div class="hl-arrow"></div>'

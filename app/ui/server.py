@@ -19,13 +19,14 @@ from app.session.access import (
     DASHBOARD_BROWSERS_FILE,
     KNOWN_DASHBOARDS,
     KnownBrowsers,
+    check_access_files,
     dashboard_token,
 )
 from app.session.runner import SessionRunner
 from app.ui.client_page import ClientPage
 from app.ui.dashboard import Dashboard
 from app.ui.guard import TokenGate, open_server
-from app.ui.style import DASHBOARD_OFFLINE_CSS, OFFLINE_CSS
+from app.ui.style import DASHBOARD_CSS, DASHBOARD_OFFLINE_CSS, OFFLINE_CSS
 from app.ui.tablet import Tablet
 from app.ui.unreadable import quiet_unreadable_messages
 
@@ -40,7 +41,7 @@ TABLET_PAGE = ClientPage(role="tablet", title="Handover study", css=OFFLINE_CSS,
                          enter={"Code": "Connect"})
 #: The experimenter's page.
 DASHBOARD_PAGE = ClientPage(role="dashboard", title="handover-lab dashboard",
-                            css=DASHBOARD_OFFLINE_CSS, enter={"Token": "Unlock"})
+                            css=DASHBOARD_CSS + DASHBOARD_OFFLINE_CSS, enter={"Token": "Unlock"})
 
 
 @dataclass(frozen=True)
@@ -59,6 +60,7 @@ class HandoverServers:
         quiet_unreadable_messages()
         self.runner, self.options = runner, options
         self.token = dashboard_token(runner.study, options.token)
+        check_access_files(runner.study)  # before a page is served, which would read them
         self.tablet_server, self.tablet_guard = open_server(options.host, options.tablet_port,
                                                             "tablet", TABLET_PAGE)
         try:
@@ -94,9 +96,10 @@ class HandoverServers:
                 log.exception("live view update failed")
 
     def close(self) -> None:
-        """Stop the arm and end the session cleanly, then the servers."""
-        self.runner.close()
+        """End the live view's ticker (a reader of the rig's samples), then stop the arm and end
+        the session cleanly, then the servers (the pages' STOP ARM stays until the arm is stopped)."""
         self._closed.set()
-        self._ticker.join(1.0)
+        self._ticker.join()
+        self.runner.close()
         self.tablet_server.stop()
         self.dashboard_server.stop()

@@ -1,6 +1,6 @@
-"""What the two screens say in each stage of the handover cycle (:class:`robot_io.stages.Stage`, the
-cycle's order): the one table of it. A stage added to the cycle gets its line here, in its place;
-``tests/ui/test_stage_words.py`` fails until it has one.
+"""What the two screens say in each stage of the handover cycle, read from the cycle's table
+(:mod:`robot_io.control.stages`, the cycle's order): a stage's row gives its dashboard words, and its
+part of the cycle the tablet's screen. A stage added to the table is shown with its own words.
 
 The tablet shows one of three screens while a trial runs: "Please wait" before Go (the session's
 next step decides what it says), "Go!" from the cue until the gripper opens, "One moment — the robot
@@ -12,11 +12,13 @@ from __future__ import annotations
 
 from typing import Literal, NamedTuple
 
-from robot_io.stages import Stage
+from robot_io.control.stages import Part, Stage, current
 
 #: The tablet's screen during a stage: "wait" (what the session's step shows: please wait),
 #: "go" (the cue, with a beep), "back" (the robot moves back).
 TabletScreen = Literal["wait", "go", "back"]
+#: The tablet's screen in each part of the cycle: before Go, streaming, after the stream.
+SCREENS: dict[Part, TabletScreen] = {Part.BEFORE_GO: "wait", Part.STREAMED: "go", Part.AFTER: "back"}
 
 
 class StageWords(NamedTuple):
@@ -26,25 +28,28 @@ class StageWords(NamedTuple):
     dashboard: str  # "Handover running — {dashboard}."
 
 
-#: Every stage in the cycle's order. ``not_taken`` stands in ``release``'s place when nobody pulls.
-STAGE_WORDS: dict[Stage, StageWords] = {
-    Stage.PREPARE: StageWords("wait", "the robot moves to its start"),
-    Stage.LOADED: StageWords("wait", "the object is loaded"),
-    Stage.READY: StageWords("wait", "the participant's hand is at the start"),
-    Stage.GO: StageWords("go", "Go given"),
-    Stage.REACH: StageWords("go", "the robot reaches out"),
-    Stage.HOLD: StageWords("go", "the robot holds the object out"),
-    Stage.RELEASE: StageWords("go", "the gripper opens"),
-    Stage.NOT_TAKEN: StageWords("back", "nobody took the object"),
-    Stage.RETRACT: StageWords("back", "the robot moves back"),
-    Stage.DONE: StageWords("back", "the robot is back"),
-}
-#: The stage whose place another takes in the dashboard's cycle line (the two ends of a hold).
-INSTEAD_OF = {Stage.NOT_TAKEN: Stage.RELEASE}
-#: The handover cycle as the dashboard draws it: every stage but those that take another's place.
-CYCLE: tuple[Stage, ...] = tuple(s for s in STAGE_WORDS if s not in INSTEAD_OF)
+def stage_words(stage: str) -> StageWords:
+    """The words of ``stage`` in the cycle the application runs."""
+    row = current().row(stage)
+    return StageWords(SCREENS[row.part], row.says)
 
 
-def stage_name(stage: Stage) -> str:
+def instead_of() -> dict[str, str]:
+    """The stage whose place another takes in the dashboard's cycle line (the two ends of a hold)."""
+    return {row.name: row.instead_of for row in current().rows if row.instead_of is not None}
+
+
+def cycle_line() -> tuple[str, ...]:
+    """The handover cycle as the dashboard draws it: every stage but those that take another's place."""
+    return tuple(row.name for row in current().rows if row.instead_of is None)
+
+
+def before_ready(stage: str | None) -> bool:
+    """Whether ``stage`` comes before the hand is awaited at the start (``ready``)."""
+    names = current().names
+    return stage in names and names.index(str(stage)) < names.index(Stage.READY)
+
+
+def stage_name(stage: str) -> str:
     """The stage as the cycle line names it: "not taken"."""
-    return stage.value.replace("_", " ")
+    return stage.replace("_", " ")

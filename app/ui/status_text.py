@@ -8,12 +8,16 @@ experimenter cannot tell which trial of a pair is the learned θ*.
 from __future__ import annotations
 
 from datetime import datetime
+from pathlib import Path
 
+from app.protocol.design import PlanStatus
+from app.protocol.entries import not_used_words
+from app.protocol.learning_words import stop_headline
 from app.protocol.state import SessionState, Step
 from app.session.overview import ParticipantSummary, SessionStatus
 from app.session.runner import END_REASON, RunnerView
-from app.ui.stage_words import CYCLE, INSTEAD_OF, STAGE_WORDS, stage_name
-from robot_io.stages import Stage
+from app.ui.stage_words import before_ready, cycle_line, instead_of, stage_name, stage_words
+from robot_io.control.stages import current
 from session_store.vocabulary import Phase, questions
 
 PHASE_WORDS = {Phase.INITIAL: "Initial handovers", Phase.LEARNING: "Learning batch",
@@ -51,10 +55,29 @@ def start_blocker(view: RunnerView) -> str | None:
 
 def status_line(view: RunnerView) -> str:
     """One line: what the session waits for and what to do, e.g. "Paused — press Resume"; led by
-    what the experimenter must notice about the tablet (a take-over, wrong pairing codes)."""
+    what the experimenter must notice about the tablet (a take-over, wrong pairing codes), then by
+    an answer not used (two at once) and news of the protocol (learning stopped early), until the
+    next trial."""
     alert = view.tablet.alert() if view.tablet is not None else None
     line = _status(view)
+    news = _news(view)
+    if news:
+        line = f"**{news}.** · {line}"
+    not_used = view.state.not_used if view.state is not None else None
+    if not_used is not None:
+        line = f"⚠ **{not_used_words(not_used)}.** · {line}"
     return f"⚠ **{alert}** · {line}" if alert else line
+
+
+def _news(view: RunnerView) -> str | None:
+    """Learning stopped early, between the stop and the next trial (then the Session panel keeps
+    saying so)."""
+    state = view.state
+    if state is None or state.step not in (Step.PLAN, Step.READY) or state.stopped_after is None:
+        return None
+    if any(interaction > state.stopped_after for interaction in state.completed_trial):
+        return None
+    return stop_headline(state)
 
 
 def _status(view: RunnerView) -> str:
@@ -69,12 +92,10 @@ def _status(view: RunnerView) -> str:
         blocker = start_blocker(view)
         return f"**Ready, but** {blocker}." if blocker else "**Ready** — press **Start trial**."
     if step is Step.RUNNING:
-        if view.waiting_for == "loaded":
-            return "**Load the object** into the gripper, then press **Object loaded**."
-        if view.waiting_for == "go":
-            return "**The participant's hand is at the start** — press **Go**."
+        if (gate := current().gate(view.waiting_for)) is not None:
+            return gate.asks
         stage = view.stage
-        return f"**Handover running** — {STAGE_WORDS[stage].dashboard if stage else 'starting'}."
+        return f"**Handover running** — {stage_words(stage).dashboard if stage else 'starting'}."
     if step is Step.PLACE:
         slot = state.slot
         assert slot is not None, "a placement is due for the slot at the cursor"
@@ -118,6 +139,8 @@ def progress_markdown(view: RunnerView) -> str:
         if attempt > 1:
             where += f" · attempt {attempt}"
         lines.append(where)
+    if (stopped := stop_headline(state)) is not None:
+        lines.append(stopped)
     if state.step is Step.RUNNING:
         lines.append(cycle_markdown(view))
     return "  \n".join(lines)
@@ -125,12 +148,12 @@ def progress_markdown(view: RunnerView) -> str:
 
 def cycle_markdown(view: RunnerView) -> str:
     """The running trial's stage within the cycle, the current one in bold."""
-    stage = view.stage
-    shown = [f"**[{stage_name(s)}]**" if s is stage else stage_name(s) for s in CYCLE]
-    if stage in INSTEAD_OF:
-        shown[CYCLE.index(INSTEAD_OF[stage])] = f"**[{stage_name(stage)}]**"
+    stage, stages, replaced = view.stage, cycle_line(), instead_of()
+    shown = [f"**[{stage_name(s)}]**" if s == stage else stage_name(s) for s in stages]
+    if stage in replaced:
+        shown[stages.index(replaced[stage])] = f"**[{stage_name(stage)}]**"
     line = "cycle: " + " → ".join(shown)
-    if view.ready_wait and stage in (Stage.LOADED, Stage.PREPARE):
+    if view.ready_wait and before_ready(stage):
         line += f"  \nnot ready: {view.ready_wait}"
     return line
 
@@ -147,13 +170,15 @@ def tablet_markdown(view: RunnerView) -> str:
 
 
 def safety_markdown(view: RunnerView) -> str:
-    """The arm's stop state, updated the moment the stop completes."""
+    """The arm's stop state, updated the moment the stop completes, and every trial of the session
+    over the lab's safety limits (the moment it is stored)."""
+    flags = "".join(f"  \n⚠ **over the lab's safety limit**: {flag}" for flag in view.safety_flags)
     if view.stop == "stopping":
-        return "### Arm: stopping …"
+        return f"### Arm: stopping …{flags}"
     if view.stop == "stopped":
-        return "### Arm: STOPPED\nCheck the scene is safe, then **Re-arm**."
+        return f"### Arm: STOPPED\nCheck the scene is safe, then **Re-arm**.{flags}"
     fault = f" — ⚠ {view.arm_fault}" if view.arm_fault else ""
-    return f"**Arm: armed**{fault}"
+    return f"**Arm: armed**{fault}{flags}"
 
 
 def devices_markdown(view: RunnerView) -> str:
@@ -165,10 +190,27 @@ def devices_markdown(view: RunnerView) -> str:
            "stopped": f"stopped, waiting for Re-arm ({view.arm})"}[view.stop]
     timing = [line("timing", view.timing, view.timing_warning)] if view.timing else []
     return "\n".join([*rig, line("arm", arm, view.arm_fault), line("hand", view.hand, view.hand_link),
-                      line("gripper", view.gripper, None), *timing,
+                      line("gripper", view.gripper, None), *timing, *recording_lines(view),
                       line("learner", view.learner, view.learner_fault),
                       *([f"- **learning**: {view.learning}"] if view.learning else []),
                       "", "Recent events:", *[f"- {m}" for m in view.messages]])
+
+
+def recording_lines(view: RunnerView) -> list[str]:
+    """The session's recording: its file, size and streams, a stream named but not found, and a
+    file that stopped growing (nothing without a recording)."""
+    recording = view.recording
+    if recording is None:
+        return []
+    state = "stopped" if recording.stopped else "recording"
+    lines = [f"- **recording** ({recording.kind}, run {recording.run}): {state} "
+             f"`{Path(recording.path).name}`, {recording.size / 1000:,.1f} kB"
+             + (f" — ⚠ **{recording.warning}**" if recording.warning else ""),
+             f"  - streams: {', '.join(recording.streams)}"]
+    if recording.missing:
+        lines.append(f"  - ⚠ **not found, not recorded**: {', '.join(recording.missing)} "
+                     "(named in [recording] streams: start them and open the participant again)")
+    return lines
 
 
 def _local_time(at: str | None) -> str:
@@ -198,6 +240,16 @@ def overview_markdown(rows: list[ParticipantSummary]) -> str:
               for r in rows]
     unreadable = [f"- {r.code}: {r.detail}" for r in rows if r.status is SessionStatus.UNREADABLE]
     return "\n".join(table + (["", "Unreadable:", *unreadable] if unreadable else []))
+
+
+def plan_markdown(plan: PlanStatus) -> str:
+    """The study plan above the new participant's form: the design, the groups so far, what it
+    proposes next, and the deviations on record."""
+    lines = [f"**Study plan** ({plan.plan.words()}): so far {plan.counts_words()}.",
+             f"**{plan.next_words()[0].upper()}{plan.next_words()[1:]}**."]
+    if plan.deviations:
+        lines.append("⚠ Deviations: " + "; ".join(plan.deviations) + ".")
+    return "  \n".join(lines)
 
 
 def learner_markdown(view: RunnerView, blind: bool, rows: int = 10) -> str:

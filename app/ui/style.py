@@ -120,6 +120,8 @@ TABLET_CSS = f"""
   font-weight: 600; padding-top: 8px; }}
 .hl-caption {{ text-align: center; font-size: calc(1.15 * var(--hl-text)); font-weight: 700;
   color: {ORANGE}; height: calc(1.5 * var(--hl-text)); }}
+.hl-hint {{ display: inline-block; font-size: var(--hl-text); font-weight: 400; color: {GREY};
+  line-height: 1.3; }}
 .mantine-Flex-root:has(> div > .mantine-Flex-root > .mantine-Slider-root) > :first-child {{
   display: none; }}
 .mantine-Slider-root {{ margin: calc(var(--hl-thumb) / 3) calc(var(--hl-marker) / 2 + 8px) 0;
@@ -155,11 +157,21 @@ TABLET_CSS = f"""
 #: headers, the Safety tab and the dividers take no pointer (a drag on them would undock a panel,
 #: which then floats, or resize a column); the settings gear (its editable server URL would
 #: disconnect the page) and the command palette (its overlay covers the page; STOP ARM is its only
-#: command, and Esc and the button do the same) are hidden. Tables (the study overview, the
+#: command, and Esc and the button do the same) are hidden — from the page's first byte and on the
+#: locked screen too, so none of it shows before the token. STOP ARM's icon is sized with its
+#: label and stands in its box (viser 1.1.1 places a button's icon at ``left: 50%`` of its box
+#: without shifting it back, so at this size it overlapped the "S"). Tables (the study overview, the
 #: learner's trials) keep each cell on one line, apart from the next, and scroll sideways if wide.
 DASHBOARD_CSS = f"""
 .mantine-Button-root[style*="mantine-color-red"] {{ height: 84px !important;
   font-size: 26px !important; font-weight: 800 !important; background: {RED} !important; }}
+.mantine-Button-root[style*="mantine-color-red"] .mantine-Button-section[data-position="left"],
+.mantine-Button-root[style*="mantine-color-red"] .mantine-Button-section[data-position="left"] > *,
+.mantine-Button-root[style*="mantine-color-red"] .mantine-Button-section svg {{
+  width: 1em !important; height: 1em !important; }}
+.mantine-Button-root[style*="mantine-color-red"] .mantine-Button-section[data-position="left"] {{
+  margin-inline-end: 0.4em !important; }}
+.mantine-Button-root[style*="mantine-color-red"] .mantine-Button-section svg {{ left: 0 !important; }}
 [data-dock-column-collapse], [data-dock-region-collapse], [data-dock-column-handle],
 [data-dock-griphandle], [data-dock-region-handle], [data-dock-region-resize],
 [data-dock-header] .mantine-ActionIcon-root,

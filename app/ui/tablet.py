@@ -12,15 +12,15 @@ While the simulated participant rates (a demo, a dry run), the tablet says "Plea
 person would answer: it never offers a question that is not theirs to answer.
 
 Answers are deliberate: input counts only once a screen has been seen for
-:data:`~app.ui.deliberate.SETTLE_S`; Confirm is disabled until the handle has moved, and the handle
-never starts on an earlier marker; a hint, a rating or an answer is a choice followed by Confirm or
-Next.
+:data:`~app.ui.deliberate.SETTLE_S`; Confirm is disabled until the handle has moved (the scale says
+so), and the handle never starts on an earlier marker; a hint, a rating or an answer is a choice
+followed by Confirm or Next.
 
 One tablet per session (:mod:`app.session.pairing`): a page on the tablet port becomes the study's
 tablet once the pairing code shown on the dashboard is typed on it ("Connect this tablet"); the
-pairing holds for that device across reloads, and for that browser across restarts. Another page of
-the same device shows "This tablet is not in use" and is offered nothing to rate, until the
-tablet's page closes; a page of another device is offered only the code. The runner hears of every
+pairing holds for that browser across reloads and restarts. Another page of the same browser shows
+"This tablet is not in use" and is offered nothing to rate, until the tablet's page closes; a page
+of another browser, even from the tablet's address, is offered only the code. The runner hears of every
 page (:meth:`SessionRunner.tablet_connected`), so the dashboard shows how many are open and Start
 is refused without exactly one paired tablet.
 
@@ -47,7 +47,7 @@ from app.session.runner import RunnerView, SessionRunner
 from app.ui.deliberate import SETTLE_S, Settle
 from app.ui.questionnaire import Draft
 from app.ui.scale_view import render_scale, screen_text, snap, start_position
-from app.ui.stage_words import STAGE_WORDS
+from app.ui.stage_words import stage_words
 from app.ui.style import KIOSK_CSS, OFFLINE_CSS, TABLET_CSS, audio_cue, style_block
 from session_store.vocabulary import Hint, Phase, Question, question, questions
 
@@ -59,15 +59,20 @@ RATINGS: tuple[tuple[str, str], ...] = (("Better", "better"), ("The same", "equa
 #: The coactive hint's answer "nothing to change" (stored as no hint).
 NO_HINT = "none"
 #: Coactive hints as the participant reads them (the robot should …) → :class:`Hint`'s values
-#: (app/protocol/hints.py says which way each moves θ; the words never name a parameter).
-HINTS: tuple[tuple[str, str], ...] = (("Come sooner", Hint.SOONER.value),
-                                      ("Come later", Hint.LATER.value),
+#: (app/protocol/hints.py says which way each moves θ; the words never name a parameter). Sooner and
+#: later say what the robot changes: when it arrives, by waiting less or more for the hand — not
+#: when it starts, nor how fast it moves ("Come sooner" read as either).
+HINTS: tuple[tuple[str, str], ...] = (("Arrive sooner: wait less for my hand", Hint.SOONER.value),
+                                      ("Arrive later: wait more for my hand", Hint.LATER.value),
                                       ("React more to my hand", Hint.MORE.value),
                                       ("React less to my hand", Hint.LESS.value),
                                       ("No, it was fine", NO_HINT))
 #: The first line of every screen's CSS block: the kiosk, the offline cover, the tablet's look,
 #: and the marker the offline cover looks for.
 PAGE_STYLE = style_block(KIOSK_CSS + OFFLINE_CSS + TABLET_CSS) + '<span class="hl-live"></span>'
+
+#: Above the scale while its Confirm is grey, until the handle has moved.
+MOVE_FIRST = "Confirm lights up once you move the handle. To keep it here, move it away and back."
 
 ScreenKind = Literal["wait", "pairs", "go", "back", "place", "hint", "rate", "question",
                      "done", "unused", "pair"]
@@ -113,7 +118,7 @@ def screen_for(view: RunnerView) -> Screen:
     if state is None:
         return Screen(kind="wait")
     step, slot = state.step, state.slot
-    shown = STAGE_WORDS[state.stage].tablet if step is Step.RUNNING and state.stage else "wait"
+    shown = stage_words(state.stage).tablet if step is Step.RUNNING and state.stage else "wait"
     if shown != "wait":  # "go": the cue, the robot starts with it; "back": it moves back
         return Screen(kind=shown, interaction=_current(slot).interaction)
     if view.auto and step in PARTICIPANT_STEPS:
@@ -277,15 +282,18 @@ class TabletClient:
         markers, label, interaction = list(screen.markers), screen.label, screen.interaction
         assert label is not None and interaction is not None, "screen_for names the handover"
         start = start_position(markers)
-        scale = gui.add_html(render_scale(markers, label, start))
+        # Confirm stays grey until the handle moves: the scale says so above the arrow, or one who
+        # leaves it where it starts waits for a button that never lights up
+        scale = gui.add_html(render_scale(markers, label, start, hint=MOVE_FIRST))
         slider = gui.add_slider("", min=0.0, max=1.0, step=0.001, initial_value=start)
         confirm = gui.add_button("Confirm", color="green", disabled=True)
 
         @slider.on_update
         def _(_: viser.GuiEvent) -> None:
-            scale.content = render_scale(markers, label, slider.value)
             if self.settle.ready():  # a drag carried over from the screen before does not count
                 confirm.disabled = False
+            scale.content = render_scale(markers, label, slider.value,
+                                         hint=MOVE_FIRST if confirm.disabled else "")
 
         def place() -> None:
             if confirm.disabled:
@@ -340,7 +348,7 @@ class TabletClient:
         assert draft is not None, "show starts a draft with every question screen"
         if not draft.first:
             gui.add_button("‹ Back", color="dark").on_click(
-                lambda _: self._input(lambda: self._turn(draft.back())))
+                lambda _: self._input(self._previous_question))
         gui.add_html(question_html(draft))
         choice = Choice(gui, answer_options(draft.question), draft.choice,
                         lambda value: self._input(lambda: self._choose(value)))
@@ -358,6 +366,13 @@ class TabletClient:
         self._draft = draft.choose(value)
         choice.show(value)
         next_button.disabled = False
+
+    def _previous_question(self) -> None:
+        """The question before, with the choices made so far — this one's included (the draft as
+        it is now: the one of when the screen was drawn had not this question's choice)."""
+        draft = self._draft
+        assert draft is not None, "Back is on a question screen, which has its draft"
+        self._turn(draft.back())
 
     def _turn(self, draft: Draft) -> None:
         self._draft = draft

@@ -16,10 +16,11 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
+from typing import Literal
 
 import numpy as np
 
-from robot_io.arms.arm import ArmState
+from robot_io.arms.arm import ArmKind, ArmState, ForceOf
 from robot_io.clock import Clock
 from robot_io.errors import ArmFault
 from robot_io.vector import all_finite, norm
@@ -179,3 +180,15 @@ class MockArm:
         if new_speed == 0.0:
             self.velocity = np.zeros(3)
             self._state = ArmState.STOPPED
+
+
+class MockArmKind(ArmKind):
+    """``[arm] kind = "mock"``: the kinematic mock arm, no hardware; its force is the simulated
+    participant's pull."""
+
+    simulated = True
+
+    kind: Literal["mock"] = "mock"
+
+    def trial_arm(self, clock: Clock, start: np.ndarray, force: ForceOf) -> MockArm:
+        return MockArm(clock, start, force=force)

@@ -25,14 +25,16 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
-from robot_io.arms.arm import ArmState
+from robot_io.arms.arm import ArmKind, ArmSettings, ArmState, Backstop
+from robot_io.arms.ur_config import URConfig
+from robot_io.arms.ur_dashboard import DashboardStop
 from robot_io.arms.ur_worker import ControlWorker
-from robot_io.config import SafetyLimits, URConfig
-from robot_io.errors import ArmFault, MoveStopped
+from robot_io.errors import ArmFault, ConfigError, MoveStopped
+from robot_io.scene import SafetyLimits
 from robot_io.vector import all_finite, norm
 
 log = logging.getLogger(__name__)
@@ -135,6 +137,13 @@ class URArm:
             raise
         log.info("connected to UR controller %s (PolyScope %s, %d Hz)", cfg.host,
                  self.polyscope_version, self.rate_hz)
+
+    @property
+    def version(self) -> str:
+        return self.polyscope_version
+
+    def describe(self) -> str:
+        return f"UR at {self.config.host}, PolyScope {self.polyscope_version}, {self.rate_hz} Hz"
 
     def close(self) -> None:
         """Stop, end the control worker, disconnect. Safe to call twice."""
@@ -437,3 +446,27 @@ class URArm:
                 if time.monotonic() > deadline:
                     raise ArmFault(f"the controller refused to unlock the protective stop: {exc}") from exc
                 time.sleep(0.5)
+
+
+class URArmKind(ArmKind):
+    """``[arm] kind = "ur"``: a UR5 over RTDE at ``[ur] host`` (its settings: ``[ur]``). Moves it!"""
+
+    tool_outputs = True
+    fastest_rate_hz = 500  # an e-Series; a CB-series runs at 125 Hz, known once connected
+
+    kind: Literal["ur"]
+
+    def complete(self, settings: ArmSettings) -> None:
+        """A UR's address is never assumed: on a lab network another robot may sit at any address."""
+        if settings.ur.host is None:
+            raise ConfigError('[ur] host is not set; [arm] kind = "ur" needs the UR controller\'s '
+                              'address. Set it (e.g. host = "192.168.1.10"): it has no default, so no '
+                              "robot at an assumed address is ever driven")
+
+    def connect(self, settings: ArmSettings) -> URArm:
+        return URArm(settings.ur, settings.safety)
+
+    def backstop(self, settings: ArmSettings) -> Backstop:
+        host = settings.ur.host
+        assert host is not None, "ControllerConfig refuses arm.kind = 'ur' without [ur] host"
+        return DashboardStop(host)

@@ -19,7 +19,7 @@ import numpy as np
 
 from robot_io.config import DMPConstants
 from robot_io.control.forcing import ForcingTerm
-from robot_io.control.minimum_jerk import minimum_jerk
+from robot_io.minimum_jerk import minimum_jerk
 
 
 class CouplingTerms(NamedTuple):

@@ -25,7 +25,7 @@ COLUMNS: tuple[tuple[str, int, str], ...] = (
     ("q", 6, "joint angle read from the arm [rad] (joints 0 base, 1 shoulder, 2 elbow, 3–5 wrist 1–3; "
              "empty for an arm that does not report them: the mock)"),
     ("limited", 1, "safety limiter flags: 1 acceleration, 2 speed, 4 workspace"),
-    ("stage", 1, "stage of the handover cycle: 1 reach, 2 hold, 3 released (robot_io.stages)"),
+    ("stage", 1, "stage of the handover cycle: 1 reach, 2 hold, 3 released (robot_io.control.stages)"),
     ("force", 3, "force at the TCP while holding [N] (empty during the reach)"),
     ("pull", 1, "baseline-subtracted, filtered pull ‖F̃ − F₀‖ while armed [N] (robot_io.control.release)"),
     ("compute_s", 1, "compute time of the cycle [s]"),

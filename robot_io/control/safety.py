@@ -8,8 +8,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from robot_io.config import SafetyLimits
 from robot_io.errors import ArmFault
+from robot_io.scene import SafetyLimits
 from robot_io.vector import all_finite, norm
 
 

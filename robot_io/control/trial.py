@@ -12,6 +12,7 @@ from robot_io.control.dmp import DMP
 from robot_io.control.loop import HandoverLoop, HoldPhase, StageCallback, StopRequest, TrialRecord
 from robot_io.control.recorder import TrialRecorder
 from robot_io.control.safety import SafetyLimiter
+from robot_io.control.stages import CycleTable
 from robot_io.hands.hand import HandSource
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.theta import Theta
@@ -38,13 +39,23 @@ def make_coupling(config: ControllerConfig, theta: Theta | None, dt: float) -> C
 
 def make_loop(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: Arm,
               clock: Clock, *, hold: HoldPhase | None = None, on_stage: StageCallback | None = None,
-              recorder: TrialRecorder | None = None,
-              stop: StopRequest | None = None) -> HandoverLoop:
-    """A handover from the robot start R to the handover point H; the arm is first moved to R.
-    With ``hold``, the robot then holds the object out at H with the k_ext compliance term of
-    Table I while the participant grasps it (:class:`~robot_io.control.compliance.CompliantCoupling`)."""
+              recorder: TrialRecorder | None = None, stop: StopRequest | None = None,
+              cycle: CycleTable | None = None) -> HandoverLoop:
+    """A handover from the robot start R to the handover point H, the arm first moved to R
+    (:func:`build_loop`)."""
+    arm.move_to(config.scene.point("robot_start"), stop)
+    return build_loop(config, theta, hand, arm, clock, hold=hold, on_stage=on_stage,
+                      recorder=recorder, stop=stop, cycle=cycle)
+
+
+def build_loop(config: ControllerConfig, theta: Theta | None, hand: HandSource, arm: Arm,
+               clock: Clock, *, hold: HoldPhase | None = None, on_stage: StageCallback | None = None,
+               recorder: TrialRecorder | None = None, stop: StopRequest | None = None,
+               cycle: CycleTable | None = None) -> HandoverLoop:
+    """A handover from the robot start R to the handover point H, the arm where it is. With
+    ``hold``, the robot then holds the object out at H with the k_ext compliance term of Table I
+    while the participant grasps it (:class:`~robot_io.control.compliance.CompliantCoupling`)."""
     start, goal = config.scene.point("robot_start"), config.scene.point("handover_point")
-    arm.move_to(start, stop)
     coupling = make_coupling(config, theta, clock.period)
     if hold is not None:
         release = hold.release
@@ -56,7 +67,7 @@ def make_loop(config: ControllerConfig, theta: Theta | None, hand: HandSource, a
         coupling=coupling,
         hand=hand, arm=arm, clock=clock,
         limiter=SafetyLimiter(config.safety, clock.period),
-        config=config.loop, hold=hold, on_stage=on_stage, recorder=recorder, stop=stop,
+        config=config.loop, hold=hold, on_stage=on_stage, recorder=recorder, stop=stop, cycle=cycle,
     )
 
 

@@ -8,10 +8,14 @@ on its URCap's socket is :class:`robot_io.grippers.robotiq.RobotiqSocketGripper`
 from __future__ import annotations
 
 import logging
-from typing import Protocol
+from typing import Literal, Protocol
 
-from robot_io.config import GripperConfig
-from robot_io.errors import GripperFault, RobotIOError
+from pydantic import Field
+
+from robot_io.arms.arm import ArmKind
+from robot_io.arms.kinds import ARMS
+from robot_io.errors import ConfigError, GripperFault, RobotIOError
+from robot_io.kinds import DeviceKind
 
 log = logging.getLogger(__name__)
 
@@ -57,7 +61,7 @@ class NoGripper:
 class ToolOutputGripper:
     """Drives tool digital output ``config.tool_output`` of the UR at ``host``."""
 
-    def __init__(self, host: str, config: GripperConfig) -> None:
+    def __init__(self, host: str, config: ToolOutputKind) -> None:
         import rtde_io
 
         self.config, self.host = config, host
@@ -104,3 +108,78 @@ class ToolOutputGripper:
 
     def disconnect(self) -> None:
         self._io.disconnect()
+
+
+class GripperKind(DeviceKind):
+    """``[gripper]``: the gripper that holds the object, one model per kind (robot_io.grippers.kinds
+    .GRIPPERS). ``controller``: the address of the arm's controller (its tool outputs, its URCap),
+    None: the arm has none."""
+
+    def complete(self, arm: ArmKind, controller: str | None) -> None:
+        """Refuse (ConfigError), when the file is read, a gripper that cannot work on ``arm``."""
+
+    def address(self, controller: str | None) -> str | None:
+        """Where the gripper is driven from."""
+        return controller
+
+    def open(self, controller: str | None) -> Gripper:
+        """The gripper, connected (a Robotiq one also activated, if it was not)."""
+        raise NotImplementedError
+
+    def describe(self, controller: str | None) -> str:
+        """The gripper in the devices' report."""
+        raise NotImplementedError
+
+    def check(self, controller: str | None) -> str:
+        """``handover check-devices``: one line (after "gripper: "), switching and moving nothing;
+        it may raise RobotIOError."""
+        raise NotImplementedError
+
+    def _at(self, controller: str | None) -> str:
+        """:meth:`address`, which :meth:`complete` made sure of."""
+        address = self.address(controller)
+        assert address is not None, f"ControllerConfig refuses a {self.kind} gripper without an address"
+        return address
+
+
+class NoGripperKind(GripperKind):
+    """``[gripper] kind = "none"``: nothing to switch (:class:`NoGripper`)."""
+
+    simulated = True
+
+    kind: Literal["none"] = "none"
+
+    def open(self, controller: str | None) -> NoGripper:
+        return NoGripper()
+
+    def describe(self, controller: str | None) -> str:
+        return "no gripper"
+
+    def check(self, controller: str | None) -> str:
+        return "none configured"
+
+
+class ToolOutputKind(GripperKind):
+    """``[gripper] kind = "tool_output"``: a tool digital output of the arm's controller drives it
+    (:class:`ToolOutputGripper`)."""
+
+    kind: Literal["tool_output"]
+    tool_output: int = Field(0, ge=0, le=1, description="the tool digital output that drives it")
+    open_level: bool = Field(True, description="the output level that opens the gripper")
+
+    def complete(self, arm: ArmKind, controller: str | None) -> None:
+        if not arm.tool_outputs:
+            kinds = " or ".join(repr(kind) for kind, model in ARMS.items() if model.tool_outputs)
+            raise ConfigError(f"gripper.kind = 'tool_output' needs arm.kind = {kinds} (the output is "
+                              f"the arm controller's), not {arm.kind!r}")
+
+    def open(self, controller: str | None) -> ToolOutputGripper:
+        return ToolOutputGripper(self._at(controller), self)
+
+    def describe(self, controller: str | None) -> str:
+        return f"tool digital output {self.tool_output}"
+
+    def check(self, controller: str | None) -> str:
+        ToolOutputGripper(self._at(controller), self).disconnect()
+        return f"tool digital output {self.tool_output} reachable (not switched)"
+

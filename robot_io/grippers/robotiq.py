@@ -34,9 +34,14 @@ from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import Annotated, Literal
 
-from robot_io.config import GripperConfig
-from robot_io.errors import GripperFault
+from pydantic import Field, model_validator
+
+from robot_io.arms.arm import ArmKind
+from robot_io.bounds import in_range
+from robot_io.errors import ConfigError, GripperFault
+from robot_io.grippers.gripper import GripperKind
 
 log = logging.getLogger(__name__)
 
@@ -157,7 +162,7 @@ def activate(link: URCapLink) -> None:
     link.set(GTO=1)
 
 
-def probe(host: str, config: GripperConfig) -> RobotiqStatus:
+def probe(host: str, config: RobotiqSocketKind) -> RobotiqStatus:
     """The gripper's status, read without activating or moving it (``handover check-devices``)."""
     link = URCapLink(host, config.port, config.reply_timeout_s)
     try:
@@ -174,7 +179,7 @@ class RobotiqSocketGripper:
     whether the last close found an object.
     """
 
-    def __init__(self, host: str, config: GripperConfig) -> None:
+    def __init__(self, host: str, config: RobotiqSocketKind) -> None:
         self.config = config
         self._link = URCapLink(host, config.port, config.reply_timeout_s)
         try:
@@ -223,8 +228,14 @@ class RobotiqSocketGripper:
             raise self._fault
 
     def disconnect(self) -> None:
+        """End the worker, then close its socket (never under a worker still in a request: the
+        socket's number could be reused by then); a worker that does not end keeps it (logged)."""
         self._jobs.put(None)
         self._worker.join(timeout=self.config.move_timeout_s + 2 * self.config.reply_timeout_s)
+        if self._worker.is_alive():
+            log.error("gripper: its worker did not end; its URCap socket stays open until the rig "
+                      "exits")
+            return
         self._link.close()
 
     # -- the worker --------------------------------------------------------------------------------
@@ -312,3 +323,71 @@ class RobotiqSocketGripper:
         if self._holding and obj is not Obj.CONTACT_CLOSING:
             raise ObjectFault(f"gripper: the object was lost while holding (OBJ went from 2 to "
                               f"{int(obj)}): the fingers closed past it")
+
+
+#: A Robotiq register value (position, speed, force): one byte.
+RobotiqByte = Annotated[int, Field(ge=0, le=255)]
+#: The Robotiq URCap's gripper socket on the controller (its manual, "Control over the socket").
+ROBOTIQ_PORT = 63352
+
+
+class RobotiqSocketKind(GripperKind):
+    """``[gripper] kind = "robotiq_socket"``: a Robotiq 2F-85 through its URCap's socket
+    (:class:`RobotiqSocketGripper`)."""
+
+    kind: Literal["robotiq_socket"]
+    host: str | None = Field(
+        None, description="robotiq_socket: address of the controller whose URCap drives the gripper; "
+                          "unset: [ur] host (the URCap runs on the UR's controller); never assumed")
+    port: int = Field(ROBOTIQ_PORT, ge=1, le=65535,
+                      description="robotiq_socket: the URCap's gripper socket (63352 on every controller)")
+    speed: RobotiqByte = Field(255, description="robotiq_socket: finger speed, 0 (20 mm/s) to 255 "
+                                                "(150 mm/s on a 2F-85)")
+    force: RobotiqByte = Field(50, description="robotiq_socket: grip force, 0 (20 N) to 255 (235 N on a "
+                                               "2F-85); low enough that a pull opens no finger")
+    open_position: RobotiqByte = Field(0, description="robotiq_socket: finger position that opens "
+                                                      "(0: fully open, 85 mm on a 2F-85)")
+    closed_position: RobotiqByte = Field(255, description="robotiq_socket: finger position commanded "
+                                                          "to close (255: fully closed); the object "
+                                                          "stops the fingers before it")
+    move_timeout_s: Annotated[float, in_range(0, 30, "s")] = Field(
+        5.0, description="robotiq_socket: a close or an open that has not ended within this long is "
+                         "a fault [s] (a full 2F-85 stroke takes 0.6 s at speed 255, 4.3 s at 0)")
+    reply_timeout_s: Annotated[float, in_range(0, 10, "s")] = Field(
+        1.0, description="robotiq_socket: no answer from the URCap within this long is a fault [s]")
+
+    def complete(self, arm: ArmKind, controller: str | None) -> None:
+        """The URCap's address is never assumed."""
+        if self.host is None and controller is None:
+            raise ConfigError('[gripper] host is not set and neither is [ur] host; [gripper] kind = '
+                              '"robotiq_socket" needs the address of the controller its URCap runs '
+                              'on. Set [gripper] host (or [ur] host): it has no default')
+
+    def address(self, controller: str | None) -> str | None:
+        return self.host or controller
+
+    def open(self, controller: str | None) -> RobotiqSocketGripper:
+        return RobotiqSocketGripper(self._at(controller), self)
+
+    def describe(self, controller: str | None) -> str:
+        return f"Robotiq 2F-85 on {self.address(controller)}:{self.port}"
+
+    def check(self, controller: str | None) -> str:
+        """Reachable, and its activation, position and fault code (read, never activated or moved)."""
+        status = probe(self._at(controller), self)
+        where = f"Robotiq URCap on {self.address(controller)}:{self.port}, {status.describe()}"
+        if status.flt:
+            return f"NOT OK — {where}: clear the fault on the teach pendant"
+        if status.sta != ACTIVATED:
+            return (f"{where}; not moved: it activates when the rig opens it (the fingers open and "
+                    "close once)")
+        return f"{where} (not moved)"
+
+    @model_validator(mode="after")
+    def _closes_past_open(self) -> RobotiqSocketKind:
+        if self.closed_position <= self.open_position:
+            raise ConfigError(f"gripper.closed_position = {self.closed_position} must be above "
+                              f"gripper.open_position = {self.open_position} (0 open … 255 closed)")
+        return self
+
+

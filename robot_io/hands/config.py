@@ -8,7 +8,8 @@ of another kind is refused naming the kind it belongs to, unless it holds that k
 table written before the kinds had tables of their own (and every session stored then) lists every
 kind's keys, and a default says nothing.
 
-Each kind registers itself once, in :data:`HAND_SOURCES`: its model names the class that reads it
+Each kind registers itself once, in :data:`HAND_SOURCES` (a :class:`robot_io.kinds.Kinds`, the
+pattern arms and grippers follow too): its model names the class that reads it
 (:attr:`HandSourceBase.reader`, imported only when it is opened, so reading a configuration never
 imports a tracker's client library).
 """
@@ -18,13 +19,14 @@ from __future__ import annotations
 import importlib
 from collections.abc import Mapping
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, TypeAlias, Union, get_args
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal, TypeAlias
 
 import numpy as np
-from pydantic import BeforeValidator, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from robot_io.bounds import ROTATION_TOLERANCE, Frozen, RotationRow, ScenePoint, in_range
+from robot_io.bounds import ROTATION_TOLERANCE, RotationRow, ScenePoint, in_range
 from robot_io.errors import ConfigError
+from robot_io.kinds import DeviceKind, Kinds
 
 if TYPE_CHECKING:
     from robot_io.hands.frame import FrameTransform
@@ -36,7 +38,7 @@ ResolveTimeout = Annotated[float, in_range(0, 60, "s")]
 UnitsToM = Annotated[float, in_range(0, 1, "m per unit")]
 
 
-class HandSourceBase(Frozen):
+class HandSourceBase(DeviceKind):
     """What every hand source shares: its kind and the tracker → robot-base calibration."""
 
     #: ``"module:Class"`` of the tracked hand that reads this kind; None: not a tracker.
@@ -48,7 +50,6 @@ class HandSourceBase(Frozen):
     #: The one unit the tracker streams (units_to_m, why): any other value is refused.
     unit: ClassVar[tuple[float, str] | None] = None
 
-    kind: str
     units_to_m: UnitsToM = Field(0.001, description="tracker units → metres (Vicon, OptiTrack over "
                                                     "LSL: mm; NatNet streams metres: 1.0)")
     rotation: tuple[RotationRow, RotationRow, RotationRow] = Field(
@@ -98,16 +99,16 @@ class HandSourceBase(Frozen):
         module, name = self.reader.split(":")
         return getattr(importlib.import_module(module), name)(self, transform, max_speed)
 
-    def as_kind(self, kind: str, **update: Any) -> HandSourceConfig:
+    def as_kind(self, kind: str, **update: Any) -> HandSourceBase:
         """This table as ``kind``'s, validated anew: the calibration and every key both kinds have
         are kept, ``update`` is applied."""
-        model = HAND_SOURCES[kind]
-        kept = {key: value for key, value in self.model_dump().items() if key in model.model_fields}
-        return model.model_validate({**kept, **update, "kind": kind})
+        return HAND_SOURCES.as_kind(self, kind, **update)
 
 
 class SimulatedSource(HandSourceBase):
     """The simulated participant's hand (``robot_io.hands.simulated_hand``); no tracker."""
+
+    simulated = True
 
     kind: Literal["simulated"] = "simulated"
 
@@ -188,66 +189,13 @@ class ViconSource(HandSourceBase):
 
 
 #: Every kind of hand source, by its ``kind``: the one place a new kind is registered.
-HAND_SOURCES: dict[str, type[HandSourceBase]] = {
-    get_args(model.model_fields["kind"].annotation)[0]: model
-    for model in (SimulatedSource, LSLSource, UDPSource, NatNetSource, ViconSource)}
-
-
-def own_keys(table: Mapping[str, Any]) -> dict[str, Any]:
-    """A ``[hand_source]`` table (as stored) with its kind's keys only: one written when every
-    kind's keys stood in one table compares equal to the same source written now."""
-    model = HAND_SOURCES.get(table.get("kind", "simulated"))
-    return {key: value for key, value in table.items() if model is None or key in model.model_fields}
-
-
-def _plain(value: Any) -> Any:
-    """A value as TOML or JSON gives it (tuples as lists), to compare with a default."""
-    if isinstance(value, tuple | list):
-        return [_plain(item) for item in value]
-    return value
-
-
-def _foreign_key(key: str, value: Any, kind: str) -> str | None:
-    """Why ``key`` cannot stand in a table of ``kind``; None: it may (a default of another kind,
-    from a table written when every kind's keys stood in one table), or pydantic says it is unknown."""
-    owners = [other for other, model in HAND_SOURCES.items() if key in model.model_fields]
-    if owners:
-        if all(_plain(HAND_SOURCES[owner].model_fields[key].default) == _plain(value) for owner in owners):
-            return None
-        kinds = " or ".join(f'kind = "{owner}"' for owner in owners)
-        return (f'[hand_source] {key} is a key of {kinds}, not of kind = "{kind}": remove it, or set '
-                f"the kind it belongs to")
-    prefix = key.split("_", 1)[0]
-    if prefix in HAND_SOURCES and prefix != kind:
-        keys = ", ".join(name for name in HAND_SOURCES[prefix].model_fields if name.startswith(prefix))
-        return (f'[hand_source] {key} is no key of kind = "{kind}"; it reads like one of kind = '
-                f'"{prefix}", whose keys are {keys}')
-    return None
-
-
-def _by_kind(value: Any) -> Any:
-    """The model of the table's ``kind`` (``simulated`` when it has none), validated on its own
-    fields; a kind that does not exist or a key of another kind is refused here, in words."""
-    if not isinstance(value, Mapping):
-        return value
-    table = {"kind": "simulated", **value}
-    kind = table["kind"]
-    if kind not in HAND_SOURCES:
-        raise ConfigError(f"[hand_source] kind = {kind!r} is no hand source; the kinds are "
-                          + ", ".join(f'"{name}"' for name in HAND_SOURCES))
-    for key in [key for key in table if key not in HAND_SOURCES[kind].model_fields]:
-        refusal = _foreign_key(key, table[key], kind)
-        if refusal is not None:
-            raise ConfigError(refusal)
-        if any(key in model.model_fields for model in HAND_SOURCES.values()):
-            del table[key]
-    return HAND_SOURCES[kind].model_validate(table)
+HAND_SOURCES: Kinds[HandSourceBase] = Kinds(
+    "hand_source", "simulated", SimulatedSource, LSLSource, UDPSource, NatNetSource, ViconSource)
 
 
 if TYPE_CHECKING:
-    #: To the type checker, a table of any kind: the union below is built at run time.
+    #: To the type checker, a table of any kind: the field's type is made at run time.
     HandSourceConfig: TypeAlias = HandSourceBase
 else:
     #: ``[hand_source]``: one of :data:`HAND_SOURCES`, chosen by ``kind``.
-    HandSourceConfig = Annotated[Union[tuple(HAND_SOURCES.values())],  # noqa: UP007 (built from the table)
-                                 Field(discriminator="kind"), BeforeValidator(_by_kind)]
+    HandSourceConfig = HAND_SOURCES.field(HandSourceBase)

@@ -151,6 +151,5 @@ class LSLHand(TrackedHand):
         for queued, queued_stamp in zip([sample, *samples], [stamp, *stamps], strict=True):
             self.put(queued_stamp, [queued[c] for c in self.channels])
 
-    def close(self) -> None:
-        super().close()
+    def _release(self) -> None:
         self.inlet.close_stream()

@@ -42,12 +42,13 @@ from collections.abc import Callable
 
 import numpy as np
 from natnet import DataDescriptions, DataFrame, NatNetClient
+from natnet.packet_buffer import PacketBuffer
 
 from robot_io.errors import HandSourceError
 from robot_io.hands.config import NatNetSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.frame_clock import FrameClock
-from robot_io.hands.tracked_hand import RECONNECT_TIMEOUT_S, TrackedHand
+from robot_io.hands.tracked_hand import RECEIVER_JOIN_S, RECONNECT_TIMEOUT_S, TrackedHand
 
 log = logging.getLogger(__name__)
 
@@ -127,11 +128,14 @@ class TolerantNatNetClient(NatNetClient):
     The library reads each packet in its private ``NatNetClient.__process_message``, on a receiving
     thread that an exception ends. This subclass overrides that one method (by its mangled name):
     a packet that cannot be read (``struct.error`` of a truncated one, a bad string, an index past
-    its end) is dropped and reported to ``on_malformed``; and a packet that comes before the
-    server's info is dropped uncounted: the library cannot read it without the protocol's version
-    (it raised TypeError out of ``connect`` when a frame overtook the info). Everything else is the
-    library's. Should a later ``natnet`` rename the method, the override goes unused and the
-    watchdog of :class:`NatNetHand` still makes the client anew after a dead thread."""
+    its end) is dropped and reported to ``on_malformed``, one shorter than its header says before
+    the library prints a warning on stdout for it (one line per bad frame in the experimenter's
+    terminal; counted here, and logged once by the link), and one longer is read as far as its
+    header says; and a packet that comes before the server's info is dropped uncounted: the library
+    cannot read it without the protocol's version (it raised TypeError out of ``connect`` when a
+    frame overtook the info). Everything else is the library's. Should a later ``natnet`` rename
+    the method, the override goes unused and the watchdog of :class:`NatNetHand` still makes the
+    client anew after a dead thread."""
 
     def __init__(self, on_malformed: Callable[[str], None], **kwargs) -> None:
         super().__init__(**kwargs)
@@ -141,6 +145,14 @@ class TolerantNatNetClient(NatNetClient):
         try:
             if self.protocol_version is None and buffer.data[:2] != SERVER_INFO_ID:
                 return
+            data = buffer.data
+            announced = 4 + struct.unpack_from("<H", data, 2)[0] if len(data) >= 4 else None
+            if announced is None or len(data) < announced:
+                # the library would print a warning on stdout for it, then fail to read it
+                self._on_malformed(f"a packet of {len(data)} bytes, its header says {announced}")
+                return
+            if len(data) > announced:  # trailing bytes: read what the header announces
+                buffer = PacketBuffer(data[:announced])
             super()._NatNetClient__process_message(buffer)
         except (struct.error, ValueError, IndexError) as exc:
             self._on_malformed(f"{type(exc).__name__}: {exc}")
@@ -284,6 +296,6 @@ class NatNetHand(TrackedHand):
     def close(self) -> None:
         """Stop the watchdog, then the client's threads, and close its sockets."""
         self._closing.set()
-        self._watchdog.join(RECONNECT_TIMEOUT_S + 1.0)
+        self._watchdog.join(RECEIVER_JOIN_S)
         self.client.shutdown()
         super().close()

@@ -13,10 +13,11 @@ from enum import StrEnum
 
 import numpy as np
 
-from robot_io.config import HandProfile, SceneConfig
-from robot_io.control.minimum_jerk import minimum_jerk
 from robot_io.errors import ConfigError
 from robot_io.hands.hand import HandSample
+from robot_io.hands.profile import HandProfile
+from robot_io.minimum_jerk import minimum_jerk
+from robot_io.scene import SceneConfig
 
 
 class Scenario(StrEnum):

@@ -57,6 +57,9 @@ TRACKER_JITTER_M = 0.01
 LINK_STALL_S = 0.5
 #: How long one try to connect again may wait for the tracker [s].
 RECONNECT_TIMEOUT_S = 1.0
+#: How long :meth:`TrackedHand.close` waits for the receiver to end [s]: its longest call is one try
+#: to reconnect (RECONNECT_TIMEOUT_S) or one receive (≤ 0.1 s), with room for a loaded machine.
+RECEIVER_JOIN_S = 4 * RECONNECT_TIMEOUT_S
 
 
 class Link:
@@ -271,6 +274,20 @@ class TrackedHand:
         raise NotImplementedError
 
     def close(self) -> None:
+        """Stop the receiver, then release what it alone used (:meth:`_release`: an LSL inlet, a
+        socket, the Vicon client), in that order: a native handle released under a thread still in
+        one of its calls can crash the process or, for a socket, read a reused file number. A
+        receiver that has not ended within :data:`RECEIVER_JOIN_S` keeps its handle (said in the
+        log): a leak until the rig process exits, never a release under a running call."""
         self._running = False
-        if self._thread is not None:
-            self._thread.join(1.0)
+        thread = self._thread
+        if thread is not None:
+            thread.join(RECEIVER_JOIN_S)
+            if thread.is_alive():
+                log.error("%s: its receiver did not end within %g s; its link is left open until "
+                          "the process exits", type(self).__name__, RECEIVER_JOIN_S)
+                return
+        self._release()
+
+    def _release(self) -> None:
+        """Release the handles only the receiver used (subclasses that have any)."""

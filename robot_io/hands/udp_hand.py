@@ -55,6 +55,5 @@ class UDPHand(TrackedHand):
             return
         self.put(min(stamp, arrived), xyz)
 
-    def close(self) -> None:
-        super().close()
+    def _release(self) -> None:
         self.sock.close()

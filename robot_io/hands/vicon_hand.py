@@ -365,9 +365,8 @@ class ViconHand(TrackedHand):
             parts.append(f"{self.missed} frames missed")
         return ", ".join(parts)
 
-    def close(self) -> None:
-        """Stop polling, then disconnect."""
-        super().close()
+    def _release(self) -> None:
+        """Disconnect (once polling has stopped)."""
         try:
             self.client.Disconnect()
         except Exception:

@@ -9,6 +9,13 @@ would end it anyway within 1/watchdog_hz), and it kills the rig process. The sam
 itself when the rig stops writing samples for ``HANG_S`` while it streams. The other way round,
 the same watchdog thread sends the rig a heartbeat during a trial: a rig that hears nothing from a
 frozen application for ``APP_SILENCE_S`` stops the arm (robot_io.rig.process.Inbox).
+
+Lifetimes (docs/architecture.md, "Shared objects and their lifetimes"): the client creates the
+sample stream, the pipe, the dashboard connection and its two threads. The pipe is closed by the
+reader alone, once the rig's end is gone. The sample stream has two holders, :meth:`RigClient.close`
+and the reader (which reads a trial's rows when it hands on the trial's end): the second of them to
+be done releases it, so no report is ever handed on with its rows unmapped, and close() never waits
+for the reader (which may itself wait for the thread that closes). The watchdog is joined by close().
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ import threading
 import time
 from collections.abc import Callable
 
+from robot_io.arms.arm import Backstop
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.errors import RobotIOError
 from robot_io.rig import process
@@ -29,9 +37,8 @@ from robot_io.rig.messages import (
     HEARTBEAT_S,
     Command,
     DeviceReport,
-    Go,
+    Gate,
     Heartbeat,
-    ObjectLoaded,
     Recover,
     Recovered,
     Report,
@@ -47,7 +54,6 @@ from robot_io.rig.messages import (
     TrialDone,
 )
 from robot_io.rig.stream import SampleStream, capacity_for
-from robot_io.stages import Stage
 
 log = logging.getLogger(__name__)
 
@@ -69,15 +75,14 @@ REAP_S = 5.0
 CLOSE_S = 5.0
 #: How long a hung rig gets to print its threads' stacks before it is killed [s].
 STACKS_S = 0.2
-#: Stages during which the rig writes one sample row per cycle.
-STREAMING = frozenset({Stage.GO, Stage.REACH, Stage.HOLD, Stage.RELEASE})
 
 
 class RigError(RobotIOError):
     """The rig process could not be started or is gone."""
 
 
-Listener = Callable[[Report | RigDied], None]
+#: Hears each report with the client it came from (its sample stream is readable during the call).
+Listener = Callable[["RigClient", Report | RigDied], None]
 
 
 class RigClient:
@@ -87,32 +92,34 @@ class RigClient:
 
     def __init__(self, spec: RigSpec, listener: Listener) -> None:
         self.spec, self._listener = spec, listener
-        # a UR's rate (125 or 500 Hz) is known only once connected: room for the faster
-        rate = spec.config.loop.rate_hz if spec.config.arm.kind == "mock" else 500
+        # a real arm's rate (a UR's 125 or 500 Hz) may be known only once connected: room for the fastest
+        rate = spec.config.arm.fastest_rate_hz or spec.config.loop.rate_hz
         self.stream = SampleStream(capacity_for(spec.config, rate))
+        self._holders, self._holders_lock = 1, threading.Lock()  # of the stream: see _let_go
         context = multiprocessing.get_context("spawn")
         self._conn, child = context.Pipe()
         # not a daemon: the rig starts its own child (the ur_rtde control worker)
         self.process = context.Process(target=process.main, name="handover-rig",
-                                       args=(child, spec, self.stream.name, len(self.stream.rows),
+                                       args=(child, spec, self.stream.name, self.stream.capacity,
                                              logging.getLogger().getEffectiveLevel()))
         self.process.start()
         child.close()
-        self.stage: Stage | None = None
+        self.stage: str | None = None
         self.running: int | None = None  # the trial index the rig is running
-        self._closing = False
+        self._closing = False  # close() has begun: the rig's end is expected, not a death
         self._stop_ack = threading.Event()
         self._recovered = threading.Event()
         self._recovery: Recovered | None = None
         self._send_lock = threading.Lock()
-        self._stopper: DashboardStop | None = None
+        self._stopper: Backstop | None = None
         try:
             self.devices = self._await_open()
         except BaseException:
             self.kill()
             self._conn.close()  # no reader yet
-            self.stream.close(unlink=True)
+            self._let_go()
             raise
+        self._holders = 2  # close() and the reader, which hands on each trial's rows
         self._reader = threading.Thread(target=self._read, name="rig-reader", daemon=True)
         self._reader.start()
         self._watchdog = threading.Thread(target=self._watch, name="rig-watchdog", daemon=True)
@@ -130,10 +137,7 @@ class RigClient:
         if isinstance(report, RigFailed):
             raise RigError(f"the rig could not open its devices: {report.reason}")
         assert isinstance(report, RigOpened), report
-        host = self.spec.config.ur.host
-        if self.spec.config.arm.kind == "ur":
-            assert host is not None, "ControllerConfig refuses arm.kind = 'ur' without [ur] host"
-            self._stopper = DashboardStop(host)
+        self._stopper = self.spec.config.arm.backstop(self.spec.config)
         return report.devices
 
     # -- commands ----------------------------------------------------------------------------------
@@ -161,11 +165,9 @@ class RigClient:
             self.running = None
             raise RigError("the rig process is not reachable")
 
-    def object_loaded(self) -> None:
-        self._send(ObjectLoaded())
-
-    def go(self) -> None:
-        self._send(Go())
+    def confirm(self, stage: str) -> None:
+        """The experimenter's confirmation that ``stage`` waits for (Object loaded, Go, …)."""
+        self._send(Gate(stage=stage))
 
     def recover(self, inspected: bool, timeout: float = 20.0) -> Recovered:
         """Ask the rig to clear the arm's fault (it waits out a UR's 5 s protective-stop rule)."""
@@ -220,16 +222,30 @@ class RigClient:
         return self.process.exitcode is not None
 
     def close(self) -> None:
-        """Shut the rig down (it stops the arm and releases its devices); kill it if it hangs."""
+        """Shut the rig down (it stops the arm and releases its devices); kill it if it hangs.
+        From any thread but the watchdog; a second call does nothing."""
+        if self._closing:
+            return
         self._closing = True
         self._send(Shutdown())
         if not self._wait_reaped(CLOSE_S):
             log.error("the rig process did not exit within %g s: killing it", CLOSE_S)
             self.backstop("the rig did not shut down")
         # the pipe is not closed here: the reader closes it once the rig's end is gone (_read)
+        self._watchdog.join()  # it ends within a heartbeat of _closing (or of the rig's end)
         if self._stopper is not None:
             self._stopper.close()
-        self.stream.close(unlink=True)
+        self._let_go()
+
+    def _let_go(self) -> None:
+        """One holder of the sample stream is done with it (close(), or the reader at its end);
+        the last one releases it. A read that another thread (a screen, the LSL feed) makes after
+        that reads an empty stream (robot_io.rig.stream)."""
+        with self._holders_lock:
+            self._holders -= 1
+            last = self._holders == 0
+        if last:
+            self.stream.close(unlink=True)
 
     def reports_handed_on(self, timeout: float = CLOSE_S) -> bool:
         """After :meth:`close`: wait until every report the rig sent (a stopped trial's end among
@@ -246,19 +262,23 @@ class RigClient:
         None (the thread dies) or, had the number been reused, another file. Sends take the same
         lock, so none is under way when it closes."""
         try:
-            self._hand_on()
+            try:
+                self._hand_on()
+            finally:
+                with self._send_lock:
+                    self._conn.close()
+            self._wait_reaped()  # a killed rig is reported with its exit code
+            if not self._closing:
+                code = self.process.exitcode
+                how = (f"killed by signal {-code}" if code is not None and code < 0
+                       else f"exit code {code}")
+                stage = self.stage
+                self._notify(RigDied(trial_index=self.running, reason=(
+                    f"the rig process ended ({how})" + (f" during {stage}" if stage else "")
+                    + "; the arm was stopped by its control worker or the controller's watchdog")))
+                self.running = None
         finally:
-            with self._send_lock:
-                self._conn.close()
-        self._wait_reaped()  # a killed rig is reported with its exit code
-        if not self._closing:
-            code = self.process.exitcode
-            how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
-            stage = self.stage
-            self._notify(RigDied(trial_index=self.running, reason=(
-                f"the rig process ended ({how})" + (f" during {stage.value}" if stage else "")
-                + "; the arm was stopped by its control worker or the controller's watchdog")))
-            self.running = None
+            self._let_go()
 
     def _hand_on(self) -> None:
         """Every report to what waits for it and to the listener, until the pipe ends."""
@@ -280,14 +300,14 @@ class RigClient:
 
     def _notify(self, report: Report | RigDied) -> None:
         try:
-            self._listener(report)
+            self._listener(self, report)
         except Exception:
             log.exception("handling a rig report failed")
 
     def _silence_limit(self) -> tuple[float, str] | None:
         """How long the rig may write no sample row before it counts as hung, and what it is doing
         meanwhile; None while it is not watched (outside the streaming stages, simulated time)."""
-        if self.stage not in STREAMING or not self.spec.realtime:
+        if self.stage not in self.spec.cycle.streamed or not self.spec.realtime:
             return None
         if self.stream.count == 0:
             return self.spec.config.ur.connect_timeout_s + SETTLE_S, "starting the stream"
@@ -319,34 +339,5 @@ class RigClient:
                 last_count, last_change = count, now
             elif now - last_change > limit[0]:
                 self.backstop(f"the rig wrote no sample for {limit[0]:g} s while {limit[1]} "
-                              f"({self.stage})")  # a StrEnum: its value (None if the trial just ended)
+                              f"({self.stage})")  # None if the trial just ended
                 return
-
-
-class DashboardStop:
-    """The UR controller's dashboard server as an independent stop path (port 29999)."""
-
-    def __init__(self, host: str) -> None:
-        import dashboard_client
-
-        self.host = host
-        self._client = dashboard_client.DashboardClient(host)
-        try:
-            self._client.connect(2000)
-        except RuntimeError as exc:
-            log.error("no dashboard connection to %s for the backstop: %s", host, exc)
-
-    def stop(self) -> None:
-        try:
-            if not self._client.isConnected():
-                self._client.connect(1000)
-            self._client.stop()
-        except Exception:
-            log.critical("the dashboard stop of %s failed: use the emergency stop", self.host,
-                         exc_info=True)
-
-    def close(self) -> None:
-        try:
-            self._client.disconnect()
-        except Exception:
-            log.warning("closing the dashboard connection failed", exc_info=True)

@@ -1,13 +1,15 @@
 """The rig's devices, opened once per rig process from the configuration, and the per-trial set the
 cycle runs on (docs/controller.md, the rig process).
 
-``[arm] kind``: ``mock`` (kinematic :class:`~robot_io.arms.mock_arm.MockArm`, made anew each trial on
-the trial's clock, its force the simulated participant's pull) or ``ur`` (:class:`~robot_io.arms.ur_arm.URArm`
-over ur_rtde, connected once). ``[hand_source] kind``: ``simulated`` (a seeded
-:class:`~robot_io.hands.simulated_hand.SimulatedHand` per trial) or a tracker's (opened once, by the
-reader its kind registers in :data:`robot_io.hands.config.HAND_SOURCES`).
-``[gripper] kind``: ``tool_output`` (the UR's tool digital output), ``robotiq_socket`` (a Robotiq
-2F-85 on its URCap's socket, :mod:`robot_io.grippers.robotiq`) or ``none``.
+Each device is opened by its kind's model (:mod:`robot_io.kinds`). ``[arm] kind``
+(:data:`robot_io.arms.kinds.ARMS`): a simulated arm (``mock``, the kinematic
+:class:`~robot_io.arms.mock_arm.MockArm`) is made anew each trial on the trial's clock, its force the
+simulated participant's pull; a real one (``ur``, :class:`~robot_io.arms.ur_arm.URArm` over ur_rtde) is
+connected once. ``[hand_source] kind`` (:data:`robot_io.hands.config.HAND_SOURCES`): ``simulated`` (a
+seeded :class:`~robot_io.hands.simulated_hand.SimulatedHand` per trial) or a tracker's (opened once, by
+the reader its kind names). ``[gripper] kind`` (:data:`robot_io.grippers.kinds.GRIPPERS`):
+``tool_output`` (the arm controller's tool digital output), ``robotiq_socket`` (a Robotiq 2F-85 on its
+URCap's socket) or ``none``.
 """
 
 from __future__ import annotations
@@ -17,15 +19,12 @@ import time
 
 import numpy as np
 
-from robot_io.arms.arm import ArmState
-from robot_io.arms.mock_arm import MockArm
-from robot_io.arms.ur_arm import URArm
+from robot_io.arms.arm import ArmState, ConnectedArm, RecoverableArm
 from robot_io.control.cycle import CycleDevices
 from robot_io.control.trial import make_clock
 from robot_io.devices import open_gripper, open_tracked_hand
 from robot_io.errors import ArmFault, ConfigError, GripperFault
 from robot_io.grippers.gripper import Gripper, NoGripper, ToolOutputGripper
-from robot_io.grippers.kinds import GRIPPERS
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.hands.simulated_pull import SimulatedPull
 from robot_io.hands.tracked_hand import TrackedHand
@@ -40,12 +39,13 @@ SLOW_CLOSE_S = 1.0
 def check_spec(spec: RigSpec) -> None:
     """Refuse combinations that cannot work, before anything is opened."""
     config = spec.config  # its device tables are whole (ControllerConfig._devices_complete)
-    if config.hand_source.kind == "simulated" and spec.scenario is None:
-        raise ConfigError("hand_source.kind = 'simulated' needs the session's scenario")
-    if not spec.realtime and (config.arm.kind != "mock" or config.hand_source.kind != "simulated"):
-        raise ConfigError("simulated time needs arm.kind = 'mock' and hand_source.kind = "
-                          "'simulated'; real devices run on the wall clock")
-    if not spec.realtime and config.gripper.kind != "none":
+    if config.hand_source.simulated and spec.scenario is None:
+        raise ConfigError(f"hand_source.kind = {config.hand_source.kind!r} needs the session's scenario")
+    if not spec.realtime and not (config.arm.simulated and config.hand_source.simulated):
+        raise ConfigError(f"simulated time needs a simulated arm and hand source (arm.kind = "
+                          f"{config.arm.kind!r}, hand_source.kind = {config.hand_source.kind!r}): "
+                          "real devices run on the wall clock")
+    if not spec.realtime and not config.gripper.simulated:
         raise ConfigError(f"simulated time needs gripper.kind = 'none', not {config.gripper.kind!r}: "
                           "a real gripper runs on the wall clock")
 
@@ -57,21 +57,21 @@ class RigDevices:
         check_spec(spec)
         self.spec = spec
         config = spec.config
-        self.ur: URArm | None = None
+        self.connected: ConnectedArm | None = None  # a real arm, connected once
         self.tracked: TrackedHand | None = None
         self.gripper: Gripper = NoGripper()
-        self._mock_position = config.scene.point("robot_start")
-        self._mock: MockArm | None = None
+        self._simulated_at = config.scene.point("robot_start")
+        self._simulated: RecoverableArm | None = None  # a simulated arm, made anew each trial
         try:
-            if config.arm.kind == "ur":
-                self.ur = URArm(config.ur, config.safety)
+            if not config.arm.simulated:
+                self.connected = config.arm.connect(config)
             if config.hand_source.reader is not None:
                 self.tracked = open_tracked_hand(config)
             self.gripper = open_gripper(config)
         except BaseException:
             self.close()
             raise
-        rate = self.ur.rate_hz if self.ur is not None else config.loop.rate_hz
+        rate = self.connected.rate_hz if self.connected is not None else config.loop.rate_hz
         self.config = config.model_copy(update={"loop": config.loop.model_copy(
             update={"rate_hz": rate})})
 
@@ -82,17 +82,13 @@ class RigDevices:
         return self.spec.scenario
 
     def report(self) -> DeviceReport:
-        config, ur, tracked = self.config, self.ur, self.tracked
-        if ur is not None:
-            arm_detail = f"UR at {config.ur.host}, PolyScope {ur.polyscope_version}, {ur.rate_hz} Hz"
-        else:
-            arm_detail = f"mock arm, {config.loop.rate_hz} Hz"
+        config, arm, tracked = self.config, self.connected, self.tracked
         source = config.hand_source
         hand_detail = (f"{tracked.PROTOCOL} {tracked.describe()}" if tracked is not None
                        else f"simulated hand ({self._scenario.value})")
-        gripper_detail = GRIPPERS[config.gripper.kind].describe(config)
-        return DeviceReport(arm=config.arm.kind, arm_detail=arm_detail,
-                            polyscope_version=None if ur is None else ur.polyscope_version,
+        gripper_detail = config.gripper.describe(config.controller_host)
+        return DeviceReport(arm=config.arm.kind, arm_detail=config.arm.describe(arm, config.loop.rate_hz),
+                            polyscope_version=None if arm is None else arm.version,
                             rate_hz=config.loop.rate_hz, hand_source=source.kind,
                             hand_detail=hand_detail, gripper=config.gripper.kind,
                             gripper_detail=gripper_detail)
@@ -102,10 +98,10 @@ class RigDevices:
         config, spec = self.config, self.spec
         clock = make_clock(config, realtime=spec.realtime, realtime_priority=spec.realtime_priority)
         hand = self.tracked or SimulatedHand(self._scenario, config.scene, config.hand, hand_seed)
-        arm: URArm | MockArm | None = self.ur
+        arm: RecoverableArm | None = self.connected
         if arm is None:
-            if self._mock is not None:
-                self._mock_position = self._mock.read_pose()
+            if self._simulated is not None:
+                self._simulated_at = self._simulated.read_pose()
             pull = SimulatedPull(config.scene.point("hand_start") - config.scene.point("handover_point"),
                                  config.hand.pull_n, config.hand.grasp_delay_s)
             gripper = self.gripper
@@ -116,14 +112,14 @@ class RigDevices:
                 return pull.force(now, None if sample is None else sample.position, tcp,
                                   gripper.holding, speed)
 
-            arm = self._mock = MockArm(clock, self._mock_position, force=force)
+            arm = self._simulated = config.arm.trial_arm(clock, self._simulated_at, force)
         return CycleDevices(arm=arm, hand=hand, gripper=self.gripper, clock=clock)
 
     def recover(self, inspected: bool) -> str:
         """Clear the arm's fault and the gripper's; moves no joint. A safety stop (protective or
         emergency) is cleared only once someone inspected its cause; a refusal touches nothing.
         Returns what was done; raises ArmFault or GripperFault if refused."""
-        arm = self.ur or self._mock
+        arm = self.connected or self._simulated
         faulted = arm if arm is not None and arm.state is ArmState.FAULT else None
         fault = None if faulted is None else faulted.fault
         if faulted is not None and faulted.safety_stopped and not inspected:
@@ -132,13 +128,13 @@ class RigDevices:
         gripper = self._recover_gripper()
         if faulted is None:
             return gripper or "the arm has no fault"
-        restored = 0 if self.ur is None else self.ur.links_restored
+        restored = 0 if self.connected is None else self.connected.links_restored
         faulted.recover()
-        # A tool-output gripper's link is the UR's RTDE server's: it dropped when the arm's did, and
+        # A tool-output gripper's link is the arm's RTDE server's: it dropped when the arm's did, and
         # only then is it connected again (a live link reconnected raced the server's release of
         # its registers: "One of the RTDE input registers are already in use")
-        if isinstance(self.gripper, ToolOutputGripper) and self.ur is not None \
-                and self.ur.links_restored > restored:
+        if isinstance(self.gripper, ToolOutputGripper) and self.connected is not None \
+                and self.connected.links_restored > restored:
             self.gripper.reconnect()
             gripper = gripper or "the gripper's RTDE IO link connected again"
         return f"recovered from: {fault}" + (f"; {gripper}" if gripper else "")
@@ -158,7 +154,7 @@ class RigDevices:
 
     def stop_arm(self) -> None:
         """Stop the arm between trials (never raises)."""
-        arm = self.ur or self._mock
+        arm = self.connected or self._simulated
         if arm is not None:
             arm.stop()
 
@@ -167,7 +163,7 @@ class RigDevices:
         for name, action in (("arm", self.stop_arm),
                              ("gripper", lambda: self.gripper.disconnect()),
                              ("hand source", lambda: _close(self.tracked)),
-                             ("UR", lambda: _close(self.ur))):
+                             ("arm's connection", lambda: _close(self.connected))):
             began = time.monotonic()
             try:
                 action()
@@ -179,6 +175,6 @@ class RigDevices:
                 log.warning("closing the rig's %s took %.1f s", name, took)
 
 
-def _close(device: TrackedHand | URArm | None) -> None:
+def _close(device: TrackedHand | ConnectedArm | None) -> None:
     if device is not None:
         device.close()

@@ -1,6 +1,7 @@
 """The typed messages between the application and the rig process (one pipe each way).
 
-Application → rig: :class:`RunTrial`, :class:`ObjectLoaded`, :class:`Go`, :class:`Stop`,
+Application → rig: :class:`RunTrial`, :class:`Gate` (the experimenter's confirmation a stage of the
+cycle waits for: Object loaded, Go, …), :class:`Stop`,
 :class:`Recover`, :class:`Shutdown`, and a :class:`Heartbeat` every ``HEARTBEAT_S``: a rig whose
 application is stopped by a signal, or sends nothing for ``APP_SILENCE_S``, during a trial on the
 wall clock stops the arm.
@@ -21,8 +22,8 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from robot_io.config import ControllerConfig
 from robot_io.control.loop import TrialSummary
+from robot_io.control.stages import CycleTable, StageName, current
 from robot_io.hands.simulated_hand import Scenario
-from robot_io.stages import Stage
 from robot_io.theta import Theta
 
 #: The application sends a :class:`Heartbeat` this often [s].
@@ -52,6 +53,8 @@ class RigSpec(_Message):
     realtime_priority: bool = Field(False, description="run the rig under SCHED_FIFO where the OS "
                                                        "permits it (wall clock only), as resolved "
                                                        "at start from [loop] realtime_priority")
+    cycle: CycleTable = Field(default_factory=current, description="the handover cycle the rig runs "
+                                                                  "(robot_io.control.stages)")
 
 
 # -- application → rig ---------------------------------------------------------------------------
@@ -60,16 +63,16 @@ class RunTrial(_Message):
     trial_index: int
     theta: Theta | None
     hand_seed: int
-    auto_loaded: bool = Field(description="the object counts as loaded without a confirmation")
-    auto_go: bool = Field(description="Go as soon as the hand is ready")
+    automatic: bool = Field(description="every confirmation of the cycle counts as given (the "
+                                        "simulated participant, the simulated experimenter)")
 
 
-class ObjectLoaded(_Message):
-    kind: Literal["object_loaded"] = "object_loaded"
+class Gate(_Message):
+    """The experimenter's confirmation that ``stage`` waits for (its row's gate: Object loaded in
+    prepare, Go in ready, …); ignored in any other stage."""
 
-
-class Go(_Message):
-    kind: Literal["go"] = "go"
+    kind: Literal["gate"] = "gate"
+    stage: StageName
 
 
 class Stop(_Message):
@@ -95,7 +98,7 @@ class Heartbeat(_Message):
     kind: Literal["heartbeat"] = "heartbeat"
 
 
-Command = RunTrial | ObjectLoaded | Go | Stop | Recover | Shutdown | Heartbeat
+Command = RunTrial | Gate | Stop | Recover | Shutdown | Heartbeat
 
 
 # -- rig → application ---------------------------------------------------------------------------
@@ -128,7 +131,7 @@ class RigFailed(_Message):
 class StageReached(_Message):
     kind: Literal["stage"] = "stage"
     trial_index: int
-    stage: Stage
+    stage: StageName
     t: float | None = Field(description="trial time since Go [s]; None before Go")
     monotonic: float = Field(description="time.monotonic() of this machine when it began")
 
@@ -169,12 +172,17 @@ class RigTiming(_Message):
     old_bound_s: float
     staleness_limit_s: float = Field(description="[loop] staleness_limit_s: the tracker is lost")
     realtime_priority: bool = Field(description="the rig runs under SCHED_FIFO")
+    final: bool = Field(False, description="the whole trial's figures, sent at its end (else the "
+                                           "trial's so far)")
 
     def describe(self) -> str:
-        """What ran late and by how much, and what to do about it, in the experimenter's words."""
+        """What ran late and by how much, and what to do about it, in the experimenter's words:
+        the trial's figures so far, or the whole trial's (:attr:`final`)."""
         parts = []
         if self.late_cycles:
-            parts.append(f"{self.late_cycles} control cycles started late, by up to "
+            cycles = "1 control cycle" if self.late_cycles == 1 else \
+                f"{self.late_cycles} control cycles"
+            parts.append(f"{cycles} started late, by up to "
                          f"{self.latest_start_s * 1e3:.0f} ms (warned above "
                          f"{self.late_bound_s * 1e3:.0f} ms)")
         if self.oldest_hand_sample_s > self.old_bound_s:
@@ -185,7 +193,8 @@ class RigTiming(_Message):
                   "programs" if self.realtime_priority else
                   "the rig runs without real-time priority: grant it (docs/hardware.md, "
                   "\"Real-time priority\") or close other programs")
-        return f"timing degraded in trial {self.trial_index}: {'; '.join(parts)} — {advice}"
+        when = "" if self.final else " so far"
+        return f"timing degraded in trial {self.trial_index}{when}: {'; '.join(parts)} — {advice}"
 
 
 class HandLink(_Message):

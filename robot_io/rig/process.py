@@ -28,16 +28,14 @@ from multiprocessing.connection import Connection
 
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.control.cycle import Gates, run_cycle
-from robot_io.control.loop import StopRequest
 from robot_io.errors import RobotIOError, explain
 from robot_io.hands.tracked_hand import Link, TrackedHand
 from robot_io.rig.devices import RigDevices
 from robot_io.rig.messages import (
     APP_SILENCE_S,
     HEARTBEAT_S,
-    Go,
+    Gate,
     HandLink,
-    ObjectLoaded,
     ReadyWaiting,
     Recover,
     Recovered,
@@ -54,7 +52,6 @@ from robot_io.rig.messages import (
 )
 from robot_io.rig.stream import SampleStream, StreamRecorder
 from robot_io.rig.timing import TimingReporter, TimingWatch
-from robot_io.stages import Stage
 
 log = logging.getLogger(__name__)
 
@@ -95,8 +92,8 @@ def process_state(pid: int) -> str | None:
 
 
 class Inbox:
-    """Receives commands: RunTrial and Shutdown are queued for the main thread; ObjectLoaded, Go and
-    Stop act at once on the running trial's gates (a Stop between trials stops the arm here). With
+    """Receives commands: RunTrial and Shutdown are queued for the main thread; Gate and Stop act at
+    once on the running trial's gates (a Stop between trials stops the arm here). With
     ``watch_application`` (trials on the wall clock) it also stops a running trial's arm when the
     application is stopped by a signal, or has sent nothing, not even a :class:`Heartbeat`, for
     ``APP_SILENCE_S``."""
@@ -104,6 +101,7 @@ class Inbox:
     def __init__(self, conn: Connection, outbox: Outbox, devices: RigDevices,
                  watch_application: bool) -> None:
         self._conn, self._outbox, self._devices = conn, outbox, devices
+        self._cycle = devices.spec.cycle
         self._watch_application = watch_application
         self.commands: queue.Queue[tuple[RunTrial, Gates] | Recover | None] = queue.Queue()
         self.gates: Gates | None = None
@@ -128,17 +126,11 @@ class Inbox:
                 return
             self._heard_at = time.monotonic()
             if isinstance(command, RunTrial):
-                gates = Gates(threading.Event(), threading.Event(), StopRequest())
-                if command.auto_loaded:
-                    gates.loaded.set()
-                if command.auto_go:
-                    gates.go.set()
+                gates = Gates.of(self._cycle, automatic=command.automatic)
                 self.gates = gates
                 self.commands.put((command, gates))
-            elif isinstance(command, ObjectLoaded) and self.gates is not None:
-                self.gates.loaded.set()
-            elif isinstance(command, Go) and self.gates is not None:
-                self.gates.go.set()
+            elif isinstance(command, Gate) and self.gates is not None:
+                self.gates.confirm(command.stage)
             elif isinstance(command, Stop):
                 self._outbox.send(StopReceived())
                 self._stop(command.reason)
@@ -219,7 +211,7 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
                     outbox.send(Recovered(ok=False, message=explain(exc)))
                 continue
             command, gates = item
-            _run(command, gates, devices, stream, outbox, inbox)
+            _run(command, gates, devices, stream, outbox, inbox, timing)
     finally:
         if timing is not None:
             timing.close()
@@ -228,10 +220,10 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
 
 
 def _run(command: RunTrial, gates: Gates, devices: RigDevices, stream: SampleStream,
-         outbox: Outbox, inbox: Inbox) -> None:
+         outbox: Outbox, inbox: Inbox, timing: TimingReporter | None) -> None:
     index = command.trial_index
 
-    def on_stage(stage: Stage, t: float) -> None:
+    def on_stage(stage: str, t: float) -> None:
         outbox.send(StageReached(trial_index=index, stage=stage, t=None if math.isnan(t) else t,
                                  monotonic=time.monotonic()))
 
@@ -240,7 +232,10 @@ def _run(command: RunTrial, gates: Gates, devices: RigDevices, stream: SampleStr
     try:
         record = run_cycle(devices.config, command.theta, devices.for_trial(command.hand_seed),
                            gates, on_stage, recorder,
-                           on_waiting=lambda why: outbox.send(ReadyWaiting(trial_index=index, why=why)))
+                           on_waiting=lambda why: outbox.send(ReadyWaiting(trial_index=index, why=why)),
+                           cycle=devices.spec.cycle)
     finally:
         inbox.running = False
+    if timing is not None:
+        timing.trial_ended()  # the whole trial's figures, before its end: the screens keep them
     outbox.send(TrialDone(trial_index=index, summary=record.summary, rows=recorder.count))

@@ -53,13 +53,16 @@ class TimingWatch:
         self._reported: tuple[int, float, float] | None = None
         self._reported_at = -np.inf
 
-    def check(self, stream: SampleStream) -> RigTiming | None:
+    def check(self, stream: SampleStream, final: bool = False) -> RigTiming | None:
+        """``final``: the trial has ended (its rows are all written): its whole figures, at once
+        and even if they were reported already, marked final — what the terminal and the dashboard
+        both keep of the trial."""
         if stream.trial_index != self._trial:
             self._start_trial(stream.trial_index)
-        done = stream.count - 1  # the last row counted may still be being written
-        if done > self._seen:
-            rows = stream.rows[self._seen:done]
-            self._seen = done
+        # while the trial runs, the last row counted may still be being written
+        rows = stream.rows_of(self._trial, self._seen, finished_only=not final)
+        if len(rows):
+            self._seen += len(rows)
             lateness = rows[:, SLICES["lateness_s"]].ravel()
             age = (rows[:, SLICES["t"]] - rows[:, SLICES["hand_t"]]).ravel()
             late = lateness[lateness > self.late_bound_s]
@@ -69,31 +72,44 @@ class TimingWatch:
         figures = (self._late, self._latest, self._oldest)
         degraded = self._late > 0 or self._oldest > self.old_bound_s
         now = time.monotonic()
-        if not degraded or figures == self._reported or now - self._reported_at < REPORT_AGAIN_S:
+        if not degraded or (not final and (figures == self._reported
+                                           or now - self._reported_at < REPORT_AGAIN_S)):
             return None
         self._reported, self._reported_at = figures, now
         return RigTiming(trial_index=self._trial, late_cycles=self._late,
                          latest_start_s=self._latest, late_bound_s=self.late_bound_s,
                          oldest_hand_sample_s=self._oldest, old_bound_s=self.old_bound_s,
                          staleness_limit_s=self.staleness_limit_s,
-                         realtime_priority=self.realtime_priority)
+                         realtime_priority=self.realtime_priority, final=final)
 
 
 class TimingReporter:
     """Checks the stream every WATCH_S on a thread of its own and sends what the watch reports,
-    until :meth:`close` (before the stream is closed: a look may hold its rows meanwhile)."""
+    and the whole trial's figures at its end (:meth:`trial_ended`, before the trial's end is
+    reported), until :meth:`close` (before the stream is closed: a look may hold its rows
+    meanwhile). The watch is the reporter's: one look at a time, under its lock."""
 
     def __init__(self, stream: SampleStream, watch: TimingWatch,
                  send: Callable[[RigTiming], None]) -> None:
         self._stream, self._watch, self._send = stream, watch, send
+        self._looking = threading.Lock()
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._run, name="rig-timing", daemon=True)
         self._thread.start()
 
+    def _look(self, final: bool) -> None:
+        with self._looking:
+            timing = self._watch.check(self._stream, final)
+        if timing is not None:
+            self._send(timing)
+
     def _run(self) -> None:
         while not self._closed.wait(WATCH_S):
-            if (timing := self._watch.check(self._stream)) is not None:
-                self._send(timing)
+            self._look(final=False)
+
+    def trial_ended(self) -> None:
+        """The trial's rows are all written: its whole figures, if its timing was degraded."""
+        self._look(final=True)
 
     def close(self) -> None:
         self._closed.set()

@@ -42,6 +42,7 @@ def sessions(tmp_path_factory):
 
 
 def test_the_replayed_rule_stops_where_the_live_rule_stopped(sessions):
+    """The first test of the module: it waits for the two sessions of :func:`sessions` (30-60 s)."""
     live, full = sessions
     with reading(live, "P01") as store:
         stop = next(e.payload for e in store.events() if e.kind == "learning_stopped")
@@ -82,8 +83,8 @@ def test_the_command_prints_each_rule_and_writes_its_rows(sessions, tmp_path, ca
     assert main(["replay-stop", str(full), "--chance", "0.01", "0.95", "--preference", "0.95",
                  "--out", str(out)]) == 0
     printed = capsys.readouterr().out
-    assert "the next batch is at most 1% likely" in printed and "did not stop" in printed
-    assert "at most 95% likely" in printed and "the final learner prefers its θ*" in printed
+    assert "the next batch is at most 1 % likely" in printed and "did not stop" in printed
+    assert "at most 95 % likely" in printed and "the final learner prefers its θ*" in printed
     assert len(out.read_text().splitlines()) == 3  # a header and one row per rule
 
 

@@ -4,6 +4,8 @@ recorded with its reason, the best interaction, questionnaire and validation sti
 
 from __future__ import annotations
 
+import html
+
 import pandas as pd
 import pytest
 from support.engine import drive_until, study_config
@@ -15,12 +17,12 @@ from app.learning.models import TieHandling
 from app.protocol import events as ev
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import EventLogError
+from app.protocol.learning_words import learning_line, recorded_stop
 from app.protocol.plan import protocol_slots
 from app.protocol.session_inputs import learner_config
 from app.protocol.simulated_participant import SimulatedParticipant, Taste
 from app.protocol.state import SessionState, Step, apply, replay
 from app.session.config import load_lab_config
-from app.session.learning_words import learning_line
 from robot_io.hands.simulated_hand import Scenario
 from session_store.vocabulary import Actor, Phase
 
@@ -52,8 +54,9 @@ def test_learning_stops_early_on_an_easy_participant_with_its_reason(stopped):
     assert len(learned) == stop["after_interaction"] < 25  # fewer than 5 + 4 batches of 5
     assert stop["batches"] == (stop["after_interaction"] - 5) // 5 >= 1
     assert stop["probability"] >= 0.8 and stop["threshold"] == 0.8
-    assert stop["reason"].startswith(f"settled after {stop['batches']} learning batches: ")
-    assert "at most 90% of the time (stops at 80%, after at least 2 batches)" in stop["reason"]
+    assert stop["reason"].startswith(f"after learning batch {stop['batches']} of 4 the learner "
+                                     "was ")
+    assert "at most 90 % of the time); it stops at 80 %, from batch 2 on" in stop["reason"]
     assert stopped.state.stopped_after == stop["after_interaction"]
 
 
@@ -91,8 +94,10 @@ def test_the_stop_replays_from_the_log(stopped):
 
 
 def test_the_dashboard_line_says_why_learning_stopped(stopped):
-    line = learning_line(stopped)
-    assert line.startswith("learning stopped early, settled after") and "sure" in line
+    line = learning_line(stopped.state, stopped.config, stopped.settledness,
+                         recorded_stop(stopped.store.events()),
+                         stopped.store.rows("learner_snapshots", order_by="after_interaction"))
+    assert line.startswith("Learning stopped early after batch") and "% sure" in line
 
 
 def test_the_report_says_per_participant_where_learning_stopped_and_why(stopped, tmp_path):
@@ -101,9 +106,9 @@ def test_the_report_says_per_participant_where_learning_stopped_and_why(stopped,
     assert row["participant"] == "P01" and row["learning_ended"] == "early"
     assert row["learning_interactions"] == stopped.state.stopped_after < row[
         "schedule_interactions"] == 25
-    assert row["why"].startswith("settled after") and row["ties"] == "drop"
+    assert row["why"].startswith("after learning batch") and row["ties"] == "drop"
     page = report.html.read_text()
-    assert "Learning: interactions used, why it ended, ties" in page and "settled after" in page
+    assert "Learning: interactions used, why it ended, ties" in page and html.escape(row["why"]) in page
     # the session is complete: its plan lost the learning interactions the stop skipped
     done = stopped.state.completed
     assert done == stopped.state.stopped_after + 9 and f"<td>{done}/{done}</td>" in page

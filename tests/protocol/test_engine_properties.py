@@ -170,9 +170,8 @@ class SessionMachine(RuleBasedStateMachine):
     def kill(self) -> None:
         """A crash at this point: the learner process is SIGKILLed, the engine and its connection
         are gone; only what was committed survives. Then the session is reopened from the file."""
-        learner = self.engine._learner
-        if learner is not None and learner.pid is not None:
-            os.kill(learner.pid, signal.SIGKILL)
+        if self.engine.learner.pid is not None:
+            os.kill(self.engine.learner.pid, signal.SIGKILL)
         self.engine.close()
         self.plan = None
         self.engine = SessionEngine.resume(self.folder, CODE, LearnerClient.for_session)

@@ -83,6 +83,6 @@ def test_an_export_never_copies_into_the_study_folder_itself(tmp_path, capsys):
     new_engine(study).close()
     before = fingerprint(study / "S01.sqlite")
     assert main(["export", str(study), "--out", str(tmp_path)]) == 2
-    assert "would write the copies into the study folder" in capsys.readouterr().err
+    assert "would write its sqlite/ copies into the study folder" in capsys.readouterr().err
     assert fingerprint(study / "S01.sqlite") == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sqlite"]

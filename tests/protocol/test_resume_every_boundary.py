@@ -80,9 +80,8 @@ def _act(engine: SessionEngine, participant: SimulatedParticipant, running: dict
 def _crash(engine: SessionEngine) -> None:
     """What a crash leaves: the learner process dies (SIGKILL), the database holds what was
     committed (every action commits before it returns), the engine is gone."""
-    learner = engine._learner
-    if learner is not None and learner.pid is not None:
-        os.kill(learner.pid, signal.SIGKILL)  # close() below then finds it dead at once
+    if engine.learner.pid is not None:
+        os.kill(engine.learner.pid, signal.SIGKILL)  # close() below then finds it dead at once
     engine.close()
 
 

@@ -69,6 +69,8 @@ def wait_inside_session(process: subprocess.Popen, database: Path, before: int) 
 @pytest.mark.slow
 @pytest.mark.soak
 def test_sigkill_at_random_moments_then_resume_loses_and_repeats_nothing(tmp_path):
+    """Slow (about 100 s): 21 ``run-session`` processes (20 killed at random moments, each resumed),
+    each starting its learner, beside the uninterrupted session, all on the wall clock."""
     lab = tmp_path / "lab.toml"
     lab.write_text(SESSION_LOOP_TOML)
     command = [sys.executable, "-m", "app.cli", "run-session", "--participant", "K1", "--scenario",

@@ -4,15 +4,18 @@ a session resumes where it stopped."""
 from __future__ import annotations
 
 import sqlite3
+from typing import get_args
 
 import numpy as np
 import pytest
 from pydantic import ValidationError
 from support.engine import drive_until, new_engine, short_config
 
+from app.protocol import events as ev
 from app.protocol.engine import SessionEngine
-from app.protocol.errors import RefusedAction
-from app.protocol.state import Step
+from app.protocol.errors import EventLogError, RefusedAction
+from app.protocol.plan import protocol_slots
+from app.protocol.state import HANDLERS, WAITS_FOR, SessionState, Step, apply, refusal
 from app.protocol.study import StudyConfig
 from robot_io.control.trial import simulate_trial
 from robot_io.hands.simulated_hand import Scenario
@@ -23,6 +26,7 @@ from session_store.errors import (
     UnsafeParticipantCode,
 )
 from session_store.store import ParticipantStore
+from session_store.vocabulary import Actor
 
 
 @pytest.fixture
@@ -223,3 +227,31 @@ def test_a_first_theta_the_learner_is_late_with_is_a_flagged_fallback_and_the_se
         assert resumed.state.planned[2].theta is not None
     finally:
         resumed.close()
+
+
+def test_every_event_has_its_rule_and_one_without_is_an_event_log_error_not_a_key_error():
+    """One place decides what an event may do (app.protocol.state): every kind of event has its
+    handler, and an event no handler takes is reported as a log that breaks the protocol, naming
+    it, never as the KeyError of a missing dictionary entry."""
+    assert set(HANDLERS) == set(get_args(get_args(ev.ProtocolEvent)[0]))
+
+    class Surprise(ev.Paused):
+        """An event of a kind the protocol has no rule for (a newer application's, say)."""
+
+    state = SessionState(slots=protocol_slots(short_config()))
+    with pytest.raises(EventLogError, match=r"event 7 \(paused\): no rule of the protocol takes a "
+                                            r"Surprise event"):
+        apply(state, Surprise(seq=7, actor=Actor.EXPERIMENTER))
+
+
+def test_the_engine_refuses_what_the_log_would_refuse_in_the_same_words(engine):
+    """The step an event needs is one rule (WAITS_FOR): the engine's refusal and the stored log's
+    breach name the same steps."""
+    drive_until(engine, Step.READY)
+    with pytest.raises(RefusedAction, match="refused: the session waits for 'ready', not 'answer'"):
+        engine.answer("Q1", "4")
+    breach = ev.AnswerGiven(seq=5, actor=Actor.PARTICIPANT, question="Q1", value="4")
+    with pytest.raises(EventLogError, match="an answer to Q1 while the session waits for 'ready'"):
+        apply(engine.state.model_copy(deep=True), breach)
+    assert refusal(engine.state, ev.AnswerGiven) == "the session waits for 'ready', not 'answer'"
+    assert WAITS_FOR[ev.AnswerGiven] is Step.ANSWER

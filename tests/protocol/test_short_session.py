@@ -16,11 +16,11 @@ from app.cli import main
 from app.learning.config import GainRule
 from app.protocol import stopping
 from app.protocol.engine import SessionEngine
+from app.protocol.learning_words import learning_line, recorded_stop
 from app.protocol.simulated_participant import SimulatedParticipant, Taste
 from app.protocol.state import Step, replay
 from app.protocol.study import PRESETS, SHORT_RULE
 from app.session.config import load_lab_config
-from app.session.learning_words import learning_line
 from robot_io.hands.simulated_hand import Scenario
 from session_store.vocabulary import Phase
 
@@ -48,6 +48,14 @@ def kinds(engine: SessionEngine, kind: str) -> list[dict]:
     return [e.payload for e in engine.store.events() if e.kind == kind]
 
 
+def dashboard_line(engine: SessionEngine) -> str | None:
+    """The dashboard's learning line of ``engine``, as the runner's view makes it."""
+    return learning_line(engine.state, engine.config, engine.settledness,
+                         recorded_stop(engine.store.events()),
+                         engine.store.rows("learner_snapshots", order_by="after_interaction"),
+                         engine.gain)
+
+
 def test_every_batch_is_checked_and_learning_stops_with_its_reason(stopped):
     checks, stops = kinds(stopped, "learning_checked"), kinds(stopped, "learning_stopped")
     assert len(stops) == 1
@@ -60,9 +68,11 @@ def test_every_batch_is_checked_and_learning_stops_with_its_reason(stopped):
     assert [c["stops"] for c in checks] == [False] * (len(checks) - 1) + [True]
     assert stop["rule"] == "gain" and stop["probability"] == checks[-1]["signal"] <= 0.95
     assert stop["threshold"] == 0.95 and stop["after_interaction"] == checks[-1]["after_interaction"]
-    assert stop["reason"].startswith(f"after {stop['batches']} learning batch")
-    assert "likely to find a handover preferred to θ* more than 95% of the time (stops at 95% or " \
-           "less, after at least 1 batch)" in stop["reason"]
+    assert stop["reason"].startswith(f"after learning batch {stop['batches']} of 3 the next batch "
+                                     "was at most ")
+    assert stop["reason"].endswith("likely to find a handover the participant would pick over the "
+                                   "learner's best guess more than 95 % of the time; it stops at "
+                                   "95 % or less, from batch 1 on")
     # the signal is the bound (q − 1)·g/ε of what the next batch may find
     rule = stopped.config.stopping_rule()
     assert isinstance(rule, GainRule)
@@ -83,11 +93,16 @@ def test_after_the_stop_the_best_the_questionnaire_and_validation_run(stopped):
 
 
 def test_the_dashboard_and_the_report_say_why_learning_stopped(stopped, tmp_path):
-    line = learning_line(stopped)
-    assert line.startswith("learning stopped early, after ") and "more than 95% of the time" in line
+    line = dashboard_line(stopped)
+    batch = stopped.state.slots[stopped.state.stopped_after - 1].batch
+    assert line.startswith(f"Learning stopped early after batch {batch} of 3: ")
+    assert line.endswith(f"({kinds(stopped, 'learning_stopped')[0]['reason']}).")
     report = build_report(stopped.store.path.parent, tmp_path / "report", include_simulated=True)
     row = pd.read_csv(report.tables["learning"]).iloc[0]
-    assert row["learning_ended"] == "early" and row["why"].startswith("after ")
+    assert row["learning_ended"] == "early" and row["why"].startswith("after learning batch ")
+    assert row["stopping_rule"] == ("stop once the next batch is at most 95 % likely to find a "
+                                    "handover the participant would pick over the learner's best "
+                                    "guess more than 95 % of the time, from batch 1 on")
     assert row["learning_interactions"] == stopped.state.stopped_after
 
 
@@ -103,9 +118,10 @@ def test_a_rule_that_never_fires_checks_every_batch_and_runs_the_schedule(tmp_pa
         assert [(c["batches"], c["after_interaction"], c["stops"]) for c in checks] == [
             (0, 4, False), (1, 8, False)]
         assert not kinds(engine, "learning_stopped")
-        line = learning_line(engine)
-        assert line is not None and line.startswith("the next batch is at most ")
-        assert line.endswith("learning stops at 0% or less after at least 1 batch")
+        line = dashboard_line(engine)
+        assert line is not None and line.startswith("After learning batch 1 of 1: ")
+        assert "; the next batch is at most " in line
+        assert line.endswith("more than 55 % of the time. That was the last learning batch.")
     finally:
         engine.close()
 

@@ -14,13 +14,13 @@ from robot_io.arms.mock_arm import MockArm
 from robot_io.clock import SimClock
 from robot_io.config import ControllerConfig
 from robot_io.control.cycle import CycleDevices, Gates, run_cycle
-from robot_io.control.loop import Outcome, StopRequest
+from robot_io.control.loop import Outcome
+from robot_io.control.stages import PAPER_CYCLE, Stage
 from robot_io.errors import GripperFault
 from robot_io.grippers.gripper import NoGripper
 from robot_io.hands.hand import HandSample
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.hands.simulated_pull import SimulatedPull
-from robot_io.stages import Stage
 from robot_io.theta import Theta
 
 THETA = Theta(a=5.0, delta=-0.2, k=5.0)
@@ -133,13 +133,13 @@ def test_a_gripper_fault_in_the_hold_ends_the_trial_stops_the_arm_and_nothing_re
 
     def on_stage(stage: Stage, t: float) -> None:
         stages.append(stage)
-        if stage is Stage.HOLD:
+        if stage == Stage.HOLD:
             gripper.fault = GripperFault("gripper: the object was lost while holding")
 
     record = run_cycle(config, THETA, rig, Gates.automatic(), on_stage)
     assert record.summary.outcome is Outcome.GRIPPER_FAULT
     assert record.summary.reason == "gripper: the object was lost while holding"
-    assert stages[-1] is Stage.HOLD  # no release, no retract: the arm stays where it stopped
+    assert stages[-1] == Stage.HOLD  # no release, no retract: the arm stays where it stopped
     assert rig.arm.stop_requested_at is not None and not rig.arm.is_moving
 
 
@@ -160,8 +160,8 @@ def test_a_gripper_that_fails_to_close_at_r_ends_the_trial_as_a_gripper_fault_be
 def test_stop_while_waiting_for_go_ends_the_trial_before_anything_streams():
     config = ControllerConfig()
     rig = devices(config)
-    gates = Gates(threading.Event(), threading.Event(), StopRequest())
-    gates.loaded.set()
+    gates = Gates.of(PAPER_CYCLE)
+    assert gates.confirm(Stage.PREPARE)  # Object loaded; Go never comes
     threading.Timer(0.05, gates.stop.request, ["the experimenter's Stop"]).start()
     record, stages = run(config, rig, gates)
     assert record.summary.outcome is Outcome.STOPPED and record.summary.cycles == 0

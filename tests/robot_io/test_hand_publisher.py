@@ -19,9 +19,14 @@ from support.waiting import wait_for
 
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
-from robot_io.hands.hand_publisher import HandPublisher, PublisherSpec
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.hands.udp_hand import UDPHand
+from robot_io.standins.hand_publisher import (
+    LATE_SUMMARY_S,
+    HandPublisher,
+    LateSamples,
+    PublisherSpec,
+)
 from robot_io.standins.ur.control import DEFAULT_PORT
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak]  # a process that publishes on the wall clock
@@ -131,3 +136,20 @@ def test_the_stream_goes_on_while_the_standin_controller_is_slow_to_answer_and_e
         port.close()
         publisher.close()
         source.close()
+
+
+def test_late_samples_are_said_once_with_advice_then_counted():
+    """"hand publisher: a sample 448 ms late" came with no advice, once per late sample (issue 45,
+    item 16): the first says what it means for the rehearsal and what to do; the ones after it
+    are counted and said at most every LATE_SUMMARY_S."""
+    late = LateSamples()
+    first = late.note(0.448, now=100.0)
+    assert first == (
+        "rehearsal's hand publisher: a sample went out 448 ms late (its tracker rate is "
+        "not kept): this computer is too busy for the rehearsal's stand-ins. Close other programs; "
+        "a trial that ends tracker_lost now says so about the rehearsal, not the rig")
+    assert late.note(0.06, now=100.5) is None and late.note(0.2, now=101.0) is None
+    assert late.note(0.07, now=100.0 + LATE_SUMMARY_S) == (
+        f"rehearsal's hand publisher: 3 more samples went out late in the last "
+        f"{LATE_SUMMARY_S:.0f} s, by up to 200 ms")
+    assert late.note(0.06, now=101.0 + LATE_SUMMARY_S) is None

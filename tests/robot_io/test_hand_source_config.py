@@ -9,7 +9,7 @@ from pydantic import ValidationError
 
 from robot_io.config import ControllerConfig
 from robot_io.errors import explain
-from robot_io.hands.config import HAND_SOURCES, NatNetSource, own_keys
+from robot_io.hands.config import HAND_SOURCES, NatNetSource
 
 
 def hand_source(**table):
@@ -68,8 +68,8 @@ def test_a_table_with_every_kinds_keys_at_their_defaults_loads_as_its_own_kind()
             "rotation": [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
             "translation": [0.0, 0.0, 0.0], "resolve_timeout_s": 5.0}
     source = hand_source(**flat)
-    assert source.model_dump(mode="json") == own_keys(flat)
-    assert "udp_port" not in own_keys(flat)
+    assert source.model_dump(mode="json") == HAND_SOURCES.own_keys(flat)
+    assert "udp_port" not in HAND_SOURCES.own_keys(flat)
 
 
 #: What each kind needs besides its defaults.

@@ -21,11 +21,11 @@ from support.between import Between
 from support.waiting import CEILING_S, tail, wait_for
 
 from robot_io.config import ControllerConfig
+from robot_io.control.stages import Stage
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.client import RigClient
 from robot_io.rig.messages import APP_SILENCE_S, RigDied, RigSpec, RunTrial, StageReached, TrialDone
 from robot_io.rig.process import STACKS_SIGNAL
-from robot_io.stages import Stage
 from robot_io.theta import Theta
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak]
@@ -36,7 +36,7 @@ class Reports:
         self.queue: queue.Queue = queue.Queue()
         self.seen: list = []
 
-    def __call__(self, report) -> None:
+    def __call__(self, _rig, report) -> None:
         self.queue.put(report)
 
     def until(self, predicate, what: str = "the expected report", timeout: float = 60.0):
@@ -57,7 +57,7 @@ class Reports:
 
 def trial(index: int = 1) -> RunTrial:
     return RunTrial(trial_index=index, theta=Theta(a=5.0, delta=-0.2, k=5.0), hand_seed=7,
-                    auto_loaded=True, auto_go=True)
+                    automatic=True)
 
 
 def rig(realtime: bool, reports: Reports) -> RigClient:
@@ -117,7 +117,7 @@ def rig_at(stage: Stage) -> Iterator[tuple[RigClient, Reports]]:
     client = rig(realtime=True, reports=reports)
     try:
         client.run_trial(trial())
-        reports.until(lambda r: isinstance(r, StageReached) and r.stage is stage)
+        reports.until(lambda r: isinstance(r, StageReached) and r.stage == stage)
         yield client, reports
     finally:
         client.close()
@@ -231,8 +231,10 @@ def test_a_rig_whose_application_hangs_mid_trial_stops_the_arm_and_says_why():
     reports = Reports()
     client = rig(realtime=True, reports=reports)
     try:
-        client.run_trial(trial().model_copy(update={"auto_go": False}))  # it waits for Go: no end
-        reports.until(lambda r: isinstance(r, StageReached) and r.stage is Stage.READY)
+        client.run_trial(trial().model_copy(update={"automatic": False}))
+        reports.until(lambda r: isinstance(r, StageReached) and r.stage == Stage.PREPARE)
+        client.confirm(Stage.PREPARE)  # Object loaded; it waits for Go: no end
+        reports.until(lambda r: isinstance(r, StageReached) and r.stage == Stage.READY)
         hold_the_interpreter(APP_SILENCE_S + 1.0)
         done = reports.until(lambda r: isinstance(r, TrialDone), "the stopped trial's TrialDone")
     finally:

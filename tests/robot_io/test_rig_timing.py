@@ -34,8 +34,37 @@ def test_rows_on_time_say_nothing_and_old_hand_samples_are_reported():
         assert np.isclose(timing.oldest_hand_sample_s, 0.07)
         assert watch.check(stream) is None  # nothing new: reported once
         assert timing.describe() == (
-            "timing degraded in trial 4: the hand samples it steered by were up to 70 ms old (the "
+            "timing degraded in trial 4 so far: the hand samples it steered by were up to 70 ms old (the "
             "tracker counts as lost at 100 ms) — the machine is too busy even for the rig's "
             "real-time priority: close other programs")
+    finally:
+        stream.close(unlink=True)
+
+
+def test_the_trials_end_reports_its_whole_figures_at_once_in_the_singular_where_one():
+    """The terminal said the first report of a trial (3 cycles, 34 ms) and the dashboard its latest
+    (11 cycles, 52 ms) (issue 45, item 16): the trial's end reports the figures of all its rows,
+    without waiting REPORT_AGAIN_S, marked final; and one cycle is "1 control cycle"."""
+    stream = SampleStream(200)
+    try:
+        watch = TimingWatch(LOOP, realtime_priority=False)
+        recorder = StreamRecorder(stream, trial_index=7)
+        write_rows(recorder, 20, lateness=0.001, age=0.02)
+        write_rows(recorder, 1, lateness=0.034, age=0.02)
+        write_rows(recorder, 1, lateness=0.0, age=0.02)  # being written: not read yet
+        first = watch.check(stream)
+        assert first is not None and (first.late_cycles, first.final) == (1, False)
+        assert first.describe().startswith(
+            "timing degraded in trial 7 so far: 1 control cycle started late, by up to 34 ms")
+        write_rows(recorder, 1, lateness=0.052, age=0.02)  # the trial's last row
+        assert watch.check(stream) is None  # within REPORT_AGAIN_S of the first report
+        last = watch.check(stream, final=True)
+        assert last is not None and (last.late_cycles, last.final) == (2, True)
+        assert last.describe() == (
+            "timing degraded in trial 7: 2 control cycles started late, by up to 52 ms (warned "
+            "above 16 ms) — the rig runs without real-time priority: grant it (docs/hardware.md, "
+            "\"Real-time priority\") or close other programs")
+        clean = TimingWatch(LOOP, realtime_priority=False)
+        assert clean.check(stream, final=True) is not None  # the whole trial, read at its end
     finally:
         stream.close(unlink=True)

@@ -44,9 +44,9 @@ def test_the_arms_recovery_after_an_rtde_drop_connects_the_gripper_again():
             wait_for(output, "the stand-in's tool output high after close", seen=output)
             assert ur.control("drop_sockets")["ok"]
             with pytest.raises(ArmFault):  # the arm finds its link gone, as a trial's loop would
-                wait_for(lambda: devices.ur.move_to(devices.config.scene.point("robot_start")),
+                wait_for(lambda: devices.connected.move_to(devices.config.scene.point("robot_start")),
                          "the arm to notice the dropped link")
-            assert devices.ur.state is ArmState.FAULT
+            assert devices.connected.state is ArmState.FAULT
             said = devices.recover(inspected=True)
             assert "gripper" in said, said
             devices.gripper.open()  # the release: it reaches the controller
@@ -69,8 +69,8 @@ def test_a_recovery_with_the_link_up_leaves_the_grippers_link_alone():
             devices.gripper.close()
             wait_for(output, "the stand-in's tool output high after close", seen=output)
             assert ur.control("protective_stop")["ok"]
-            wait_for(lambda: devices.ur.state is ArmState.FAULT, "the arm to see the protective stop",
-                     seen=lambda: devices.ur.state)
+            wait_for(lambda: devices.connected.state is ArmState.FAULT, "the arm to see the protective stop",
+                     seen=lambda: devices.connected.state)
             said = devices.recover(inspected=True)
             assert "protective stop" in said and "gripper" not in said, said
             devices.gripper.open()  # the same link still reaches the controller

@@ -35,7 +35,7 @@ from robot_io.arms.arm import ArmState
 from robot_io.arms.ur_arm import EMERGENCY_STOPPED_BITS, URArm
 from robot_io.config import ControllerConfig
 from robot_io.control.loop import Outcome
-from robot_io.devices import tracker_transform, ur_trial
+from robot_io.devices import arm_trial, tracker_transform
 from robot_io.errors import ArmFault
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.hands.udp_hand import UDPHand
@@ -127,7 +127,7 @@ def aborted_by(control: ControlClient, config: ControllerConfig, arm: URArm, fau
 
     timer = threading.Thread(target=later)
     timer.start()
-    record = ur_trial(config, THETA, hand(config), arm)
+    record = arm_trial(config, THETA, hand(config), arm)
     timer.join()
     assert record.summary.outcome is Outcome.ARM_FAULT
     assert reason in record.summary.reason
@@ -154,7 +154,7 @@ def assert_recovers_for_the_next_trial(control: ControlClient, config: Controlle
                                       arm: URArm) -> None:
     arm.recover()
     assert arm.state is ArmState.IDLE
-    second = ur_trial(config, THETA, hand(config, 1), arm)
+    second = arm_trial(config, THETA, hand(config, 1), arm)
     state = control("state")
     assert second.summary.outcome is Outcome.COMPLETED, (
         f"{second.summary.reason}; the stand-in's longest gap between cycles "
@@ -250,7 +250,7 @@ def test_a_stale_hand_source_stops_the_arm():
         replay = Replay(hand(config), send, 100.0, stop_after=0.8).start()
         try:
             tracker.wait_for_sample(30.0, config.loop.staleness_limit_s)  # a ceiling
-            record = ur_trial(config, THETA, tracker, arm)
+            record = arm_trial(config, THETA, tracker, arm)
         finally:
             replay.stop()
             tracker.close()

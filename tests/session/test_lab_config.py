@@ -3,11 +3,14 @@ tables reaching new sessions, and bad input named with its field and range."""
 
 from __future__ import annotations
 
+from typing import get_args
+
 import pytest
 from pydantic import ValidationError
 from support.engine import new_engine
 
 from app.cli import main
+from app.learning.config import AcquisitionName
 from app.protocol.session_inputs import learner_config
 from app.protocol.study import StudyConfig
 from app.session.config import LabConfig, load_lab_config
@@ -57,9 +60,11 @@ batch_position_noise = true
 @pytest.mark.parametrize(("text", "message"), [
     ("[protocl]\nbatch_size = 3\n", "protocl"),
     ("[protocol]\nbatch_size = 30\n", "protocol.batch_size"),
-    ("[arm]\nkind = \"ur5\"\n", "arm.kind"),
+    ("[arm]\nkind = \"ur5\"\n", r"\[arm\] kind = 'ur5' is no arm; the kinds are \"mock\", \"ur\""),
     ("[cycle]\nstart_zone_m = 2.0\n", "cycle.start_zone_m"),
     ("[learner]\nrecommendation = \"best\"\n", "learner.recommendation"),
+    ("[learner]\nacquisition = \"sobol\"\n",
+     r"learner.acquisition\n.*Input should be 'qnei', 'qlognei' or 'eubo'"),
     ("[learner]\nprior_weight = 11\n", "learner.prior_weight"),
     ("[learner]\nbatch_position_noise = \"maybe\"\n", "learner.batch_position_noise"),
     ("[learner]\nprior_sources = [\"P01\"]\n", "prior_sources"),
@@ -179,8 +184,7 @@ def test_the_sessions_default_recommendation_is_the_learners():
 
     study = LabConfig().study_config(Scenario.STRAIGHTFORWARD, seed=1)
     assert study.recommendation == DEFAULT_RECOMMENDATION.value
-    choices = StudyConfig.model_fields["recommendation"].annotation.__args__
-    assert set(choices) == {r.value for r in RecommendationName}
+    assert StudyConfig.model_fields["recommendation"].annotation is RecommendationName
 
 
 def test_a_config_that_is_not_a_small_regular_file_is_refused_naming_the_limit(tmp_path, capsys):
@@ -191,3 +195,11 @@ def test_a_config_that_is_not_a_small_regular_file_is_refused_naming_the_limit(t
     for device in ("/dev/zero", str(tmp_path)):
         assert main(["check-devices", "--config", device]) == 2
         assert f"config file {device}: not a regular file" in capsys.readouterr().err
+
+
+def test_a_session_runs_the_learner_s_own_acquisitions_but_sobol():
+    """The study's acquisition is the learner's type (app.learning.config.SessionAcquisition): the
+    names a lab file may write are the learner's, but its random search."""
+    allowed = get_args(StudyConfig.model_fields["acquisition"].annotation)
+    assert all(isinstance(name, AcquisitionName) for name in allowed)
+    assert set(allowed) == set(AcquisitionName) - {AcquisitionName.SOBOL}

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import os
 import stat
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -19,12 +21,14 @@ from app.session.access import (
     TOKEN_FILE,
     KnownBrowsers,
     UnsafeTokenFile,
+    check_access_files,
     dashboard_token,
 )
 from app.session.config import LabConfig
 from app.session.pairing import CODE_GUESSES, WRONG_CODE_ALERT_S, TabletPairing
 from app.session.runner import SessionRunner
 from app.ui.status_text import status_line
+from robot_io.control.stages import Stage
 from robot_io.hands.simulated_hand import Scenario
 
 
@@ -163,7 +167,7 @@ def test_start_needs_one_paired_tablet_and_after_a_stop_a_rearm(tmp_path: Path):
             runner.start_trial()
         runner.rearm()
         runner.start_trial()
-        probe.wait(lambda v: v.waiting_for == "loaded", what="the cycle waits for the object")
+        probe.wait(lambda v: v.waiting_for == Stage.PREPARE, what="the cycle waits for the object")
         runner.stop()  # during a trial: "stopping" until the trial has ended, then "stopped"
         view = probe.wait(lambda v: v.stop == "stopped" and v.step.value == "ready",
                           what="the stop completed")
@@ -236,4 +240,98 @@ def test_known_browsers_forget_with_a_new_salt_and_refuse_a_planted_file(tmp_pat
     path.unlink()
     path.symlink_to(tmp_path / "elsewhere")
     with pytest.raises(UnsafeTokenFile, match="is a symbolic link"):
-        known.known("3" * 32)
+        check_access_files(study)
+    assert not known.known("3" * 32)  # planted while serving: no browser is known by it
+
+
+#: How long serve may take to refuse a planted file (its imports and the session's start) [s].
+SERVE_REFUSAL_S = 120
+
+
+@pytest.mark.parametrize("file", [DASHBOARD_BROWSERS_FILE, TABLET_BROWSER_FILE])
+@pytest.mark.parametrize("planted", ["symlink", "mode 666"])
+def test_serve_refuses_a_planted_browsers_file_before_it_prints_an_address(tmp_path, file, planted):
+    """A symbolic link or a world-writable .dashboard-browsers or .tablet-browser gave every page a
+    traceback and no screen, STOP ARM included, while serve printed its addresses as usual (issue
+    45, item 6): refused at start with a sentence, as the token file is. (A subprocess: before the
+    fix serve served on and the test ends it after SERVE_REFUSAL_S.)"""
+    study = tmp_path / "study"
+    study.mkdir()
+    path = study / file
+    if planted == "symlink":
+        (tmp_path / "elsewhere").write_text("")
+        path.symlink_to(tmp_path / "elsewhere")
+    else:
+        path.write_text("")
+        path.chmod(0o666)
+    try:
+        result = subprocess.run([sys.executable, "-m", "app.cli", "serve", "--study", str(study),
+                                 "--tablet-port", "0", "--dashboard-port", "0", "--token", "t"],
+                                capture_output=True, text=True, timeout=SERVE_REFUSAL_S)
+    except subprocess.TimeoutExpired as served:
+        pytest.fail(f"serve did not refuse {path} within {SERVE_REFUSAL_S} s; it printed "
+                    f"{served.stdout!r}")
+    assert result.returncode == 2, (result.stdout, result.stderr)
+    assert "dashboard (experimenter):" not in result.stdout and "Traceback" not in result.stderr
+    reason = "is a symbolic link" if planted == "symlink" else "is writable by others (mode 666)"
+    assert f"handover serve: error: {path} {reason}: refused" in result.stderr, result.stderr
+
+
+def test_a_browsers_file_planted_while_serving_grants_nothing_and_fails_no_page(tmp_path, caplog):
+    """Planted after the start, the file is read as no known browser (each page shows its token or
+    code screen: the dashboard's STOP ARM comes with the token) and the next pairing replaces it
+    with the study's own owner-only file."""
+    study = tmp_path / "study"
+    known = KnownBrowsers(study, TABLET_BROWSER_FILE)
+    known.remember("a" * 32)
+    path = study / TABLET_BROWSER_FILE
+    path.unlink()
+    planted = tmp_path / "planted"
+    planted.write_text(KnownBrowsers(tmp_path, "x")._hash("b" * 32) + "\n")
+    target = planted.read_text()
+    path.symlink_to(planted)
+    pairing = TabletPairing(code="4711", known=known)
+    assert pairing.connected(1, "10.0.0.9", browser="b" * 32) is False  # the planted id: no tablet
+    assert pairing.role(1) == "pair"
+    assert "is a symbolic link" in caplog.text
+    assert pairing.pair(1, "4711") is None
+    assert not path.is_symlink() and stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert planted.read_text() == target  # the link's target is untouched
+    assert known.known("b" * 32)
+
+
+def test_a_token_file_others_may_read_is_made_owner_only_with_a_warning(tmp_path, caplog):
+    """A 0644 token file was read without a word (issue 45, item 8): it is made owner-only, as the
+    writer's lock file is, and serve says that whoever read it knows the token."""
+    study = tmp_path / "study"
+    token = dashboard_token(study)
+    path = study / TOKEN_FILE
+    path.chmod(0o644)
+    assert dashboard_token(study) == token
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert (f"{path} was readable by others (mode 644): made owner-only (600). Anyone who read it "
+            "knows the token: delete it for a new one") in caplog.text
+
+
+def test_once_the_tablets_page_closes_another_browser_of_its_address_needs_the_code():
+    """After the paired tablet's page closed, another browser from the same address became the
+    tablet without the code, and the dashboard advised "type the code" when the tablet itself needed
+    none (issue 45, item 11). The pairing belongs to the browser that typed it (its page's id):
+    that browser comes back without the code, any other types it."""
+    pairing = TabletPairing(code="6715")
+    pairing.connected(1, "10.0.0.5", browser="a" * 32)
+    assert pairing.pair(1, "6715") is None
+    pairing.connected(2, "10.0.0.5", browser="a" * 32)  # a second tab of the tablet's browser
+    assert pairing.role(2) == "unused"
+    pairing.closed(1)
+    pairing.closed(2)
+    assert pairing.status().blocker() == (
+        "the paired tablet's page is closed: open the tablet page on it again (no code needed; "
+        "another device types the code 6715)")
+    pairing.connected(3, "10.0.0.5", browser="b" * 32)  # another browser, same address (a NAT)
+    assert pairing.role(3) == "pair" and not pairing.status().ready
+    assert pairing.status().blocker() == "the tablet is not paired: type the code 6715 on it"
+    pairing.connected(4, "10.0.0.5", browser="a" * 32)  # the tablet's own browser, reloaded
+    assert pairing.role(4) == "tablet" and pairing.role(3) == "pair"
+    pairing.closed(3)
+    assert pairing.status().ready

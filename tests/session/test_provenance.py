@@ -9,13 +9,11 @@ import html
 
 import pandas as pd
 import pytest
-from support.engine import SESSION_CONTROLLER, SHORT_PROTOCOL
-from support.runner import Probe
+from support.engine import SHORT_PROTOCOL
+from support.runner import headless_runner
 
 from app.analysis.report import build_report
 from app.protocol.state import Step
-from app.session.config import LabConfig
-from app.session.runner import SessionRunner
 from robot_io.hands.simulated_hand import Scenario
 from session_store.export import export_study, read_table
 
@@ -23,10 +21,7 @@ from session_store.export import export_study, read_table
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     study = tmp_path_factory.mktemp("study")
-    lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL,
-                                    "loop": {"rate_hz": SESSION_CONTROLLER.loop.rate_hz}})
-    runner = SessionRunner(study, lab, realtime=False, auto_experimenter=True)
-    probe = Probe(runner)
+    runner, probe = headless_runner(study, SHORT_PROTOCOL)
     # The waits' ceilings are for a hung session (a rig process to start, learner fits on a loaded
     # machine), not measurements.
     try:
@@ -66,12 +61,13 @@ def test_the_export_tells_every_rows_origin(study, tmp_path):
 
 
 def test_the_report_counts_the_persons_ratings_unless_told_otherwise(study, tmp_path):
+    """H01's learning batch was placed by the simulated participant: its θ* is not a person's, so
+    the report leaves H01 out of the paper's tables (issue 45) unless told to count it."""
     own = build_report(study, tmp_path / "own")
-    assert "4 validation ratings and answers by the simulated participant are left out" in \
-        own.ratings_counted
+    assert "marked § and left out of Tables II–IV and the tests: H01" in own.ratings_counted
     assert html.escape(own.ratings_counted) in own.html.read_text()
-    scores = pd.read_csv(own.tables["table3_perturbed"])
-    assert scores["pairs"].tolist() == [0]
+    assert pd.read_csv(own.tables["table3_perturbed"]).empty
     everything = build_report(study, tmp_path / "all", include_simulated=True)
-    assert "included by --include-simulated" in everything.ratings_counted
-    assert pd.read_csv(everything.tables["table3_perturbed"])["pairs"].tolist() == [1]
+    assert "by --include-simulated, the simulated participant's" in everything.ratings_counted
+    scores = pd.read_csv(everything.tables["table3_perturbed"])
+    assert scores["pairs"].tolist() == [1] and scores["simulated_learning"].tolist() == [True]

@@ -19,11 +19,11 @@ from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
 from app.session.faults import StagedFault
 from app.session.rehearsal import Rehearsal
-from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from robot_io.arms.ur_kinematics import forward
+from robot_io.control.stages import PAPER_CYCLE, Stage
 from robot_io.hands.simulated_hand import Scenario
-from robot_io.stages import SAMPLE_CODE, Stage
+from session_store.sample_rows import stored_rows
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak, pytest.mark.standin]
@@ -85,7 +85,7 @@ def ended(view, index: int):
 def moving(runner: SessionRunner) -> bool:
     """The reach runs and the stand-in controller reports the TCP moving (above the hold's settle
     speed, 0.02 m/s)."""
-    return runner.view.stage is Stage.REACH and runner.rehearsal.control("state")["speed"] > 0.02
+    return runner.view.stage == Stage.REACH and runner.rehearsal.control("state")["speed"] > 0.02
 
 
 def stopped(state: dict) -> dict | None:
@@ -97,7 +97,7 @@ def start_until(runner: SessionRunner, probe: Probe, stage: Stage) -> None:
     probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="ready to start",
                timeout=READY_CEILING_S)
     runner.start_trial()
-    probe.wait(lambda v: v.stage is stage, what=f"stage {stage.value}")
+    probe.wait(lambda v: v.stage == stage, what=f"stage {stage}")
 
 
 def test_every_rehearsed_sample_carries_joint_angles_and_coupling_signals(rehearsed):
@@ -123,7 +123,7 @@ def test_every_rehearsed_sample_carries_joint_angles_and_coupling_signals(rehear
     assert np.ptp(q, axis=0).max() > 0.1  # the arm moved its joints
     error = np.linalg.norm(forward(q)[:, :3, 3] - measured, axis=1)
     assert error.max() < 1e-3, f"FK(q) is {error.max() * 1e3:.3f} mm from the recorded TCP"
-    reach = keep & (rows["stage"] == SAMPLE_CODE[Stage.REACH])
+    reach = keep & (rows["stage"] == PAPER_CYCLE.sample_code(Stage.REACH))
     c_t = rows["c_t"][reach]
     assert reach.sum() > 100 and np.isfinite(c_t).mean() > 0.95, "coupling signals not recorded"
     ok = np.isfinite(c_t)
@@ -156,7 +156,7 @@ def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(re
     runner.start_trial()
     waiting = probe.wait(lambda v: v.state.running_trial == 2 and v.ready_wait is not None,
                          what="the repeat (trial 2) waiting for the hand")
-    assert "no valid hand sample" in waiting.ready_wait and waiting.stage is Stage.LOADED
+    assert "no valid hand sample" in waiting.ready_wait and waiting.stage == Stage.LOADED
     runner.rehearsal.publisher.occlude(0.0)  # the tracker sees the hand again
     view = probe.wait(lambda v: ended(v, 2) is not None, what="trial 2 ended")
     second = ended(view, 2)
@@ -165,6 +165,8 @@ def test_tracker_lost_during_reach_holds_the_arm_aborts_and_repeats_the_trial(re
 
 
 def test_a_protective_stop_during_hold_aborts_and_the_trial_completes_after_recovery(rehearsed):
+    """Slow (about 25 s): two trials on the wall clock, and Recover waits out the controller's 5 s
+    rule before the protective stop may be unlocked, as a UR's does."""
     runner, probe = rehearsed
     runner.open("F02", Scenario.STRAIGHTFORWARD, seed=2)
     start_until(runner, probe, Stage.HOLD)
@@ -224,6 +226,8 @@ def test_a_controller_that_stalls_mid_reach_ends_the_trial_and_the_rig_lives_thr
 
 
 def test_no_pull_ends_the_trial_not_taken_and_it_is_repeated_not_rated(rehearsed):
+    """Slow (30-60 s): the hold waits out the product's release timeout (10 s) on the wall clock, and
+    a second whole trial follows; the timeout is the product's default on purpose (``rehearsed``)."""
     runner, probe = rehearsed
     runner.refuse_object(True)  # this participant never takes the object
     runner.open("F03", Scenario.STRAIGHTFORWARD, seed=3)
@@ -241,6 +245,8 @@ def test_no_pull_ends_the_trial_not_taken_and_it_is_repeated_not_rated(rehearsed
 
 
 def test_the_rig_process_killed_mid_reach_stops_the_arm_and_the_next_trial_completes(rehearsed):
+    """Slow (about 30 s): two trials on the wall clock on the rehearsal rig, and a fresh rig process
+    started and connected to the stand-in UR between them."""
     runner, probe = rehearsed
     runner.open("F04", Scenario.STRAIGHTFORWARD, seed=4)
     start_until(runner, probe, Stage.REACH)
@@ -292,6 +298,8 @@ def test_a_resume_on_a_different_arm_is_refused_until_the_experimenter_confirms(
     ("natnet", "NatNet rigid body 'hand' (id 1) from Motive (NatNet 3.1"),
 ])
 def test_the_rehearsal_plays_the_hand_over_udp_and_natnet_too(tmp_path, hand, shown):
+    """Slow (about 20 s each): a rehearsal of its own (stand-in UR, the hand over UDP or a stand-in
+    Motive) and a whole trial on the wall clock."""
     lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
     rehearsal = Rehearsal(lab, hand=hand)
     runner = SessionRunner(tmp_path / "study", lab, rehearsal=rehearsal, realtime_priority=True)

@@ -19,9 +19,10 @@ from support.priority import without_priority
 from support.runner import Probe
 from support.waiting import tail, wait_for
 
+from app.cli import main
 from app.session.cli import add_rig_arguments, open_runner
 from app.session.config import LabConfig, load_lab_config
-from app.session.runner import SessionRunner
+from app.session.runner import RunnerView, SessionRunner
 from app.ui.status_text import devices_markdown
 from robot_io.clock import priority_refusal
 from robot_io.hands.simulated_hand import Scenario
@@ -89,10 +90,23 @@ def test_without_permission_the_rig_says_so_at_start_or_refuses_when_required(tm
            "SCHED_FIFO" in log.read_text(), log.read_text()
 
 
-def test_a_rig_held_off_the_cpu_mid_reach_is_reported_on_the_dashboard(tmp_path):
+def late_trial(view: RunnerView) -> int:
+    """The trial the view's timing warning is about."""
+    assert view.timing_warning is not None
+    return int(re.match(r"timing degraded in trial (\d+)", view.timing_warning)[1])
+
+
+def ended(view: RunnerView) -> bool:
+    """Whether the trial of the view's timing warning is stored with its outcome."""
+    return any(t.trial_index == late_trial(view) and t.outcome is not None for t in view.trials)
+
+
+def test_a_rig_held_off_the_cpu_mid_reach_is_reported_on_the_dashboard(tmp_path, caplog):
     """The rig process is held off the CPU for HELD_S in the middle of a reach (SIGSTOP, SIGCONT:
     what a busy machine does to a process without real-time priority); the dashboard's devices say
-    by how much the control cycles ran late, and that the rig runs without real-time priority."""
+    by how much the control cycles ran late, and that the rig runs without real-time priority. The
+    terminal's last word on the trial is the dashboard's (before, the terminal kept the trial's
+    first report and the dashboard its latest: issue 45, item 16)."""
     runner = SessionRunner(tmp_path / "study", LAB, auto_experimenter=True)
     probe = Probe(runner)
     try:
@@ -104,10 +118,14 @@ def test_a_rig_held_off_the_cpu_mid_reach_is_reported_on_the_dashboard(tmp_path)
         os.kill(rig.pid, signal.SIGSTOP)
         time.sleep(HELD_S)  # holds the rig off the CPU at least this long; nothing is measured here
         os.kill(rig.pid, signal.SIGCONT)
-        view = probe.wait(lambda v: v.timing_warning is not None, what="the timing warning")
+        view = probe.wait(lambda v: v.timing_warning is not None and ended(v),
+                          what="the late trial stored, its timing shown")
     finally:
         runner.close()
-    late = re.search(r"(\d+) control cycles started late, by up to (\d+) ms", view.timing_warning)
+    said = [r.getMessage() for r in caplog.records
+            if r.getMessage().startswith(f"timing degraded in trial {late_trial(view)}")]
+    assert said[-1] == view.timing_warning and " so far" not in said[-1], said
+    late = re.search(r"(\d+) control cycles? started late, by up to (\d+) ms", view.timing_warning)
     assert late and int(late[1]) >= 1 and int(late[2]) >= HELD_S * 1e3 - 8, view.timing_warning
     assert "the rig runs without real-time priority: grant it" in view.timing_warning
     devices = devices_markdown(view)
@@ -126,7 +144,15 @@ def test_lab_files_say_auto_true_or_false(tmp_path, text, setting):
     assert load_lab_config(tmp_path / "lab.toml").loop.realtime_priority == setting
 
 
-def test_an_unknown_priority_setting_is_refused_with_its_field(tmp_path):
-    (tmp_path / "lab.toml").write_text('[loop]\nrealtime_priority = "always"\n')
+@pytest.mark.parametrize("value", ['"always"', '"yes"', '"true"', "1", '"on"'])
+def test_an_unknown_priority_setting_is_refused_naming_the_values(tmp_path, capsys, value):
+    """``realtime_priority = "yes"`` was read as true, 1 and "on" too (pydantic's lax booleans;
+    issue 45, item 10): only true, false and "auto" are settings, and the refusal names them."""
+    (tmp_path / "lab.toml").write_text(f'[loop]\nrealtime_priority = {value}\n')
     with pytest.raises(ValidationError, match=r"loop\.realtime_priority"):
         load_lab_config(tmp_path / "lab.toml")
+    assert main(["run-session", "--study", str(tmp_path / "study"), "--participant", "P01",
+                 "--scenario", "perturbed", "--auto", "--config", str(tmp_path / "lab.toml")]) == 2
+    read = value.strip('"') if value.startswith('"') else int(value)  # as TOML reads it
+    assert (f'loop.realtime_priority = {read!r}: must be true, false or "auto" (without quotes: '
+            'true, false; with: "auto")') in capsys.readouterr().err

@@ -14,8 +14,8 @@ from app.protocol.engine import TrialPlan
 from app.protocol.errors import RefusedAction
 from app.session.supervisor import STOP_REASON, Recording, TrialSupervisor
 from robot_io.config import ControllerConfig
+from robot_io.control.stages import Stage
 from robot_io.hands.simulated_hand import Scenario
-from robot_io.stages import Stage
 from robot_io.theta import Theta
 from session_store.models import Trial
 from session_store.vocabulary import Actor, Phase, ThetaOrigin

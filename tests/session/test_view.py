@@ -17,9 +17,9 @@ from app.session.view import (
     timing_words,
     with_news,
 )
+from robot_io.control.stages import Stage
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.messages import DeviceReport, RigTiming
-from robot_io.stages import Stage
 
 DEVICES = DeviceReport(arm="mock", arm_detail="mock arm, 125 Hz", rate_hz=125,
                        hand_source="simulated", hand_detail="simulated hand", gripper="none",
@@ -40,14 +40,15 @@ def facts(running: int | None, stage: Stage | None) -> SessionFacts:
     config = LabConfig().study_config(Scenario.PERTURBED, 7)
     state = SessionState(slots=protocol_slots(config), running_trial=running, stage=stage)
     return SessionFacts(code="M01", scenario=Scenario.PERTURBED, seed=7, state=state,
-                        interactions=len(state.slots), trials=[],
+                        trials=[],
                         theta_star=[ThetaStar(after_interaction=3, a=1.0, delta=0.5, k=2.0)],
-                        posterior=[], learning="the learner's first choice; 45% sure")
+                        posterior=[], learning="the learner's first choice; 45% sure",
+                        safety_flags=[])
 
 
 @pytest.mark.parametrize(("stage", "auto", "auto_experimenter", "expected"), [
-    (Stage.PREPARE, False, False, "loaded"),
-    (Stage.READY, False, False, "go"),
+    (Stage.PREPARE, False, False, Stage.PREPARE),  # Object loaded
+    (Stage.READY, False, False, Stage.READY),  # Go
     (Stage.GO, False, False, None),
     (Stage.PREPARE, True, False, None),  # the simulated participant confirms
     (Stage.READY, False, True, None),  # the simulated experimenter (headless) confirms
@@ -55,7 +56,7 @@ def facts(running: int | None, stage: Stage | None) -> SessionFacts:
 def test_a_running_trial_waits_for_the_experimenter_only_where_nobody_simulated_confirms(
         stage, auto, auto_experimenter, expected):
     view = build_view(5, status(auto=auto), [], facts(running=2, stage=stage), auto_experimenter)
-    assert view.step is Step.RUNNING and view.stage is stage
+    assert view.step is Step.RUNNING and view.stage == stage
     assert view.waiting_for == expected
 
 
@@ -86,7 +87,7 @@ def test_news_changes_the_status_and_keeps_the_engine_part_of_the_view_shown():
     shown = build_view(3, status(), [], facts(running=2, stage=Stage.PREPARE), False)
     news = with_news(shown, status(rig=RigStatus(devices=DEVICES, stop="stopping"),
                                    messages=["12:00:01 STOP ARM: the arm is stopping"]))
-    assert (news.version, news.state, news.waiting_for) == (3, shown.state, "loaded")
+    assert (news.version, news.state, news.waiting_for) == (3, shown.state, Stage.PREPARE)
     assert news.stop == "stopping" and news.arm == "mock arm, 125 Hz"
     assert news.messages == ["12:00:01 STOP ARM: the arm is stopping"]
 

@@ -76,8 +76,9 @@ def test_csv_and_parquet_hold_the_same_data(study, tmp_path):
 
 
 def test_an_empty_study_folder_is_an_error(tmp_path):
+    (tmp_path / "study").mkdir()
     with pytest.raises(StoreError, match="holds no participant database"):
-        export_study(tmp_path, tmp_path / "out")
+        export_study(tmp_path / "study", tmp_path / "out")
 
 
 def test_export_command(study, tmp_path, capsys):
@@ -104,3 +105,16 @@ def test_run_session_cli_refusals(tmp_path, capsys):
     assert main(["run-session", "--study", str(tmp_path), "--participant", "P1", "--auto",
                  "--resume"]) == 2
     assert "has no session" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("inside", [".", "export", "export/deeper"])
+def test_an_export_into_the_study_folder_is_refused_and_writes_nothing(study, capsys, inside):
+    """``export --out`` pointing into the study folder wrote CSVs and a sqlite/ copy of every
+    participant there, overwritten on a rerun (issue 45, item 9): export never writes into a study
+    folder."""
+    before = sorted(p.relative_to(study) for p in study.rglob("*"))
+    out = study / inside
+    assert main(["export", str(study), "--out", str(out)]) == 2
+    assert (f"handover export: error: --out {out} is inside the study folder {study}: export never "
+            "writes into a study folder") in capsys.readouterr().err
+    assert sorted(p.relative_to(study) for p in study.rglob("*")) == before

@@ -97,3 +97,28 @@ def test_an_export_that_cannot_write_is_a_message(tmp_path, capsys, target):
     err = capsys.readouterr().err
     assert "handover export: error:" in err
     assert "the disk is full" in err or "No space left on device" in err
+
+
+def test_a_read_only_database_is_not_told_to_free_the_disk(tmp_path):
+    """A write refused by a read-only database said "Free the disk, then resume the session"
+    (issue 45, item 7): each cause has its own advice. (SQLite's own refusals, on a connection
+    opened read-only and on a full disk's result code.)"""
+    from support.engine import new_engine
+
+    from session_store.inspection import write_failure
+
+    study = tmp_path / "study"
+    new_engine(study, "P01").close()
+    path = study / "P01.sqlite"
+    with contextlib.closing(sqlite3.connect(f"file:{path}?mode=ro", uri=True)) as conn, \
+            pytest.raises(sqlite3.OperationalError) as refused:
+        conn.execute("DELETE FROM events")
+    failure = write_failure(refused.value, path)
+    assert failure is not None
+    assert "the file or its folder is read-only" in str(failure)
+    assert "Free the disk" not in str(failure)
+    assert str(failure).endswith(". Make the file and its folder writable by this user (their owner "
+                                 "and mode; not a read-only mount), then resume the session")
+    full = sqlite3.OperationalError("database or disk is full")
+    full.sqlite_errorname = "SQLITE_FULL"  # as SQLite sets it on a full disk
+    assert str(write_failure(full, path)).endswith("Free the disk, then resume the session")

@@ -31,6 +31,7 @@ from session_store.schema import (
     V2_TRIAL_COLUMNS,
     V3_PROVENANCE_TABLES,
     V4_SAMPLE_COLUMNS,
+    V6_TRIAL_COLUMNS,
     columns_of,
 )
 from session_store.store import ParticipantStore
@@ -97,8 +98,13 @@ def test_an_old_file_migrates_to_the_current_version_and_keeps_every_row(tmp_pat
         old_samples = conn.execute(f"SELECT {kept} FROM samples ORDER BY trial_index, cycle").fetchall()
     store = ParticipantStore.open(tmp_path, code)
     try:
-        assert store.db.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 5
+        assert store.db.execute("PRAGMA user_version").fetchone()[0] == SCHEMA_VERSION == 6
         assert store.rows("hints") == []  # no hints before version 5 (coactive hints)
+        # no safety record before version 6: every trial has the columns, empty
+        safety = ", ".join(V6_TRIAL_COLUMNS)
+        assert store.db.execute(f"SELECT count(*) FROM trials WHERE coalesce({safety}) IS NOT NULL"
+                                ).fetchone()[0] == 0
+        assert all(t.min_distance_m is None for t in store.rows("trials"))
         assert set(V2_TRIAL_COLUMNS) <= set(store.db["trials"].columns_dict)
         assert set(V2_SAMPLE_COLUMNS) <= set(store.db["samples"].columns_dict)
         for table in V3_PROVENANCE_TABLES:

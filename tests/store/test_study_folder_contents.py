@@ -245,8 +245,8 @@ def test_a_writer_in_a_folder_it_cannot_write_says_so_before_anything(study, cap
 AS_ANOTHER_USER = """
 import importlib, os, sys
 from app.cli import _COMMAND_MODULES, main
-for name in (*_COMMAND_MODULES, "session_store.export"):  # imported while root may
-    importlib.import_module(name)
+for name in (*_COMMAND_MODULES, "session_store.export", "app.analysis.report", "app.protocol.doctor"):
+    importlib.import_module(name)  # imported while root may
 os.setgid(65534); os.setuid(65534)
 sys.exit(main(sys.argv[1:]))
 """
@@ -274,5 +274,35 @@ def test_another_users_study_is_read_without_its_lock_files(study, tmp_path):
             assert result.returncode == 0 and "Permission denied" not in result.stderr, \
                 (command, result.stdout, result.stderr)
         assert (out / "x" / "trials.csv").exists()
+    finally:
+        shutil.rmtree(shared)
+
+
+@pytest.mark.parametrize("command", [
+    ["run-session", "--study", "{study}", "--participant", "P01", "--resume", "--auto",
+     "--no-progress"],
+    ["doctor", "{study}"],
+    ["export", "{study}", "--out", "{out}"],
+    ["report", "{study}", "--out", "{out}"],
+])
+def test_another_users_unreadable_study_is_named_as_such(study, command):
+    """Another user's study folder (mode 700): run-session --resume ended in a PermissionError
+    traceback, and doctor, export and report said it "holds no participant database", hiding the
+    cause (issue 45, item 7). Each names the folder, its owner and mode, and what to do. (Each
+    runs its command in a child process as another user: its imports take most of the 20-60 s.)"""
+    shared = Path(tempfile.mkdtemp(prefix="private-study-"))
+    try:
+        shared.chmod(0o777)
+        folder = Path(shutil.copytree(study, shared / "study"))
+        folder.chmod(0o700)  # root's, closed to others
+        args = [word.format(study=folder, out=shared / "out") for word in command]
+        result = subprocess.run([sys.executable, "-c", AS_ANOTHER_USER, *args],
+                                capture_output=True, text=True,
+                                env={**os.environ, "HOME": str(shared)})
+        assert result.returncode == 2, (result.stdout, result.stderr)
+        assert "Traceback" not in result.stderr and "holds no participant" not in result.stderr
+        assert (f"handover {command[0]}: error: cannot read the study folder {folder}: permission "
+                "denied (it belongs to root, mode 700): run this as root, or have root give this "
+                "user read access to it") in result.stderr, result.stderr
     finally:
         shutil.rmtree(shared)

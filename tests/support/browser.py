@@ -34,6 +34,7 @@ from playwright.sync_api import Error as PlaywrightError
 from viser import _messages
 
 from app.ui.deliberate import SETTLE_S
+from app.ui.participant_form import CHOOSE
 from app.ui.style import DISCONNECTED
 from session_store.vocabulary import QUESTIONS
 from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
@@ -388,15 +389,29 @@ def confirm_placement(tablet: Page) -> float:
     return time.perf_counter() - began  # reported (benchmarks/ui_latency.py), never asserted
 
 
-def open_participant(dashboard: Page, code: str) -> None:
-    """Unlock the dashboard if it is locked, then create or resume ``code``. Waits until the page
-    shows either state (the token prompt or the participant's Code field) and acts on what came: a
-    page read once before it rendered would look unlocked."""
+def open_participant(dashboard: Page, code: str, scenario: str = "perturbed") -> None:
+    """Unlock the dashboard if it is locked, then create or resume ``code``, with ``scenario``
+    when the Scenario field has none yet (no study plan proposed one; a resumed session keeps its
+    own). Waits until the page shows either state (the token prompt or the participant's Code
+    field) and acts on what came: a page read once before it rendered would look unlocked."""
     if dashboard_state(dashboard) == "locked":
         unlock_dashboard(dashboard)
     fill(dashboard, "Code", code)
+    if labelled(dashboard, "Scenario").input_value() == CHOOSE:
+        choose(dashboard, "Scenario", scenario)
     click(dashboard, "Create or resume")
     wait_text(dashboard, "handovers completed")
+
+
+def choose(page: Page, label: str, option: str) -> None:
+    """Choose ``option`` in the dropdown labelled ``label`` (viser's Mantine Select: a click opens
+    its options) and wait until the field shows it."""
+    field = labelled(page, label)
+    with awaiting(page, f"choosing {option!r} in {label!r}"):
+        field.click()
+        page.get_by_role("option", name=option, exact=True).click()
+    wait_function(page, "([f, v]) => f.value === v", f"{label!r} to show {option!r}",
+                  arg=[field.element_handle(), option])
 
 
 def dashboard_state(dashboard: Page) -> str:

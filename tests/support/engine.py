@@ -22,6 +22,14 @@ SHORT_PROTOCOL = {"initial_trials": 3, "batch_size": 3, "learning_batches": 1, "
 BRIEF_PROTOCOL = {"initial_trials": 2, "learning_batches": 0, "without_learning": True,
                   "best_trials": 1, "validation_batches": 0}
 
+#: :data:`SHORT_PROTOCOL` with 4 learning batches that stops learning once settled, easily: the
+#: simulated participant (seed 1) settles it after the first batch (64 % sure against a threshold of
+#: 50 %, content when the best handover would be preferred to θ* at most 95 % of the time), so the
+#: plan of 18 interactions becomes 3 + 3 + 1 + 2 = 9.
+STOPPING_PROTOCOL = {**SHORT_PROTOCOL, "learning_batches": 4, "stop_when_settled": True,
+                     "settled_threshold": 0.5, "settled_min_batches": 1,
+                     "settled_preference": 0.95}
+
 
 def protocol_toml(protocol: dict[str, int | bool]) -> str:
     """``protocol``'s settings as the body of a lab config's [protocol] table."""

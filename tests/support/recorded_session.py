@@ -24,10 +24,10 @@ from app.protocol.markers import MARKED, decode
 from app.protocol.state import Step
 from app.session.config import LabConfig
 from app.session.lsl_outlets import ROBOT_COLUMNS
-from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from robot_io.hands.simulated_hand import Scenario
 from session_store.models import Event
+from session_store.sample_rows import stored_rows
 from session_store.store import ParticipantStore
 from support.clocks import utc_minus
 from support.lab_recorder import LabRecorder

@@ -6,16 +6,15 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 
-from robot_io.config import GripperConfig
 from robot_io.errors import GripperFault
-from robot_io.grippers.robotiq import RobotiqSocketGripper
+from robot_io.grippers.robotiq import RobotiqSocketGripper, RobotiqSocketKind
 from support.ur import Standin
 from support.waiting import wait_for
 
 
-def robotiq_config(host: str, **gripper) -> GripperConfig:
+def robotiq_config(host: str, **gripper) -> RobotiqSocketKind:
     """``[gripper] kind = "robotiq_socket"`` at ``host`` (``gripper``: other [gripper] settings)."""
-    return GripperConfig(kind="robotiq_socket", host=host, **gripper)
+    return RobotiqSocketKind(kind="robotiq_socket", host=host, **gripper)
 
 
 @contextlib.contextmanager

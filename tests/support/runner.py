@@ -9,7 +9,9 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
+from app.session.config import LabConfig
 from app.session.runner import PLAN_TIMEOUT_S, RunnerView, SessionRunner
+from support.engine import SESSION_CONTROLLER
 from support.waiting import CEILING_S, WaitTimeout
 
 
@@ -48,6 +50,15 @@ def busy_threads(frames: int = 6) -> str:
                                for entry in reversed(stack[-frames:]))
             lines.append(f"[{thread.name}] {where}")
     return "\n".join(lines) or "no thread is in the project's code"
+
+
+def headless_runner(study: Path, protocol: dict) -> tuple[SessionRunner, Probe]:
+    """A runner of ``study`` on simulated time whose trials the simulated experimenter starts
+    (the [protocol] table ``protocol``, on the sessions' controller rate), and its probe."""
+    lab = LabConfig.model_validate({"protocol": protocol,
+                                    "loop": {"rate_hz": SESSION_CONTROLLER.loop.rate_hz}})
+    runner = SessionRunner(study, lab, realtime=False, auto_experimenter=True)
+    return runner, Probe(runner)
 
 
 class Probe:

@@ -158,3 +158,27 @@ def test_a_later_visers_page_without_a_title_falls_back_to_its_own(tmp_path: Pat
     (build / "index.html").write_text("<html><head><script>viser()</script></head></html>")
     assert client_folder(TABLET_PAGE, build) is None
     assert "the screens use viser's own page" in caplog.text
+
+
+@pytest.mark.browser
+def test_another_browser_needs_the_code_after_the_tablets_page_closed(tmp_path: Path) -> None:
+    """After the paired tablet's page closed, another browser from the same address became the
+    tablet without the code, while the dashboard advised typing a code the tablet did not need
+    (issue 45, item 11). Two browsers here (two contexts: two cookie jars) on one address."""
+    with serve(tmp_path) as served, chromium() as browser:
+        dashboard, tablet = open_screens(browser, served)
+        assert tablet_screen(tablet) == "wait"
+        paired = tablet.context
+        tablet.close()
+        wait_text(dashboard, "the paired tablet's page is closed: open the tablet page on it again "
+                             "(no code needed")
+        shot(dashboard, SHOTS, "dashboard-tablet-page-closed")
+        other = open_page(browser, served.tablet_url, touch=True)  # the same address, 127.0.0.1
+        wait_text(other, "Connect this tablet")
+        wait_text(dashboard, "the tablet is not paired: type the code")
+        shot(other, SHOTS, "tablet-another-browser-same-address")
+        other.close()
+        again = paired.new_page()  # the tablet's own browser: no code
+        again.goto(served.tablet_url)
+        assert tablet_screen(again) == "wait"
+        served.shutdown()

@@ -32,7 +32,8 @@ def controls() -> Iterator[Controls]:
     gui = server.gui
     try:
         yield Controls(start=gui.add_button("Start trial"), start_why=gui.add_markdown(""),
-                       loaded=gui.add_button("Object loaded"), go=gui.add_button("Go"),
+                       gates={"prepare": gui.add_button("Object loaded"),
+                              "ready": gui.add_button("Go")},
                        abort=gui.add_button("Abort trial"), recover=gui.add_button("Recover arm"),
                        pause=gui.add_button("Pause session"), resume=gui.add_button("Resume"),
                        end=gui.add_button("End session"),
@@ -43,7 +44,7 @@ def controls() -> Iterator[Controls]:
 
 def view(auto: bool, version: int) -> RunnerView:
     return RunnerView(version=version, code="P01", scenario=Scenario.PERTURBED,
-                      interactions=len(SLOTS), auto=auto,
+                      auto=auto,
                       state=SessionState(slots=SLOTS, cursor=0))
 
 
@@ -65,6 +66,6 @@ def test_a_refresh_keeps_a_tick_on_its_way_and_shows_each_change_of_the_session(
 def test_a_view_only_window_enables_no_control_and_says_why(controls: Controls) -> None:
     controls.enable_for(view(auto=False, version=1), controlling=False)
     assert all(button.disabled for button in (
-        controls.start, controls.loaded, controls.go, controls.abort, controls.recover,
+        controls.start, *controls.gates.values(), controls.abort, controls.recover,
         controls.pause, controls.resume, controls.end, controls.auto))
     assert "view-only" in controls.start_why.content

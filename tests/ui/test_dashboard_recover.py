@@ -31,6 +31,9 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow, pytest.mark.standin]
 
 
 def test_recover_after_the_rig_process_died_leaves_the_session_ready(tmp_path: Path) -> None:
+    """Slow (about a minute alone): ``serve --rehearse`` starts a stand-in UR, a rig process and the
+    learner; the killed rig is replaced by a fresh rig process that connects to the stand-in again,
+    all seen through Chromium."""
     screens = tmp_path / "screens"
     with serve(tmp_path, "--rehearse") as served, chromium() as browser:
         dashboard = open_page(browser, served.dashboard_url, size=(1280, 720))

@@ -36,11 +36,11 @@ from support.waiting import CEILING_S, wait_for
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
 from app.session.rehearsal import Rehearsal
-from app.session.replay import stored_rows
 from app.session.runner import SessionRunner
 from app.ui.server import HandoverServers, ServeOptions
 from robot_io.arms.ur_kinematics import link_points
 from robot_io.hands.simulated_hand import Scenario
+from session_store.sample_rows import stored_rows
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
@@ -80,6 +80,9 @@ def drawn_joints(segments: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize("rig", ["mock", pytest.param("rehearsal", marks=pytest.mark.standin)])
 def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
+    """Slow on the rehearsal rig (about a minute alone): a whole trial on the wall clock through the
+    stand-in UR, its learner's next plan, then the replay, which streams every stored sample to
+    Chromium at the recorded rate."""
     rehearsal = Rehearsal(LAB) if rig == "rehearsal" else None
     # The rig process under SCHED_FIFO on either rig, as a lab runs it (support.browser.serve does
     # the same): on the normal policy beside a hog the mock rig wrote no sample for 0.5 s, the

@@ -124,8 +124,10 @@ def test_tablet_pairing_stop_rearm_and_a_pinned_stop(tmp_path: Path) -> None:
         wait_text(dashboard, "Arm: armed")
         wait_enabled(dashboard, "Start trial")
 
-        # A second page on the paired tablet is not offered the scale.
-        second = open_page(browser, served.tablet_url, touch=True, size=(820, 1180))
+        # A second page on the paired tablet (a second tab of its browser) is not offered the scale.
+        second = tablet.context.new_page()
+        second.goto(served.tablet_url)
+        wait_ready(second)
         assert tablet_screen(second, unused_ok=True) == "unused"
         start_refused_because(dashboard, "2 pages are open on the tablet port")
         second.close()

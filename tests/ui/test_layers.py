@@ -12,7 +12,7 @@ import app.ui
 FORBIDDEN = ("robot_io.arms.mock_arm", "robot_io.arms.ur_arm", "robot_io.rig", "robot_io.devices",
              "robot_io.grippers.gripper", "robot_io.hands.lsl_hand", "robot_io.hands.udp_hand",
              "robot_io.control.trial", "robot_io.control.loop", "robot_io.control.cycle",
-             "robot_io.hands.hand_publisher", "robot_io.standins.ur",
+             "robot_io.standins.hand_publisher", "robot_io.standins.ur",
              "session_store.store", "session_store.export", "sqlite3", "sqlite_utils",
              "app.protocol.engine", "app.session.rehearsal")
 FORBIDDEN_NAMES = {"SimulatedHand", "MockArm", "URArm", "ParticipantStore", "SessionEngine",

@@ -53,6 +53,9 @@ def watch_stages(dashboard: Page, until: str, seen: set[str]) -> None:
 
 
 def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_path: Path) -> None:
+    """Slow (about a minute alone, two at a load of 20): three whole handovers on the wall clock
+    through the stand-in UR and the LSL hand, each driven by clicks and placed by touch in Chromium,
+    then the staged no-pull trial, which waits out the release timeout (10 s)."""
     screens = tmp_path / "screens"
     seen: set[str] = set()
     with serve(tmp_path, "--rehearse") as served, \

@@ -123,6 +123,9 @@ def run_to_the_end(dashboard: Page) -> None:
 
 
 def test_serve_killed_mid_session_resumes_and_loses_or_repeats_nothing(tmp_path: Path) -> None:
+    """The suite's longest test (2½ minutes alone, 7 at a load of 20): 14 interactions on the wall
+    clock through four ``serve`` processes (each starting its rig process and its learner, torch
+    included) and Chromium, then the uninterrupted twin's 14 interactions and their learner."""
     database = participant_path(tmp_path / "study", CODE)
     with chromium() as browser:
         for run, (opened, kill) in enumerate(zip(("created", *REOPEN), (*KILLS, None),

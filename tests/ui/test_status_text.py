@@ -6,6 +6,7 @@ from app.protocol.plan import Rating, protocol_slots
 from app.protocol.state import SessionState
 from app.session.config import LabConfig
 from app.session.overview import ParticipantSummary, SessionStatus
+from app.session.recording import RecordingStatus
 from app.session.runner import END_REASON, RunnerView
 from app.ui.status_text import (
     devices_markdown,
@@ -24,7 +25,7 @@ SLOTS = protocol_slots(CONFIG)
 
 
 def view_at(interaction: int, **state) -> RunnerView:
-    return RunnerView(code="P07", scenario=Scenario.PERTURBED, interactions=len(SLOTS),
+    return RunnerView(code="P07", scenario=Scenario.PERTURBED,
                       state=SessionState(slots=SLOTS, cursor=interaction - 1, **state))
 
 
@@ -79,10 +80,26 @@ def test_the_overview_says_each_status_in_a_word_or_two():
 
 
 def test_the_devices_panel_says_how_settled_the_learner_is_once_it_can():
-    """The stopping signal in words (app.session.learning_words), under the learner's line; no line
+    """The stopping signal in words (app.protocol.learning_words), under the learner's line; no line
     before the first learning batch has given one."""
     assert "learning" not in devices_markdown(view_at(6))
     settled = view_at(11).model_copy(update={"learning": "the learner's choice has not changed in "
                                                         "1 batch; 92% sure"})
     assert ("- **learning**: the learner's choice has not changed in 1 batch; 92% sure"
             in devices_markdown(settled))
+
+
+def test_the_devices_panel_shows_the_recording_its_missing_streams_and_a_stall():
+    recording = RecordingStatus(kind="labrecorder", path="/s/recordings/sub-P07/ses-01/beh/"
+                                "sub-P07_ses-01_task-handover_run-002_beh.xdf", run=2, size=123_456,
+                                streams=["handover-markers", "handover-robot", "Mocap"],
+                                missing=["EyeTracker"])
+    assert "recording" not in devices_markdown(view_at(6))  # no [recording]: no line
+    shown = devices_markdown(view_at(6).model_copy(update={"recording": recording}))
+    assert ("- **recording** (labrecorder, run 2): recording "
+            "`sub-P07_ses-01_task-handover_run-002_beh.xdf`, 123.5 kB") in shown
+    assert "streams: handover-markers, handover-robot, Mocap" in shown
+    assert "⚠ **not found, not recorded**: EyeTracker" in shown
+    stalled = recording.model_copy(update={"warning": "the recording stopped growing: …"})
+    assert "123.5 kB — ⚠ **the recording stopped growing: …**" in \
+        devices_markdown(view_at(6).model_copy(update={"recording": stalled}))

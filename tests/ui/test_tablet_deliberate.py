@@ -1,8 +1,9 @@
 """Deliberate answers on the tablet, with touch in Chromium (issue 13).
 
 A double tap stores one answer on every answer screen (scale, questionnaire, validation rating);
-Confirm does nothing before the handle has moved; a new handover never starts as "equal"; Back
-revisits a question with its choice. What counts is what the store holds afterwards. (That input
+Confirm does nothing before the handle has moved, and the screen says so; a new handover never
+starts as "equal"; Back revisits a question with its choice, and Next the question after it with
+its own. What counts is what the store holds afterwards. (That input
 inside the settle window after a screen change is ignored is tested in test_tablet_pages.py, with a
 window long enough not to depend on the machine's load.)
 """
@@ -22,15 +23,21 @@ from support.browser import (
     scale_value,
     serve,
     settle,
+    shot,
     tablet_screen,
     tap,
     touch_drag_to,
+    wait_gone,
+    wait_text,
 )
 
 from app.ui.scale_view import SNAP
+from app.ui.tablet import MOVE_FIRST
 from session_store.store import ParticipantStore
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
+
+SHOTS = Path("/tmp/tablet-shots")
 
 #: Two placed handovers, the best one, the questionnaire, one validation pair.
 PROTOCOL = ("initial_trials = 2\nbatch_size = 2\nlearning_batches = 0\nwithout_learning = true\n"
@@ -43,12 +50,16 @@ def test_double_taps_store_one_answer_and_confirm_needs_a_move(tmp_path: Path) -
         dashboard, tablet = open_screens(browser, served)
         open_participant(dashboard, "P01")
 
-        # Handover 1: the handle starts at the centre; Confirm is disabled until it moves.
+        # Handover 1: the handle starts at the centre; Confirm is disabled until it moves, and the
+        # screen says so (issue 45, item 14: one who left the handle there had no hint).
         assert run_trial(dashboard, tablet) == "place"
         settle()
         assert button(tablet, "Confirm").is_disabled()
+        wait_text(tablet, MOVE_FIRST)
+        shot(tablet, SHOTS, "place-confirm-waits-for-a-move")
         touch_drag_to(tablet, 0.2)
         touch_drag_to(tablet, 0.5)
+        wait_gone(tablet, MOVE_FIRST)
         double_tap(tablet, "Confirm")
         assert tablet_screen(tablet, not_="place") == "wait"
 
@@ -84,6 +95,15 @@ def test_double_taps_store_one_answer_and_confirm_needs_a_move(tmp_path: Path) -
         assert tablet_screen(tablet, not_="Q1") == "Q2"
         settle()
         tap(tablet, "Maybe")
+        # Back and Next again: Q2 keeps its "Maybe" (issue 45, item 13: it came back empty)
+        tap(tablet, "‹ Back")
+        assert tablet_screen(tablet, not_="Q2") == "Q1"
+        settle()
+        tap(tablet, "Next")
+        assert tablet_screen(tablet, not_="Q1") == "Q2"
+        assert not button(tablet, "Next").is_disabled()
+        shot(tablet, SHOTS, "questionnaire-q2-kept")
+        settle()
         tap(tablet, "Next")
         assert tablet_screen(tablet, not_="Q2") == "Q3"
         settle()

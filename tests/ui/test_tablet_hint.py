@@ -106,13 +106,13 @@ def test_a_hint_given_by_touch_is_stored_exported_and_learned(tmp_path: Path) ->
 
         # A stray tap on a choice only chooses it; the participant changes their mind, confirms.
         settle()
-        tap(tablet, "Come later")
-        wait_chosen(tablet, "Come later")  # the server took the tap
+        tap(tablet, "Arrive later: wait more for my hand")
+        wait_chosen(tablet, "Arrive later: wait more for my hand")  # the server took the tap
         stored = load_study(served.study, ("hints",)).tables["hints"]
         assert stored.empty, f"a tap on a choice alone stored a hint:\n{stored}"
         assert tablet_screen(tablet) == "hint"
-        tap(tablet, "Come sooner")
-        wait_chosen(tablet, "Come sooner")
+        tap(tablet, "Arrive sooner: wait less for my hand")
+        wait_chosen(tablet, "Arrive sooner: wait less for my hand")
         shot(tablet, SHOTS, "hint-chosen")
         tap(tablet, "Confirm")
         assert tablet_screen(tablet, not_="hint") == "wait"

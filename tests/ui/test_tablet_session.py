@@ -68,6 +68,8 @@ def wait_stage(dashboard: Page) -> None:
 
 
 def test_participant_session_with_touch(tmp_path: Path) -> None:
+    """Slow (about 90 s alone): a whole session by touch in Chromium, every trial on the wall clock
+    and every learner fit in the learner process."""
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
         dashboard, tablet = open_screens(browser, served)

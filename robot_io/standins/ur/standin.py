@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from robot_io.config import ROBOTIQ_PORT
+from robot_io.grippers.robotiq import ROBOTIQ_PORT
 from robot_io.standins import urcap
 from robot_io.standins.ur import control, dashboard, script_server
 from robot_io.standins.ur.listener import Listener

@@ -1,4 +1,5 @@
-"""A stored trial's samples as the columns the live view draws, for a replay on the dashboard.
+"""A stored trial's samples as the recorder's columns: for a replay on the dashboard and for the
+trial's safety record (app/protocol/safety_record.py).
 
 The store keeps one row per control cycle with vectors flattened to ``name_x`` … ``name_z`` (the joint
 angles to ``q_0`` … ``q_5``) and NaN as NULL (:mod:`session_store.schema`); here they become the
@@ -8,12 +9,16 @@ what the loop recorded.
 
 from __future__ import annotations
 
+import sqlite3
+from contextlib import closing
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from robot_io.control.recorder import COLUMNS
-from session_store.schema import column_suffixes
+from session_store.inspection import connect_read_only
+from session_store.schema import column_suffixes, sample_column_names
 
 
 def stored_rows(samples: list[dict[str, Any]]) -> dict[str, np.ndarray]:
@@ -29,3 +34,18 @@ def stored_rows(samples: list[dict[str, Any]]) -> dict[str, np.ndarray]:
             rows[name] = np.stack([column(f"{name}_{suffix}") for suffix in column_suffixes(width)],
                                   axis=1) if samples else np.zeros((0, width))
     return rows
+
+
+def read_samples(path: Path, trial_indices: list[int]) -> dict[int, dict[str, np.ndarray]]:
+    """The recorder's columns of the trials ``trial_indices`` of the database at ``path``, read
+    without writing (``handover doctor``); a file of a schema without some columns gives them NaN."""
+    with closing(connect_read_only(path)) as conn:
+        conn.row_factory = sqlite3.Row
+        empty = dict.fromkeys(sample_column_names())
+
+        def read(index: int) -> list[dict[str, Any]]:
+            rows = conn.execute("SELECT * FROM samples WHERE trial_index = ? ORDER BY cycle", [index])
+            return [{**empty, **dict(row)} for row in rows]
+
+        return {index: stored_rows(read(index)) for index in trial_indices}
+

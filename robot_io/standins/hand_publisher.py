@@ -30,11 +30,11 @@ from pydantic import BaseModel, ConfigDict
 
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.config import ControllerConfig
-from robot_io.control.minimum_jerk import minimum_jerk
 from robot_io.devices import tracker_transform
 from robot_io.hands.config import LSLSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
+from robot_io.minimum_jerk import minimum_jerk
 
 log = logging.getLogger(__name__)
 
@@ -160,6 +160,35 @@ class HandReport:
 #: A sample that goes out this late [s] is logged (half the rig's default staleness limit), so a
 #: rehearsal ended tracker_lost says whether its tracker was late.
 LATE_WARNING_S = 0.05
+#: After the first late sample, the late ones are counted and said at most this often [s].
+LATE_SUMMARY_S = 10.0
+
+
+class LateSamples:
+    """What to log of the publisher's late samples: the first with what it means and what to do,
+    then a count at most every LATE_SUMMARY_S (one line per late sample filled a busy rehearsal's
+    terminal)."""
+
+    def __init__(self) -> None:
+        self._said_at: float | None = None
+        self._count, self._worst = 0, 0.0
+
+    def note(self, late_s: float, now: float) -> str | None:
+        """A sample went out ``late_s`` late at ``now``: the line to log, if any."""
+        if self._said_at is None:
+            self._said_at = now
+            return (f"rehearsal's hand publisher: a sample went out {1e3 * late_s:.0f} ms late (its "
+                    "tracker rate is not kept): this computer is too busy for the rehearsal's "
+                    "stand-ins. Close other programs; a trial that ends tracker_lost now says so "
+                    "about the rehearsal, not the rig")
+        self._count, self._worst = self._count + 1, max(self._worst, late_s)
+        if now - self._said_at < LATE_SUMMARY_S:
+            return None
+        line = (f"rehearsal's hand publisher: {self._count} more sample"
+                f"{'s' if self._count != 1 else ''} went out late in the last "
+                f"{now - self._said_at:.0f} s, by up to {1e3 * self._worst:.0f} ms")
+        self._said_at, self._count, self._worst = now, 0, 0.0
+        return line
 
 
 def _play(conn: Connection, spec: PublisherSpec, transform: FrameTransform, outlet,
@@ -176,9 +205,11 @@ def _play(conn: Connection, spec: PublisherSpec, transform: FrameTransform, outl
     exact = rest  # where the hand is
     go, occluded_until = 0.0, 0.0
     next_at = time.monotonic()
+    late_samples = LateSamples()
     while True:
         if (late := time.monotonic() - next_at) > LATE_WARNING_S:
-            log.warning("hand publisher: a sample %.0f ms late", 1e3 * late)
+            if (line := late_samples.note(late, time.monotonic())) is not None:
+                log.warning("%s", line)
             next_at += late  # as a tracker, it skips the frames it missed rather than burst them
         while conn.poll():
             try:
