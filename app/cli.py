@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -124,10 +125,18 @@ def tolerate_any_encoding() -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     tolerate_any_encoding()
+    command = next((word for word in argv if not word.startswith("-")), "")
+    try:
+        return _run(argv, command)
+    except KeyboardInterrupt:  # Ctrl-C before a session's own handler was in place: a sentence
+        print(f"handover {command}: interrupted (Ctrl-C)", file=sys.stderr)
+        return 128 + signal.SIGINT
+
+
+def _run(argv: list[str], command: str) -> int:
     try:
         reserve_participant(argv)
     except StoreError as exc:
-        command = next((word for word in argv if not word.startswith("-")), "")
         print(f"handover {command}: error: {exc}", file=sys.stderr)
         return 2
     parser = build_parser()

@@ -20,8 +20,8 @@ from recommendation_study import mean_ci
 
 from app.learning.cluster import dask_client
 from app.learning.config import DEFAULT_RECOMMENDATION, AcquisitionName
+from app.learning.simulated_study import TrialStore, run_condition
 from app.learning.simulation import StudyCondition
-from app.learning.study import TrialStore, run_condition
 
 
 def main() -> None:

@@ -33,13 +33,15 @@ CRASH_WORDS = ("Traceback", "Fatal Python error", "Segmentation fault")
 KINDS = ("crashed", "traceback", "hung", "other exit")
 
 
-def one_run(study: Path, mode: str, delay: float, hang_after: float, env: dict[str, str]) -> dict:
+def one_run(study: Path, mode: str, delay: float, hang_after: float, env: dict[str, str],
+            source: Path) -> dict:
     """One interrupted session: its exit code, whether it crashed, printed a traceback or hung."""
     command = [sys.executable, "-m", "app.cli", "run-session", "--study", str(study),
                "--participant", "P01", "--scenario", "perturbed", "--auto", "--no-progress",
                "--realtime" if mode == "realtime" else "--rehearse"]
+    # in the checkout run: ``-m`` puts the working folder first on sys.path, before PYTHONPATH
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               env=env)
+                               env=env, cwd=source)
     time.sleep(delay)  # the moment of the Ctrl-C, drawn by the caller
     process.send_signal(signal.SIGINT)
     hung = False
@@ -82,7 +84,8 @@ def main() -> int:
         for run in range(args.runs):
             delay = float(rng.uniform(args.earliest, args.latest))
             with tempfile.TemporaryDirectory(prefix="interrupted-") as folder:
-                result = one_run(Path(folder) / "study", args.mode, delay, args.hang_after, env)
+                result = one_run(Path(folder) / "study", args.mode, delay, args.hang_after, env,
+                                 source)
             for key in KINDS:
                 counts[key] += result[key]
             print(f"run {run + 1:3d}: SIGINT at {delay:5.1f} s -> rc {result['rc']}"

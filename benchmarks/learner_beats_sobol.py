@@ -26,8 +26,8 @@ import numpy as np
 
 from app.learning.cluster import dask_client
 from app.learning.config import AcquisitionName
+from app.learning.simulated_study import final_distances, t_half_width
 from app.learning.simulation import StudyCondition
-from app.learning.study import final_distances, t_half_width
 
 #: (acquisition, q, σ, the largest ratio to Sobol's mean final distance that meets the goal)
 GOALS = ((AcquisitionName.QNEI, 5, 0.03, 0.7),

@@ -54,7 +54,7 @@ from app.learning.models import TieHandling
 from app.learning.paper_population import PAPER_POPULATION
 from app.learning.planner import PAPER_SESSION_SCHEDULE
 from app.learning.simulation import StudyCondition, TrialResult, run_trial, stop_point
-from app.protocol.study import SHORT_RULE
+from app.protocol.study_config import SHORT_RULE
 from session_store.export import load_study
 
 BOOTSTRAP_RESAMPLES = 2000

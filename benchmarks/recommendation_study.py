@@ -24,8 +24,8 @@ from app.learning.cluster import dask_client
 from app.learning.config import AcquisitionName
 from app.learning.figures import draw_figure3
 from app.learning.models import RecommendationName
+from app.learning.simulated_study import TrialStore, run_condition, t_half_width
 from app.learning.simulation import StudyCondition
-from app.learning.study import TrialStore, run_condition, t_half_width
 
 NOISES = (0.05, 0.03, 0.0)  # the noisy conditions first: they decide the default
 METHODS = ((AcquisitionName.QNEI, 5), (AcquisitionName.EUBO, 2), (AcquisitionName.SOBOL, 5))

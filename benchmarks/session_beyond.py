@@ -45,7 +45,7 @@ from app.protocol.auto import act_once
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from robot_io.control.trial import simulate_trial
 from robot_io.hands.simulated_hand import Scenario
 from session_store.vocabulary import Phase

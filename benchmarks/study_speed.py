@@ -36,8 +36,8 @@ from app.learning.config import (
     OptimizerConfig,
     RecommendationName,
 )
+from app.learning.simulated_study import run_condition, summarise, t_half_width
 from app.learning.simulation import StudyCondition, TrialResult, run_trial
-from app.learning.study import run_condition, summarise, t_half_width
 
 BASELINE_MODEL = ModelConfig(warm_start=False, lazy_fit=False, lazy_kernels=True)
 BASELINE_OPTIMIZER = OptimizerConfig(num_restarts=10, raw_samples=512, mc_samples=512)

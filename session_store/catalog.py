@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from session_store.errors import StoreError
-from session_store.inspection import connect_read_only
+from session_store.file_check import connect_read_only
 from session_store.paths import participant_codes, participant_path
 
 

@@ -21,7 +21,7 @@ from pydantic import BaseModel, ValidationError
 
 from robot_io.errors import explain
 from session_store.errors import CorruptStoreError, StoreError, StoreWriteError
-from session_store.inspection import explained_writes
+from session_store.file_check import explained_writes
 from session_store.models import (
     Answer,
     Comparison,
@@ -33,7 +33,7 @@ from session_store.models import (
     ValidationRating,
 )
 from session_store.paths import EXPORT_FORMATS
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.schema import TABLES, columns_of, sample_column_names, sample_columns
 from session_store.store import SUFFIX, ParticipantStore, participant_codes
 
@@ -225,14 +225,14 @@ class Export(NamedTuple):
 LEFT_OUT_FILE = "left_out.csv"
 
 
-def refuse_inside_study(out_dir: Path, study_dir: Path) -> None:
+def refuse_inside_study(out_dir: Path, study_dir: Path, writer: str = "export") -> None:
     """Refuse an output folder that is the study folder, lies inside it, or would put the
-    ``sqlite/`` copies there: an export beside the participants' databases would be overwritten by
-    the next one and read by nothing that reads a study."""
+    ``sqlite/`` copies there: an export (or a report, ``writer``) beside the participants'
+    databases would be overwritten by the next one and read by nothing that reads a study."""
     study, out = Path(study_dir).resolve(), Path(out_dir).resolve()
     if out == study or study in out.parents or out / "sqlite" == study:
         where = "would write its sqlite/ copies into" if out / "sqlite" == study else "is inside"
-        raise StoreError(f"--out {out_dir} {where} the study folder {study_dir}: export never "
+        raise StoreError(f"--out {out_dir} {where} the study folder {study_dir}: {writer} never "
                          "writes into a study folder; choose an output folder outside it")
 
 

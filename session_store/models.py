@@ -33,7 +33,7 @@ class _Row(BaseModel):
 
 class Participant(_Row):
     """The participant row: the code, when the session was created and its plan, as the protocol
-    wrote it (JSON; ``app.protocol.study.StudyConfig`` reads it)."""
+    wrote it (JSON; ``app.protocol.study_config.StudyConfig`` reads it)."""
 
     code: str
     created_at: str = Field(default_factory=utc_now)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from robot_io.control.recorder import COLUMNS
-from session_store.inspection import connect_read_only
+from session_store.file_check import connect_read_only
 from session_store.schema import column_suffixes, sample_column_names
 
 

@@ -4,7 +4,7 @@ The schema version is SQLite's ``PRAGMA user_version``. ``MIGRATIONS[n]`` takes 
 version n − 1 to n; opening a file runs the missing ones in order, each in its own transaction.
 Every version is written out literally (version 1 in :data:`V1_TABLES`, later ones as the columns
 their migration adds), never derived from the models: a model that gains a field needs a migration,
-and ``tests/store/test_schema.py`` checks that the models and the latest version agree.
+and ``tests/session_store/test_schema.py`` checks that the models and the latest version agree.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ from pydantic import BaseModel
 from session_store import lock as writer_lock
 from session_store.database import Database, quote_identifier
 from session_store.errors import CorruptStoreError, SchemaVersionError, StoreError
-from session_store.inspection import (
+from session_store.file_check import (
     check_participant_file,
     connect_read_only,
     explained_writes,
@@ -62,7 +62,7 @@ def sample_matrix(columns: dict[str, np.ndarray]) -> np.ndarray:
 class ParticipantStore:
     """The database of one participant. :meth:`create` and :meth:`open_for_writing` hold the
     participant's writer lock (:mod:`session_store.lock`) until :meth:`close`; :meth:`open` is for
-    readers (or, to read without touching the file, :func:`session_store.reading.reading`, which
+    readers (or, to read without touching the file, :func:`session_store.read_only_copy.reading`, which
     passes the ``connection`` of an in-memory copy)."""
 
     def __init__(self, path: Path, connection: sqlite3.Connection | None = None) -> None:

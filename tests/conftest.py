@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 # Each test process computes on one thread: the suite runs three xdist workers on two cores, and
 # the thread pools of torch (OpenMP) and numpy (OpenBLAS) spin while they wait. On two threads a
@@ -59,7 +60,8 @@ STANDIN_GROUPS = {"rehearsal": "standin-rehearsal", "ur": "standin-ur"}
 
 def standin_group(item: pytest.Item) -> str:
     """The xdist group of a ``standin`` test (:data:`STANDIN_GROUPS`)."""
-    return STANDIN_GROUPS["ur" if item.path.parent.name == "robot_io" else "rehearsal"]
+    under_robot_io = "robot_io" in item.path.relative_to(Path(__file__).parent).parts
+    return STANDIN_GROUPS["ur" if under_robot_io else "rehearsal"]
 
 
 #: The ceiling of a test not marked ``slow`` [s]: a hung one ends the run within minutes (the slow

@@ -31,3 +31,33 @@ def test_an_ascii_terminal_gets_escapes_not_a_failed_command(tmp_path):
     report = handover("report", str(study), "--out", str(tmp_path / "report"))
     assert report.returncode == 0, report.stderr
     assert (tmp_path / "report" / "report.html").is_file()
+
+
+#: Run as ``python -c``: a Ctrl-C that lands while the command's own modules load, before the
+#: session has put its handler in place (an import hook raises it where the signal would).
+CTRL_C_WHILE_LOADING = """
+import sys
+
+class CtrlC:
+    def find_spec(self, name, path=None, target=None):
+        if name == "app.session.run_session":
+            raise KeyboardInterrupt
+        return None
+
+sys.meta_path.insert(0, CtrlC())
+from app.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_ctrl_c_while_the_command_loads_ends_it_with_130_and_no_traceback(tmp_path):
+    """Ctrl-C 1.6 s after ``run-session`` started printed a KeyboardInterrupt traceback (issue 44's
+    interrupted sessions): a close, however early, prints a sentence, not a traceback."""
+    ended = subprocess.run([sys.executable, "-c", CTRL_C_WHILE_LOADING, "run-session", "--study",
+                            str(tmp_path / "study"), "--participant", "P01", "--scenario",
+                            "perturbed", "--auto"], env=ASCII, text=True, capture_output=True,
+                           timeout=CEILING_S * 5)
+    assert ended.returncode == 130, ended.stderr
+    assert "Traceback" not in ended.stderr + ended.stdout, ended.stderr
+    assert ended.stderr.strip() == "handover run-session: interrupted (Ctrl-C)"
+    assert not (tmp_path / "study" / "P01.sqlite").exists()

@@ -55,10 +55,10 @@ ROOMS: dict[str, tuple[tuple[str, ...], ...]] = {
     "session_store": (
         ("session_store.errors", "session_store.vocabulary", "session_store.database"),
         ("session_store.paths", "session_store.lock"),
-        ("session_store.models", "session_store.inspection"),
+        ("session_store.models", "session_store.file_check"),
         ("session_store.schema", "session_store.catalog"),
-        ("session_store.store", "session_store.inspect"),
-        ("session_store.reading",),
+        ("session_store.store", "session_store.integrity"),
+        ("session_store.read_only_copy",),
         ("session_store.export",),
         ("session_store",),
     ),

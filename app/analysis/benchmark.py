@@ -1,7 +1,7 @@
 """Fig. 3 of the paper from a ``handover benchmark-pl`` result folder (Sect. IV).
 
 The folder holds one sub-folder per condition (``condition.json``, ``trials.csv``, ``timings.csv``,
-``summary.csv``; see ``app.learning.study``). This module recomputes the learning package's own
+``summary.csv``; see ``app.learning.simulated_study``). This module recomputes the learning package's own
 summaries from the raw trials with the package's functions and draws them with its
 :func:`app.learning.figures.draw_figure3`, so the report's Fig. 3 is the benchmark's.
 """
@@ -14,14 +14,14 @@ from pathlib import Path
 from app.analysis.figures import FigureFiles
 from app.learning.cli import PAPER_CONDITIONS
 from app.learning.figures import draw_figure3
-from app.learning.simulation import StudyCondition
-from app.learning.study import (
+from app.learning.simulated_study import (
     ConditionSummary,
     InteractionSummary,
     condition_summary,
     read_trials,
     summarise,
 )
+from app.learning.simulation import StudyCondition
 
 PAPER_ORDER = [StudyCondition(acquisition=acq, q=q, noise=noise).name
                for acq, q, noise in PAPER_CONDITIONS]

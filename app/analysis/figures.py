@@ -23,7 +23,7 @@ from matplotlib.figure import Figure
 from pydantic import BaseModel, ConfigDict
 
 from app.analysis.tables import THETA_COLUMNS
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 
 HUMAN, ROBOT = "tab:red", "tab:blue"  # the paper's colours (Fig. 4 caption)
 ORIGIN_STYLE = {"sobol": ("tab:gray", "o", "Sobol (random)"), "learned": ("tab:orange", "^", "qNEI query"),

@@ -30,7 +30,7 @@ from app.analysis.study_design import StudyDesign
 from app.analysis.tables import study_configs, theta_star
 from app.analysis.xdf import Recording, around_go, load_recording
 from robot_io.control.stages import Stage
-from session_store.export import load_study
+from session_store.export import load_study, refuse_inside_study
 
 log = logging.getLogger(__name__)
 
@@ -137,6 +137,7 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
     databases in
     ``exclude`` (path → why) are left out and listed as the unreadable ones are."""
     out_dir = Path(out_dir)
+    refuse_inside_study(out_dir, study_dir, "a report")
     if benchmark_dir is not None:  # here: Fig. 3's study code imports torch, a report without it not
         from app.analysis.benchmark import draw_benchmark_figure3, load_benchmark
     loaded = load_study(study_dir, REPORT_TABLES, sample_phases=("validation",),

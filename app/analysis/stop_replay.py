@@ -30,9 +30,9 @@ from app.learning.config import GainRule, LearnerSnapshot, StoppingRule
 from app.learning.learner import PreferenceLearner
 from app.learning.models import NextBatchGain, Settledness
 from app.protocol.learning_words import rule_words
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.paths import participant_codes
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 
 
 class BatchSignals(BaseModel):

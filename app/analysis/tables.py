@@ -26,7 +26,7 @@ import pandas as pd
 
 from app.protocol.plan import protocol_slots
 from app.protocol.state import Step, replay
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.models import Event
 from session_store.vocabulary import question_ids, questions
 

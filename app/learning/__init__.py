@@ -12,5 +12,5 @@ One concept per module, composed by :class:`~app.learning.learner.PreferenceLear
 - :mod:`~app.learning.acquisition`: qNEI (eq. (14) under noise), qLogNEI, EUBO and Sobol.
 - :mod:`~app.learning.planner`: the batch schedule (initial points, then θ* + q − 1 queries).
 - :mod:`~app.learning.worker`: the learner in its own process, request/response with a fallback.
-- :mod:`~app.learning.simulation`, :mod:`~app.learning.study`: the simulated study of Sect. IV.
+- :mod:`~app.learning.simulation`, :mod:`~app.learning.simulated_study`: the simulated study of Sect. IV.
 """

@@ -195,8 +195,8 @@ def run_pilot_command(args: argparse.Namespace) -> int:
 def run(args: argparse.Namespace) -> int:
     """Run the study as the arguments say; print a table (or JSON) of the final figures."""
     from app.learning.cluster import dask_client
+    from app.learning.simulated_study import run_condition
     from app.learning.simulation import StudyCondition
-    from app.learning.study import run_condition
 
     if args.initial > args.queries:
         raise ValueError(f"--initial = {args.initial} must not exceed --queries = {args.queries}")

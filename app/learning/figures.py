@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt
 
 from app.learning.paper_population import PAPER_POPULATION
 from app.learning.pilot import ALPHAS, PilotReport
-from app.learning.study import ConditionSummary, InteractionSummary
+from app.learning.simulated_study import ConditionSummary, InteractionSummary
 
 
 def draw_figure3(results: Sequence[tuple[ConditionSummary, list[InteractionSummary]]],

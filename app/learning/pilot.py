@@ -40,6 +40,7 @@ from app.learning.models import RecommendationName, TieHandling
 from app.learning.paper_population import PaperPopulation
 from app.learning.planner import PAPER_SESSION_SCHEDULE, BatchSchedule
 from app.learning.rng import derive_seed
+from app.learning.simulated_study import append_durably
 from app.learning.simulation import (
     StudyCondition,
     participant_target,
@@ -47,7 +48,6 @@ from app.learning.simulation import (
     stop_point,
     stopped_theta_star,
 )
-from app.learning.study import append_durably
 
 PARTICIPANT_COLUMNS = ("study", "scenario", "participant", "wins", "pairs", "score",
                        "final_distance", "learning_interactions", "ties", "hints")

@@ -21,9 +21,9 @@ from app.protocol.errors import EventLogError
 from app.protocol.plan import protocol_slots
 from app.protocol.safety_record import rebuilt_differences
 from app.protocol.state import Step, replay
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.errors import LockRefused
-from session_store.inspect import inspect_database
+from session_store.integrity import inspect_database
 from session_store.lock import holder_of
 from session_store.models import SafetyRecord
 from session_store.paths import participant_files

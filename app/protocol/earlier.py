@@ -24,9 +24,9 @@ from app.learning.errors import LearningError
 from app.learning.prior import PopulationPrior
 from app.protocol.plan import protocol_slots
 from app.protocol.state import Step, replay
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.errors import StoreError
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.store import participant_codes
 
 log = logging.getLogger(__name__)

@@ -37,7 +37,7 @@ from app.protocol.safety_record import DEFAULT_SAFETY, SafetyRecordSettings, saf
 from app.protocol.session_inputs import hand_seed, validation_sobol
 from app.protocol.session_learner import LearnerFactory, SessionLearner, scale_placement
 from app.protocol.state import PlannedTheta, SessionState, Step, apply, not_running, refusal, replay
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from robot_io.control.loop import Outcome, TrialRecord
 from robot_io.control.stages import current
 from robot_io.theta import Theta

@@ -21,7 +21,7 @@ import math
 from app.learning.config import GainRule, StoppingRule, preferred_for
 from app.learning.models import NextBatchGain, Settledness
 from app.protocol.state import SessionState, Step
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.models import Event, LearnerSnapshotRow
 from session_store.vocabulary import Phase
 

@@ -18,7 +18,7 @@ from enum import StrEnum
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.vocabulary import Phase, ThetaOrigin
 
 

@@ -9,7 +9,7 @@ from app.learning.config import LearnerConfig, ModelConfig
 from app.learning.models import ParameterBox, RecommendationName, TieHandling
 from app.learning.planner import BatchSchedule
 from app.learning.prior import PopulationPrior
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from robot_io.theta import Theta
 
 

@@ -25,7 +25,7 @@ from app.learning.worker import LearnerClient
 from app.protocol.plan import Slot
 from app.protocol.session_inputs import learner_config
 from app.protocol.state import SessionState
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.models import HintRow, LearnerSnapshotRow
 from session_store.store import ParticipantStore
 

@@ -15,7 +15,7 @@ from app.learning.config import GainRule, StoppingRule
 from app.learning.models import NextBatchGain, Settledness
 from app.protocol import events as ev
 from app.protocol.learning_words import stop_reason
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from session_store.vocabulary import Actor
 
 

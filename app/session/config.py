@@ -33,7 +33,7 @@ from pydantic.fields import FieldInfo
 
 from app.protocol.design import Assignment, StudyPlan
 from app.protocol.safety_record import SafetyRecordSettings
-from app.protocol.study import PRESETS, StudyConfig
+from app.protocol.study_config import PRESETS, StudyConfig
 from robot_io.config import ControllerConfig
 from robot_io.errors import ConfigError
 from robot_io.hands.simulated_hand import Scenario
@@ -94,7 +94,7 @@ class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS)):  # type: 
     @model_validator(mode="before")
     @classmethod
     def _preset(cls, data: Any) -> Any:
-        """``preset`` sets its keys (app.protocol.study.PRESETS); the lab's own keys win."""
+        """``preset`` sets its keys (app.protocol.study_config.PRESETS); the lab's own keys win."""
         if isinstance(data, dict) and data.get("preset") in PRESETS:
             return {**PRESETS[data["preset"]], **data}
         return data

@@ -25,7 +25,7 @@ from app.protocol.learning_words import learning_line, recorded_stop, stop_headl
 from app.protocol.safety_record import over_limits
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import PlannedTheta, Step
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from app.session.config import LabConfig
 from app.session.drawing import with_links
 from app.session.lsl_outlets import StudyOutlets

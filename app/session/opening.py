@@ -13,10 +13,10 @@ from typing import NamedTuple
 from app.protocol.design import PlanStatus, plan_participants
 from app.protocol.engine import SessionEngine
 from app.protocol.errors import RefusedAction
-from app.protocol.recorded import describe_change, recorded_session
 from app.protocol.rig import RIG_TABLES, rig_of
 from app.protocol.seeds import choose_seed
-from app.protocol.study import StudyConfig
+from app.protocol.stored_session import describe_change, recorded_session
+from app.protocol.study_config import StudyConfig
 from app.session.config import LabConfig
 from app.session.rehearsal import rehearsal_rig
 from robot_io.config import ControllerConfig

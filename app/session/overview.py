@@ -16,10 +16,10 @@ from pydantic import BaseModel, ConfigDict
 
 from app.protocol.design import Assignment
 from app.protocol.state import Step
-from app.protocol.stored import stored_session
+from app.protocol.stored_session import stored_session
 from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.store import ParticipantStore, participant_codes, participant_path
 
 log = logging.getLogger(__name__)

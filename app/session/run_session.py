@@ -12,9 +12,9 @@ from pathlib import Path
 from app.arguments import argument_type
 from app.protocol.design import recorded_assignment
 from app.protocol.learning_words import recorded_stop
-from app.protocol.recorded import recorded_session
 from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
+from app.protocol.stored_session import recorded_session
 from app.session.cli import (
     Interrupted,
     add_rig_arguments,
@@ -25,7 +25,7 @@ from app.session.cli import (
 from app.session.config import load_lab_config
 from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import StoreError
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.store import ParticipantStore, participant_path
 
 

@@ -33,7 +33,7 @@ from app.protocol.engine import TrialPlan
 from app.protocol.entries import Entry, EntryNotUsed, enter
 from app.protocol.errors import RefusedAction
 from app.protocol.state import Step
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from app.session import faults
 from app.session.access import TABLET_BROWSER_FILE, KnownBrowsers
 from app.session.autopilot import Autopilot

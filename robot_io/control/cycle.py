@@ -220,6 +220,7 @@ def _retract(record: TrialRecord, devices: CycleDevices, stop: StopRequest, star
     try:
         devices.arm.move_to(start, stop)
     except MoveStopped:  # stopped on the way back: the next prepare brings it to R
+        log.warning("retract to R stopped (%s): the trial ends without reaching done", stop.reason)
         return record
     except RobotIOError as exc:  # the handover itself happened: it stands; the fault is reported
         log.error("retract to R failed: %s", exc)

@@ -17,7 +17,7 @@ from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant, Taste
 from app.protocol.state import Step
 from robot_io.hands.simulated_hand import Scenario
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.vocabulary import Phase
 
 EASY = Taste(preferred_gap_s=0.1, noise_s=0.005, tie_s=0.001, hint_s=0.05)

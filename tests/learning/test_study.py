@@ -15,8 +15,7 @@ from app.cli import main
 from app.learning.config import AcquisitionName
 from app.learning.errors import StudyError
 from app.learning.models import RecommendationName
-from app.learning.simulation import SUCCESS_DISTANCE, StudyCondition, TrialResult, run_trial
-from app.learning.study import (
+from app.learning.simulated_study import (
     TRIAL_COLUMNS,
     TrialStore,
     final_distances,
@@ -24,6 +23,7 @@ from app.learning.study import (
     summarise,
     t_half_width,
 )
+from app.learning.simulation import SUCCESS_DISTANCE, StudyCondition, TrialResult, run_trial
 
 SMALL = StudyCondition(acquisition=AcquisitionName.QNEI, q=2, noise=0.05, n_unique=7,
                        n_initial=3, recommendation=RecommendationName.IN_SAMPLE_MEAN)

@@ -13,7 +13,7 @@ from app.learning.pooled_prior import population_prior
 from app.protocol.engine import SessionEngine
 from app.protocol.session_inputs import learner_config
 from app.protocol.state import Step
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from robot_io.hands.simulated_hand import Scenario
 from session_store.store import ParticipantStore
 from session_store.vocabulary import Phase

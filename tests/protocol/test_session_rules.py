@@ -16,7 +16,7 @@ from app.protocol.engine import SessionEngine
 from app.protocol.errors import EventLogError, RefusedAction
 from app.protocol.plan import protocol_slots
 from app.protocol.state import HANDLERS, WAITS_FOR, SessionState, Step, apply, refusal
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from robot_io.control.trial import simulate_trial
 from robot_io.hands.simulated_hand import Scenario
 from session_store.errors import (

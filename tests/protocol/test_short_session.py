@@ -19,7 +19,7 @@ from app.protocol.engine import SessionEngine
 from app.protocol.learning_words import learning_line, recorded_stop
 from app.protocol.simulated_participant import SimulatedParticipant, Taste
 from app.protocol.state import Step, replay
-from app.protocol.study import PRESETS, SHORT_RULE
+from app.protocol.study_config import PRESETS, SHORT_RULE
 from app.session.config import load_lab_config
 from robot_io.hands.simulated_hand import Scenario
 from session_store.vocabulary import Phase

@@ -27,7 +27,7 @@ from app.ui.stage_words import stage_words
 from app.ui.status_text import cycle_markdown, status_line
 from robot_io.control.stages import Confirmation, CycleTable, Part, Stage, StageRow, current, extended
 from robot_io.hands.simulated_hand import Scenario
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.store import ParticipantStore
 
 GAZE = StageRow(name="gaze", part=Part.BEFORE_GO, entry="the object is loaded",

@@ -1,6 +1,6 @@
 """A frozen application stops the arm (issue 25, item 1): its rig sees it stopped, stops the arm and
 ends the trial 'stopped' (stored as aborted, and repeated), and the trial says why once the
-application runs again. (An application that hangs while it runs: tests/robot_io/test_rig_process.py.)"""
+application runs again. (An application that hangs while it runs: tests/robot_io/rig/test_rig_process.py.)"""
 
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ from support.engine import new_engine
 from app.cli import main
 from app.learning.config import AcquisitionName
 from app.protocol.session_inputs import learner_config
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from app.session.config import LabConfig, load_lab_config
 from robot_io.hands.simulated_hand import Scenario
 

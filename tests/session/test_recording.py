@@ -35,7 +35,7 @@ from app.session.runner import SessionRunner
 from robot_io.control.stages import Stage
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.standins.labrecorder_rcs import RemoteControl, StandInLabRecorder
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.recordings import recordings_of
 
 pytestmark = [pytest.mark.slow]

@@ -25,7 +25,7 @@ from app.protocol.errors import RefusedAction
 from app.protocol.state import Step
 from app.ui.status_text import status_line
 from robot_io.hands.simulated_hand import Scenario
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.vocabulary import Hint, Rater
 
 HINT_NOT_USED = ("Not used: the participant's hint about handover 1 (sooner) came after the "

@@ -9,7 +9,7 @@ from app.protocol.auto import act_once as step_once
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from robot_io.config import ControllerConfig, LoopConfig
 from robot_io.hands.simulated_hand import Scenario
 

@@ -437,7 +437,8 @@ def survive(scenario: str, cycles: int, ceiling_s: float = SOAK_CEILING_S) -> st
 
     cycles = int(os.environ.get(CYCLES_VARIABLE, cycles))
     tests = Path(__file__).resolve().parents[1]
-    path = os.pathsep.join([str(tests), os.environ.get("PYTHONPATH", "")])
+    # the project before tests/ (whose robot_io folder of tests is no package)
+    path = os.pathsep.join([str(tests.parent), str(tests), os.environ.get("PYTHONPATH", "")])
     try:
         done = subprocess.run([sys.executable, "-X", "faulthandler", "-m", "support.lifetimes",
                                scenario, str(cycles)], cwd=tests, capture_output=True, text=True,

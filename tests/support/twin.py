@@ -18,12 +18,12 @@ from app.protocol.auto import rate_once
 from app.protocol.engine import SessionEngine
 from app.protocol.simulated_participant import SimulatedParticipant
 from app.protocol.state import Step
-from app.protocol.study import StudyConfig
+from app.protocol.study_config import StudyConfig
 from robot_io.config import ControllerConfig
 from robot_io.control.cycle import not_started
 from robot_io.control.loop import Outcome, TrialRecord, TrialSummary
 from session_store.models import Trial, TrialOutcome
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.store import participant_path
 
 

@@ -3,7 +3,7 @@
 The dashboard's Abort, Stop and reloads (the participant's own tablet tests are in tests/ui/). Abort
 and Stop each land in a stage the trial keeps until the experimenter acts (waiting for Object
 loaded, waiting for Go), never in one that ends by itself: a stop while the arm holds the object
-out is in test_dashboard_safety.py, a stop while it moves in tests/robot_io/test_loop.py and
+out is in test_dashboard_safety.py, a stop while it moves in tests/robot_io/control/test_loop.py and
 tests/session/test_rehearsal.py.
 Screenshots go to the test's tmp folder (and, with HANDOVER_DOC_FIGURES=1, to docs/figures/ for
 docs/running-a-study.md).

@@ -5,7 +5,7 @@
 * STOP ARM is in the viewport after the panel is scrolled to its end at 1366×768, and Esc stops
   the arm while it holds the object out at H (the simulated participant never takes it, so the
   hold lasts until the stop); after the stop, Start stays refused until Re-arm (the stop's state is
-  shown). A stop while the arm moves on its reach: tests/robot_io/test_loop.py
+  shown). A stop while the arm moves on its reach: tests/robot_io/control/test_loop.py
   (``test_real_clock_worker_thread_stops_on_request``) and tests/session/test_rehearsal.py (the rig
   killed mid-reach).
 * Two participants run one after the other in one server process (End session, then create the

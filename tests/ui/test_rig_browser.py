@@ -105,7 +105,8 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
     assert all(t.release_s > t.hold_s and t.peak_pull_n >= 10.0 for t in trials[:3])
     assert trials[3].release_s is None and trials[3].interaction == 4  # repeated, not rated
     assert stages[:27] == ["prepare", "loaded", "ready", "go", "reach", "hold", "release",
-                           "retract", "done"] * 3
+                           "retract", "done"] * 3, \
+        f"stages {stages}; trials {[(t.outcome.value, t.reason, t.retract_fault) for t in trials]}"
     assert "hold" in stages[27:] and "release" not in stages[27:] and stages[-1] == "done"
     assert devices[0]["arm"] == "ur" and devices[0]["hand_source"] == "lsl"
     assert placements == pytest.approx([0.3, 0.8, 0.55], abs=0.01)

@@ -42,10 +42,10 @@ from support.twin import uninterrupted_twin
 
 from app.protocol.doctor import examine
 from app.protocol.state import Step
-from app.protocol.stored import stored_session
+from app.protocol.stored_session import stored_session
 from session_store.lock import holder_of
 from session_store.models import TrialOutcome
-from session_store.reading import reading
+from session_store.read_only_copy import reading
 from session_store.store import participant_path
 from session_store.vocabulary import QUESTIONS, Phase
 

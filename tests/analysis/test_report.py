@@ -182,3 +182,16 @@ def test_report_command_with_benchmark(study, tmp_path, capsys):
     assert main(["report", str(study), "--out", str(tmp_path / "r2"), "--benchmark",
                  str(tmp_path)]) == 2
     assert "holds no benchmark-pl condition" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("inside", [".", "report", "report/deeper"])
+def test_a_report_into_the_study_folder_is_refused_and_writes_nothing(study, capsys, inside):
+    """``report --out`` pointing into the study folder wrote report.html, tables/ and figures/
+    among the participants' databases (issue 45): as export, a report never writes into a study
+    folder."""
+    before = sorted(p.relative_to(study) for p in study.rglob("*"))
+    out = study / inside
+    assert main(["report", str(study), "--out", str(out)]) == 2
+    assert (f"handover report: error: --out {out} is inside the study folder {study}: a report "
+            "never writes into a study folder") in capsys.readouterr().err
+    assert sorted(p.relative_to(study) for p in study.rglob("*")) == before

@@ -1,17 +1,35 @@
-"""A participant's session as it stands on disk, read without writing anything: its plan, the rig it
-last ran on, and its state (``run-session`` checks its flags against it; opening a participant
-compares its rig with the lab's before anything is written)."""
+"""A participant's session read back from its database without writing anything: its plan, its
+event log and the state the protocol replays from it (:func:`stored_session`, from any open store),
+and, read from the study folder, the rig it last ran on (:func:`recorded_session`: ``run-session``
+checks its flags against it; opening a participant compares its rig with the lab's before anything is
+written)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import NamedTuple
 
+from app.protocol.plan import protocol_slots
 from app.protocol.rig import rig_of
-from app.protocol.state import SessionState
-from app.protocol.stored import stored_session
-from app.protocol.study import StudyConfig
-from session_store.reading import reading
+from app.protocol.state import SessionState, replay
+from app.protocol.study_config import StudyConfig
+from session_store.models import Event
+from session_store.read_only_copy import reading
+from session_store.store import ParticipantStore
+
+
+class StoredSession(NamedTuple):
+    config: StudyConfig
+    events: list[Event]
+    state: SessionState
+
+
+def stored_session(store: ParticipantStore) -> StoredSession:
+    """The session in ``store`` (any store: one open for writing or an in-memory copy from
+    :func:`session_store.read_only_copy.reading`), replayed through the protocol."""
+    config = StudyConfig.model_validate(store.participant().config)
+    events = store.events()
+    return StoredSession(config, events, replay(protocol_slots(config), events))
 
 
 class RecordedSession(NamedTuple):

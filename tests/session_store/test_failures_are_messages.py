@@ -105,7 +105,7 @@ def test_a_read_only_database_is_not_told_to_free_the_disk(tmp_path):
     opened read-only and on a full disk's result code.)"""
     from support.engine import new_engine
 
-    from session_store.inspection import write_failure
+    from session_store.file_check import write_failure
 
     study = tmp_path / "study"
     new_engine(study, "P01").close()

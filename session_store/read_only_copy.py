@@ -1,7 +1,7 @@
 """A participant's database opened for reading only (export, report, the recorded plan of a session
 before it is resumed): a consistent in-memory copy of the file, never a write to the study folder.
 
-The file is judged by its contents first (:mod:`session_store.inspection`), then copied with SQLite's
+The file is judged by its contents first (:mod:`session_store.file_check`), then copied with SQLite's
 backup API into memory, where :class:`ParticipantStore` checks and, for an older schema version,
 migrates it — so a read-only folder, an older file or a file that another process is writing are
 all read as they are, and the file itself is never migrated, rewritten or locked for long.
@@ -15,7 +15,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 from session_store.errors import StoreError
-from session_store.inspection import check_participant_file, connect_read_only
+from session_store.file_check import check_participant_file, connect_read_only
 from session_store.store import ParticipantStore, participant_path
 
 

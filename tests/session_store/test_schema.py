@@ -18,9 +18,9 @@ import pytest
 from support.engine import new_engine
 
 from app.protocol.engine import SessionEngine
-from app.protocol.recorded import recorded_session
 from app.protocol.rig import rig_of
 from app.protocol.state import Step
+from app.protocol.stored_session import recorded_session
 from app.session.config import LabConfig
 from session_store.schema import (
     SCHEMA_VERSION,

@@ -176,7 +176,7 @@ def test_a_lost_connection_is_logged_once_and_the_source_closes(caplog):
 
 def test_the_camera_frame_clock_counts_frames_at_the_camera_rate_and_starts_anew_on_a_new_one():
     """Vicon's frames are numbers at a camera rate: camera time is number / rate (the least-delay
-    offset is robot_io.hands.frame_clock's, tests/robot_io/test_frame_clock.py); a new rate or a number
+    offset is robot_io.hands.frame_clock's, tests/robot_io/hands/test_frame_clock.py); a new rate or a number
     that goes back starts anew, and a frame without a rate is stamped when seen."""
     clock = CameraFrameClock(window_s=1.0)
     assert clock.stamp_frame(100, 100.0, 5.0) == 5.0

@@ -13,7 +13,7 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from session_store.errors import CorruptStoreError
-from session_store.inspection import connect_read_only
+from session_store.file_check import connect_read_only
 from session_store.models import Event, Participant
 from session_store.schema import SCHEMA_VERSION
 
