@@ -92,6 +92,16 @@ def arms(noise: float, tie: float) -> dict[str, StudyCondition]:
             "sect4": StudyCondition(noise=noise)}
 
 
+def participant_arguments(parser: argparse.ArgumentParser, seed: int) -> None:
+    """The simulated participants' options of this study and of learner_short.py: how many, the
+    study seed, σ of eq. (16) and the "equal" threshold."""
+    parser.add_argument("--participants", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=seed)
+    parser.add_argument("--noise", type=float, default=0.05, help="σ of eq. (16)")
+    parser.add_argument("--tie", type=float, default=0.05,
+                        help="the participant says 'equal' below this difference of y")
+
+
 def arm_path(out: Path, condition: StudyCondition, seed: int) -> Path:
     """Where an arm's results go: one JSON line per participant."""
     return out / f"{condition.name}-seed{seed}.jsonl"
@@ -291,11 +301,7 @@ def validation_lines(conditions: dict[str, StudyCondition],
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--participants", type=int, default=200)
-    parser.add_argument("--seed", type=int, default=4040)
-    parser.add_argument("--noise", type=float, default=0.05, help="σ of eq. (16)")
-    parser.add_argument("--tie", type=float, default=0.05,
-                        help="the participant says 'equal' below this difference of y")
+    participant_arguments(parser, seed=4040)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
     parser.add_argument("--out", type=Path, default=Path("out/learner-beyond"))

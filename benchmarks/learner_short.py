@@ -43,7 +43,13 @@ from datetime import datetime
 from pathlib import Path
 
 import numpy as np
-from learner_beyond import append_result, arm_path, stored_results, validation_scores
+from learner_beyond import (
+    append_result,
+    arm_path,
+    participant_arguments,
+    stored_results,
+    validation_scores,
+)
 from pydantic import BaseModel, ConfigDict, Field
 from recommendation_study import ratio_ci
 from scipy import stats
@@ -370,11 +376,7 @@ def goal_lines(conditions: dict[str, StudyCondition], results: dict[str, list[Tr
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--participants", type=int, default=200)
-    parser.add_argument("--seed", type=int, default=4646)
-    parser.add_argument("--noise", type=float, default=0.05, help="σ of eq. (16)")
-    parser.add_argument("--tie", type=float, default=0.05,
-                        help="the participant says 'equal' below this difference of y")
+    participant_arguments(parser, seed=4646)
     parser.add_argument("--arms", nargs="+", default=None, help="run only these arms")
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
