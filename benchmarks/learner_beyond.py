@@ -50,12 +50,12 @@ from recommendation_study import ratio_ci
 from scipy import stats
 
 from app.learning.cluster import dask_client, run_tasks
-from app.learning.config import StoppingRule
+from app.learning.config import StoppingRule, epsilon_for
 from app.learning.models import TieHandling
+from app.learning.paper_population import PaperPopulation
 from app.learning.pilot import validation_wins
 from app.learning.planner import PAPER_SESSION_SCHEDULE
 from app.learning.rng import derive_seed
-from app.learning.settled import epsilon_for
 from app.learning.simulation import (
     StudyCondition,
     TrialResult,
@@ -92,24 +92,49 @@ def arms(noise: float, tie: float) -> dict[str, StudyCondition]:
             "sect4": StudyCondition(noise=noise)}
 
 
+def participant_arguments(parser: argparse.ArgumentParser, seed: int) -> None:
+    """The simulated participants' options of this study and of learner_short.py: how many, the
+    study seed, σ of eq. (16) and the "equal" threshold."""
+    parser.add_argument("--participants", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=seed)
+    parser.add_argument("--noise", type=float, default=0.05, help="σ of eq. (16)")
+    parser.add_argument("--tie", type=float, default=0.05,
+                        help="the participant says 'equal' below this difference of y")
+
+
+def arm_path(out: Path, condition: StudyCondition, seed: int) -> Path:
+    """Where an arm's results go: one JSON line per participant."""
+    return out / f"{condition.name}-seed{seed}.jsonl"
+
+
+def stored_results(path: Path) -> dict[int, TrialResult]:
+    """The results already in ``path`` (none if it does not exist), by trial."""
+    if not path.exists():
+        return {}
+    results = (TrialResult.model_validate_json(line) for line in path.read_text().splitlines()
+               if line.strip())
+    return {r.trial: r for r in results}
+
+
+def append_result(path: Path, result: TrialResult) -> None:
+    """Add one participant's result to ``path`` (a resumed run reads it back)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a") as handle:
+        handle.write(result.model_dump_json() + "\n")
+
+
 def run_arm(condition: StudyCondition, *, participants: int, seed: int, client, out: Path,
-            progress: bool) -> list[TrialResult]:
-    """Run (or resume) ``participants`` trials of ``condition`` with the stopping signal."""
-    path = out / f"{condition.name}-seed{seed}.jsonl"
-    out.mkdir(parents=True, exist_ok=True)
-    done: dict[int, TrialResult] = {}
-    if path.exists():
-        for line in path.read_text().splitlines():
-            if line.strip():
-                result = TrialResult.model_validate_json(line)
-                done[result.trial] = result
+            progress: bool, spread: float | PaperPopulation | None = None) -> list[TrialResult]:
+    """Run (or resume) ``participants`` trials of ``condition`` with the stopping signals
+    (``spread``: the participants of a population, app.learning.simulation.trial_target)."""
+    path = arm_path(out, condition, seed)
+    done = stored_results(path)
 
     def finished(result: TrialResult) -> None:
-        with path.open("a") as handle:
-            handle.write(result.model_dump_json() + "\n")
+        append_result(path, result)
         done[result.trial] = result
 
-    todo = [(condition, seed, t, True) for t in range(participants) if t not in done]
+    todo = [(condition, seed, t, True, spread) for t in range(participants) if t not in done]
     run_tasks(client, run_trial, todo, finished, total=participants,
               initial=participants - len(todo), desc=condition.name, progress=progress)
     return [done[t] for t in range(participants)]
@@ -235,14 +260,14 @@ def together_line(condition: StudyCondition, together: list[TrialResult],
             f"{final.mean():.3f}, ratio {ratio:.3f} [{lo:.3f}, {hi:.3f}]")
 
 
-def validation_scores(results: list[TrialResult], used: list[int], seed: int,
-                      noise: float) -> np.ndarray:
+def validation_scores(results: list[TrialResult], used: list[int], seed: int, noise: float,
+                      spread: float | PaperPopulation | None = None) -> np.ndarray:
     """Per participant, the share of :data:`VALIDATION_PAIRS` pairs won by θ* when learning ended
     after ``used`` interactions; the same participant meets the same pairs in every arm."""
     scores = []
     for result, n in zip(results, used, strict=True):
         star = np.array(stopped_theta_star(result, n))
-        target = trial_target(len(star), seed, result.trial)
+        target = trial_target(len(star), seed, result.trial, spread)
         rng = np.random.default_rng(derive_seed(seed, result.trial, 4))
         scores.append(validation_wins(target, star, VALIDATION_PAIRS, noise, rng) / VALIDATION_PAIRS)
     return np.array(scores)
@@ -276,11 +301,7 @@ def validation_lines(conditions: dict[str, StudyCondition],
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--participants", type=int, default=200)
-    parser.add_argument("--seed", type=int, default=4040)
-    parser.add_argument("--noise", type=float, default=0.05, help="σ of eq. (16)")
-    parser.add_argument("--tie", type=float, default=0.05,
-                        help="the participant says 'equal' below this difference of y")
+    participant_arguments(parser, seed=4040)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
     parser.add_argument("--out", type=Path, default=Path("out/learner-beyond"))

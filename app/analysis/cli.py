@@ -4,11 +4,18 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+
+from app.arguments import argument_type
+from app.learning.config import GainRule, StoppingRule, epsilon_for
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    """Add ``report`` to the ``handover`` command."""
+    """Add ``report`` and ``replay-stop`` to the ``handover`` command."""
     parser = subparsers.add_parser(
         "report", help="tables, statistics and figures of a study (paper Sect. VI)",
         description="Write a self-contained HTML report (Tables II-IV, the sign and Mann-Whitney "
@@ -35,6 +42,86 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="report participants that handover doctor finds BAD too (they are "
                              "left out by default), with a warning for each")
     parser.set_defaults(func=run)
+    register_replay(subparsers)
+
+
+def register_replay(subparsers: argparse._SubParsersAction) -> None:
+    """Add ``replay-stop`` to the ``handover`` command."""
+    parser = subparsers.add_parser(
+        "replay-stop", help="try a stopping rule on a study's stored sessions",
+        description="Replay a stopping rule on the sessions of a study folder: per participant, "
+                    "after which interaction it would have stopped learning, θ* then against the "
+                    "session's final θ*, and the final learner's predicted preference between "
+                    "them (docs/learning.md, 'Shorter sessions'). Several --chance (or "
+                    "--threshold) values are replayed at once, so a lab can pick one from its "
+                    "pilot.")
+    parser.add_argument("study", type=Path, help="study folder (one .sqlite per participant)")
+    parser.add_argument("--rule", choices=("gain", "settled"), default="gain",
+                        help="gain: [protocol] stop_when_no_gain (default); settled: "
+                             "stop_when_settled")
+    parser.add_argument("--chance", type=_field(GainRule, "chance"), nargs="+", default=[0.2],
+                        help="gain: stop when the next batch is at most this likely to find a "
+                             "better handover, in (0, 1) (default 0.2)")
+    parser.add_argument("--threshold", type=_field(StoppingRule, "threshold"), nargs="+",
+                        default=[0.9],
+                        help="settled: how sure, in [0.5, 1] (default 0.9)")
+    parser.add_argument("--preference", type=_field(GainRule, "preference"), default=0.6,
+                        help="better: preferred to θ* more than this share of the time (gain), "
+                             "or the best preferred to θ* at most this often (settled), in "
+                             "(0.5, 1) (default 0.6)")
+    parser.add_argument("--min-batches", type=_field(GainRule, "min_batches"), default=1,
+                        help="learning batches before any stop, 1-50 (default 1)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="also write the rows as CSV here (a file)")
+    parser.set_defaults(func=run_replay)
+
+
+def _field(model: type[BaseModel], name: str) -> Callable[[str], Any]:
+    """An argparse type that validates a value as field ``name`` of ``model`` does (its range)."""
+
+    def parse(text: str) -> Any:
+        return getattr(model.model_validate({name: text}), name)
+
+    parse.__name__ = name
+    return argument_type(parse)
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    import pandas as pd
+
+    from app.analysis.stop_replay import replay_study
+
+    rules: list[StoppingRule | GainRule] = (
+        [GainRule(chance=c, preference=args.preference, min_batches=args.min_batches)
+         for c in args.chance] if args.rule == "gain" else
+        [StoppingRule(threshold=t, min_batches=args.min_batches,
+                      epsilon=epsilon_for(args.preference)) for t in args.threshold])
+    rows = replay_study(args.study, rules)
+    if not rows:
+        print(f"{args.study}: no participant has learner snapshots to replay", file=sys.stderr)
+        return 1
+    frame = pd.DataFrame([r.model_dump() for r in rows])
+    for rule, group in frame.groupby("rule", sort=False):
+        print(f"{rule}:")
+        for row in group.itertuples():
+            where = ("did not stop" if row.signal is None or pd.isna(row.signal)
+                     else f"signal {row.signal:.0%}")
+            print(f"  {row.participant} ({row.scenario}): stops after {row.stopped_after} of "
+                  f"{row.learned} ({where}); θ* then {_theta(row.theta_stop)}, final "
+                  f"{_theta(row.theta_final)}; the final learner prefers its θ* "
+                  f"{row.preferred_final:.0%} of the time")
+        print(f"  median stop {group['stopped_after'].median():g} of "
+              f"{group['learned'].median():g} interactions; mean preference for the final θ* "
+              f"{group['preferred_final'].mean():.0%}")
+    if args.out is not None:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        frame.to_csv(args.out, index=False)
+        print(f"rows written to {args.out}")
+    return 0
+
+
+def _theta(theta: dict[str, float]) -> str:
+    return "(" + ", ".join(f"{name} {value:.2f}" for name, value in theta.items()) + ")"
 
 
 def run(args: argparse.Namespace) -> int:

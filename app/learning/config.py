@@ -4,7 +4,9 @@
 
 from __future__ import annotations
 
+import math
 from enum import StrEnum
+from statistics import NormalDist
 from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -13,6 +15,7 @@ from app.learning.models import (
     Comparison,
     FitReport,
     Interaction,
+    NextBatchGain,
     ParameterBox,
     RecommendationName,
     Settledness,
@@ -26,8 +29,19 @@ Hyperparameters = dict[str, list[float]]
 
 
 #: ε of the stopping signal: √2·Φ⁻¹(0.6), the regret at which the best θ would be preferred to θ*
-#: 60 % of the time under the probit of eq. (13) (app.learning.settled.epsilon_for, torch-free here).
+#: 60 % of the time under the probit of eq. (13) (:func:`epsilon_for`).
 DEFAULT_SETTLED_EPSILON = 0.3583
+
+
+def epsilon_for(preferred: float) -> float:
+    """The utility difference ε at which one handover is preferred to another with probability
+    ``preferred`` under the probit of eq. (13): Φ(ε/√2) = preferred."""
+    return math.sqrt(2.0) * NormalDist().inv_cdf(preferred)
+
+
+def preferred_for(epsilon: float) -> float:
+    """The inverse of :func:`epsilon_for`: Φ(ε/√2)."""
+    return NormalDist().cdf(epsilon / math.sqrt(2.0))
 
 
 class AcquisitionName(StrEnum):
@@ -133,6 +147,32 @@ class StoppingRule(BaseModel):
                 and signal.probability_within(self.epsilon) >= self.threshold)
 
 
+class GainRule(BaseModel):
+    """When learning stops early by what the next batch is expected to gain
+    (``[protocol] stop_when_no_gain``, :mod:`app.learning.gain`): after a learning batch, once at
+    least ``min_batches`` learning batches are done and the next batch is less than ``chance``
+    likely to show a handover preferred to θ* more than ``preference`` of the time (the bound
+    (q − 1)·g/ε of :meth:`~app.learning.models.NextBatchGain.chance`)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    chance: float = Field(0.2, gt=0.0, lt=1.0, description="\"unlikely\": learning stops once "
+                          "the next batch's chance is at most this")
+    preference: float = Field(0.6, gt=0.5, lt=1.0, description="a handover worth finding is "
+                              "preferred to θ* more than this share of the time")
+    min_batches: int = Field(1, ge=1, le=50, description="learning batches run before any stop")
+
+    @property
+    def epsilon(self) -> float:
+        """ε of :attr:`preference` (:func:`epsilon_for`), latent utility."""
+        return epsilon_for(self.preference)
+
+    def stops(self, batches_done: int, gain: NextBatchGain | None) -> bool:
+        """Whether learning stops after ``batches_done`` learning batches at this gain."""
+        return (batches_done >= self.min_batches and gain is not None
+                and gain.chance(self.epsilon) <= self.chance)
+
+
 class LearnerConfig(BaseModel):
     """Everything that defines a learner's behaviour; stored with every snapshot."""
 
@@ -152,6 +192,10 @@ class LearnerConfig(BaseModel):
         DEFAULT_SETTLED_EPSILON, gt=0.0, le=5.0, description="ε of the stopping signal: θ* is "
         "settled when its regret (latent utility) is at most ε; the default 0.358 means the best "
         "θ would be preferred to θ* at most 60 % of the time (app.learning.settled)")
+    expected_gain: bool = Field(
+        False, description="after each batch, also compute what the next batch is expected to "
+        "gain over θ* (app.learning.gain), the signal of [protocol] stop_when_no_gain; off: not "
+        "computed (it costs one optimisation per batch)")
     prior: PopulationPrior | None = Field(
         None, description="prior mean from earlier participants (app.learning.population); "
         "None: the zero mean of eq. (12)")

@@ -25,11 +25,13 @@ from app.learning.acquisition import propose, sobol_points
 from app.learning.config import AcquisitionName, Hyperparameters, LearnerConfig, LearnerSnapshot
 from app.learning.data import PreferenceData
 from app.learning.errors import UnknownInteractionError
+from app.learning.gain import best_gain
 from app.learning.models import (
     BestPoint,
     Comparison,
     FitReport,
     Interaction,
+    NextBatchGain,
     PosteriorSlice,
     RecommendationName,
     Settledness,
@@ -167,6 +169,20 @@ class PreferenceLearner:
         share = bisect.bisect_right(drawn, epsilon) / len(drawn)
         return Settledness(probability=share, epsilon=epsilon, regrets=tuple(drawn),
                            theta=best.theta)
+
+    def expected_gain(self) -> NextBatchGain | None:
+        """What the next batch is expected to gain over θ* (:mod:`app.learning.gain`): the largest
+        E[(u(θ) − u(θ*))⁺] over the box, for the q − 1 new handovers of a batch; None before a
+        model exists."""
+        best = self.best()
+        if best is None or best.strategy is None or self.model.model is None:
+            return None
+        seed = derive_seed(self.config.seed, len(self.data.points), len(self.data.comparisons), 5)
+        with kernel_evaluation(self.config.model):
+            gain, unit = best_gain(self.model.model, self.config.box.to_unit(best.theta),
+                                   self.config.optimizer, seed)
+        return NextBatchGain(gain=gain, queries=self.config.schedule.q - 1, theta=best.theta,
+                             candidate=self.config.box.from_unit(unit))
 
     def incumbent(self) -> dict[str, float] | None:
         """The batch-opening θ*: the observed point with the largest posterior mean, a handover

@@ -168,6 +168,23 @@ class Settledness(_Frozen):
         return bisect.bisect_right(self.regrets, epsilon) / len(self.regrets)
 
 
+class NextBatchGain(_Frozen):
+    """What the next learning batch is expected to gain over θ* (:mod:`app.learning.gain`):
+    ``gain`` = max over the box of E[(u(θ) − u(θ*))⁺] (EUBO with θ* as the previous winner),
+    ``queries`` the new handovers of that batch (q − 1)."""
+
+    gain: float = Field(ge=0.0, description="max over θ of E[(u(θ) − u(θ*))⁺], latent utility")
+    queries: int = Field(ge=1, description="new handovers in the next batch (q − 1)")
+    theta: dict[str, float] = Field(description="the θ* it is about")
+    candidate: dict[str, float] = Field(description="the θ of the largest expected gain")
+
+    def chance(self, epsilon: float) -> float:
+        """The bound (q − 1)·g/ε, capped at 1, on the probability that the next batch shows a
+        handover whose utility exceeds θ*'s by more than ``epsilon`` (Markov's inequality per
+        handover, a union bound over the batch)."""
+        return min(1.0, self.queries * self.gain / epsilon)
+
+
 class SlotKind(StrEnum):
     """What an interaction of the schedule shows (Sect. III-C)."""
 

@@ -17,14 +17,11 @@ that ridge however much is learned, and "θ* within ε of the best θ" never bec
 regret does. Why not "the next batch would move θ* by less than ε": it would have to simulate the
 batch's placements. The regret has a meaning in the participant's own terms, because the probit of
 eq. (13) fixes the noise: the best θ would be preferred to θ* with probability Φ(regret/√2). So
-ε is set as that probability (:func:`epsilon_for`): with 0.6, "θ* is settled when the best
-handover would be preferred to it at most 60 % of the time". Deterministic given ``seed``.
+ε is set as that probability (app.learning.config.epsilon_for): with 0.6, "θ* is settled when the
+best handover would be preferred to it at most 60 % of the time". Deterministic given ``seed``.
 """
 
 from __future__ import annotations
-
-import math
-from statistics import NormalDist
 
 import torch
 from botorch.models.pairwise_gp import PairwiseGP
@@ -39,17 +36,6 @@ from app.learning.rng import seeded
 #: probability p from 256 draws is √(p(1 − p)/256) ≤ 0.031, 0.019 at p = 0.9).
 SAMPLES = 256
 CANDIDATES = 512
-
-
-def epsilon_for(preferred: float) -> float:
-    """The regret ε at which the best θ would be preferred to θ* with probability ``preferred``
-    under the probit of eq. (13): Φ(ε/√2) = preferred."""
-    return math.sqrt(2.0) * NormalDist().inv_cdf(preferred)
-
-
-def preferred_for(epsilon: float) -> float:
-    """The inverse of :func:`epsilon_for`: Φ(ε/√2)."""
-    return NormalDist().cdf(epsilon / math.sqrt(2.0))
 
 
 def regrets(model: PairwiseGP, data: PreferenceData, theta_star: list[float], seed: int,

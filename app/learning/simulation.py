@@ -39,6 +39,7 @@ from app.learning.coactive import HintDirection, felt_hint, hint_observations, h
 from app.learning.config import (
     DEFAULT_RECOMMENDATION,
     AcquisitionName,
+    GainRule,
     LearnerConfig,
     ModelConfig,
     OptimizerConfig,
@@ -49,6 +50,7 @@ from app.learning.models import (
     Comparison,
     FitReport,
     Interaction,
+    NextBatchGain,
     ParameterBox,
     Placement,
     RecommendationName,
@@ -107,16 +109,25 @@ class StudyCondition(BaseModel):
                              "share of the parameter's range")
     hint_threshold: float = Field(0.05, ge=0.0, le=1.0, description="the felt gain in u a "
                                   "direction needs for a hint (the just-noticeable difference)")
+    hint_flip: float = Field(0.0, ge=0.0, le=1.0, description="the share of hints that point the "
+                             "opposite way to what the participant felt (wrong hints)")
+    hint_faster: float = Field(0.0, ge=0.0, le=1.0, description="the share of hints for which "
+                               "the participant reads \"sooner\" as \"faster\": the sooner "
+                               "hint then means a faster robot (the 1st coordinate up, which has "
+                               "no word), and the learner still reads it as δ down")
 
     @property
     def name(self) -> str:
         """Short label, e.g. ``qnei-q5-s0.05`` (``-bpn``: comparisons weighed by batch position;
         ``-tie0.05-model``: ties within 0.05, in the likelihood; ``-coactive0.2``: hints that move
-        θ by 0.2 of the range)."""
+        θ by 0.2 of the range; ``-flip0.3``: 30 % of them wrong; ``-faster0.5``: "sooner" read as
+        "faster" half the time)."""
         return (f"{self.acquisition.value}-q{self.q}-s{self.noise:g}"
                 + ("-bpn" if self.model.batch_position_noise else "")
                 + (f"-tie{self.tie:g}-{self.model.ties.value}" if self.tie else "")
-                + (f"-coactive{self.hint_step:g}" if self.coactive else ""))
+                + (f"-coactive{self.hint_step:g}" if self.coactive else "")
+                + (f"-flip{self.hint_flip:g}" if self.coactive and self.hint_flip else "")
+                + (f"-faster{self.hint_faster:g}" if self.coactive and self.hint_faster else ""))
 
     def with_ties(self, tie: float, handling: TieHandling) -> StudyCondition:
         """The same condition with a participant who says "equal" within ``tie``, its ties
@@ -150,6 +161,10 @@ class TrialResult(BaseModel):
     settled: list[Settledness | None] = Field(
         default_factory=list, description="the stopping signal (app.learning.settled) after each "
         "interaction that ends a batch, None after the others; empty unless asked for")
+    gains: list[NextBatchGain | None] = Field(
+        default_factory=list, description="what the next batch was expected to gain over θ* "
+        "(app.learning.gain) after each interaction that ends a batch, None after the others; "
+        "empty unless asked for")
     ties: int = Field(0, description="ties that entered the likelihood")
     hints: int = Field(0, description="coactive hints the participant gave")
     theta_star: list[float] = Field(
@@ -180,60 +195,87 @@ def scale_position(y: float) -> float:
     return 0.5 - math.atan(y) / math.pi
 
 
-def run_trial(condition: StudyCondition, seed: int, trial: int,
-              settle: bool = False) -> TrialResult:
-    """Run trial ``trial`` of a study seeded with ``seed`` (``settle``: record the stopping signal).
+def run_trial(condition: StudyCondition, seed: int, trial: int, settle: bool = False,
+              spread: float | PaperPopulation | None = None) -> TrialResult:
+    """Run trial ``trial`` of a study seeded with ``seed`` (``settle``: record the stopping
+    signals; ``spread``: the participant of a population, :func:`trial_target`).
 
     Target and noise depend only on ``(seed, trial)``, so every condition sees the same targets and
     results do not depend on how trials are spread over processes.
     """
-    return simulate_learner(condition, trial_target(condition.dim, seed, trial),
+    return simulate_learner(condition, trial_target(condition.dim, seed, trial, spread),
                             derive_seed(seed, trial, 1), derive_seed(seed, trial, 2),
                             derive_seed(seed, trial, 3), trial=trial, settle=settle)[0]
 
 
-def trial_target(dim: int, seed: int, trial: int) -> np.ndarray:
-    """The optimum θ_t ~ U[0, 1]^dim of trial ``trial`` of a study seeded with ``seed``."""
+def trial_target(dim: int, seed: int, trial: int,
+                 spread: float | PaperPopulation | None = None) -> np.ndarray:
+    """The optimum θ_t of trial ``trial`` of a study seeded with ``seed``: ~ U[0, 1]^dim, or with
+    ``spread`` participant trial // 2 of scenario trial mod 2 (:func:`participant_target`; with
+    ``"paper"`` the trials alternate between Tables II and III)."""
+    if spread is not None:
+        return participant_target(dim, seed, trial % 2, trial // 2, spread)
     return np.random.default_rng(derive_seed(seed, trial, 0)).uniform(size=dim)
 
 
-def stop_point(result: TrialResult, schedule: BatchSchedule, rule: StoppingRule) -> int:
+def stop_point(result: TrialResult, schedule: BatchSchedule,
+               rule: StoppingRule | GainRule) -> int:
     """The interactions a trial would have used had learning stopped by ``rule``: the end of the
-    first learning batch at which the rule stops (``result.settled``), else the whole schedule.
-    The stopped session is a prefix of the full one, so θ* when it stops is
-    ``result.distances[stop − 1]``: the same participant, the same noise (paired by construction)."""
-    for index, signal in enumerate(result.settled[:-1]):
+    first learning batch at which the rule stops (on ``result.settled`` or, for a
+    :class:`GainRule`, ``result.gains``), else the whole schedule. The stopped session is a
+    prefix of the full one, so θ* when it stops is ``result.distances[stop − 1]``: the same
+    participant, the same noise (paired by construction)."""
+    for index in range(len(result.distances) - 1):
         slot = schedule.slot(index)
-        if slot.kind is not SlotKind.INITIAL and rule.stops(slot.batch, signal):
+        if slot.kind is SlotKind.INITIAL:
+            continue
+        if isinstance(rule, GainRule):
+            stops = index < len(result.gains) and rule.stops(slot.batch, result.gains[index])
+        else:
+            stops = index < len(result.settled) and rule.stops(slot.batch, result.settled[index])
+        if stops:
             return index + 1
     return len(result.distances)
 
 
 def stopped_theta_star(result: TrialResult, used: int) -> list[float]:
     """θ* (unit cube) when learning ended after ``used`` interactions (:func:`stop_point`): the
-    θ* the stopping signal of that batch was about, or the final θ* after the whole schedule."""
+    θ* the stopping signals of that batch were about, or the final θ* after the whole schedule."""
     if used == len(result.distances):
         return result.theta_star
-    signal = result.settled[used - 1]
+    signal = result.settled[used - 1] or result.gains[used - 1]
     assert signal is not None, "learning stops only where a stopping signal was recorded"
     return ParameterBox.unit_cube(len(signal.theta)).to_unit(signal.theta)
 
 
 def participant_hint(condition: StudyCondition, box: ParameterBox, theta: dict[str, float],
-                     utility: Callable[[dict[str, float]], float],
-                     rng: np.random.Generator) -> HintDirection | None:
+                     utility: Callable[[dict[str, float]], float], rng: np.random.Generator,
+                     mistakes: np.random.Generator | None = None) -> HintDirection | None:
     """The coactive hint of a simulated participant about the handover run with ``theta``: each
     way along :data:`HINTED_COORDINATES` that does not point past the box edge gains
     u(θ) − u(θ') (θ' the hinted θ, u the distance of eq. (15)), felt with noise σ; the best felt,
-    if above ``condition.hint_threshold`` (:func:`~app.learning.coactive.felt_hint`)."""
+    if above ``condition.hint_threshold`` (:func:`~app.learning.coactive.felt_hint`). Wrong hints
+    (``hint_flip``): the hint given points the other way. "Sooner" read as "faster"
+    (``hint_faster``): the gain felt for "sooner" is that of moving the 1st coordinate up. Both
+    mistakes are drawn from ``mistakes`` (default ``rng``), so that a generator of their own leaves
+    the felt noise of the hints that of the same participant without mistakes."""
+    mistakes = mistakes or rng
+    faster = bool(condition.hint_faster) and mistakes.random() < condition.hint_faster
     gains: dict[HintDirection, float] = {}
     for i in (i for i in HINTED_COORDINATES if i < box.dim):
         for sign in (-1, 1):
             direction = HintDirection(parameter=box.names[i], sign=sign)
-            moved = hinted_theta(theta, box, direction, condition.hint_step)
-            if moved is not None:
+            # "sooner" (the δ analogue down) read as "faster": the 1st coordinate up
+            meant = (HintDirection(parameter=box.names[0], sign=1)
+                     if faster and i == HINTED_COORDINATES[0] and sign == -1 else direction)
+            moved = hinted_theta(theta, box, meant, condition.hint_step)
+            if moved is not None and hinted_theta(theta, box, direction,
+                                                  condition.hint_step) is not None:
                 gains[direction] = utility(theta) - utility(moved)
-    return felt_hint(gains, condition.noise, condition.hint_threshold, rng)
+    hint = felt_hint(gains, condition.noise, condition.hint_threshold, rng)
+    if hint is not None and condition.hint_flip and mistakes.random() < condition.hint_flip:
+        return HintDirection(parameter=hint.parameter, sign=-hint.sign)
+    return hint
 
 
 def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: int,
@@ -250,10 +292,12 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
     The inference curve of the condition's strategy is recorded at every interaction, those of
     ``strategies`` too (each costs a recommendation per interaction, a box search for
     ``posterior_mean``); every other strategy only at the final interaction (NaN before). With
-    ``settle`` the stopping signal is recorded after every interaction that ends a batch."""
+    ``settle`` the stopping signals (how settled θ*, what the next batch may gain) are recorded
+    after every interaction that ends a batch."""
     start = time.monotonic()
     noise_rng = np.random.default_rng(noise_seed)
     hint_rng = np.random.default_rng(hint_seed)
+    mistakes = np.random.default_rng([hint_seed, 0xE77])  # wrong hints, "sooner" read as "faster"
     box = ParameterBox.unit_cube(condition.dim)
     learner = PreferenceLearner(LearnerConfig(
         box=box, acquisition=condition.acquisition, schedule=condition.schedule,
@@ -268,6 +312,7 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
     shown: list[float] = []
     hints = 0
     settled: list[Settledness | None] = []
+    gains: list[NextBatchGain | None] = []
     fits: list[FitReport] = []  # every fit the learner ran, once: in observe or before a query
 
     def count(report: FitReport) -> None:
@@ -288,7 +333,8 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         felt[iid] = y
         hinted: tuple[list[Interaction], list[Comparison]] = ([], [])
         if condition.coactive:
-            hint = participant_hint(condition, box, suggestion.theta, distance, hint_rng)
+            hint = participant_hint(condition, box, suggestion.theta, distance, hint_rng,
+                                    mistakes)
             if hint is not None:
                 hinted = hint_observations(iid, hinted_theta(suggestion.theta, box, hint,
                                                              condition.hint_step))
@@ -299,6 +345,7 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
         final = learner.next_slot().kind is SlotKind.DONE
         ends_batch = final or learner.next_slot().kind is SlotKind.BEST
         settled.append(learner.settledness() if settle and ends_batch else None)
+        gains.append(learner.expected_gain() if settle and ends_batch else None)
         for strategy, curve in curves.items():
             curve.append(distance(best_theta(learner, strategy))
                          if final or strategy in tracked else math.nan)
@@ -307,6 +354,7 @@ def simulate_learner(condition: StudyCondition, target: np.ndarray, noise_seed: 
                          shown_distances=shown, strategy_distances=curves,
                          fit_failures=sum(f.fit_failed for f in fits),
                          seconds=time.monotonic() - start, settled=settled if settle else [],
+                         gains=gains if settle else [],
                          ties=learner.data.n_ties, hints=hints,
                          theta_star=box.to_unit(best_theta(learner, condition.recommendation)))
     return result, learner

@@ -46,6 +46,7 @@ from app.learning.models import (
     BestPoint,
     Comparison,
     Interaction,
+    NextBatchGain,
     PosteriorSlice,
     Settledness,
     SlotKind,
@@ -91,6 +92,9 @@ class WorkerReply(BaseModel):
     slices: list[PosteriorSlice] = []
     #: the stopping signal (app.learning.settled) when the next slot opens a batch or ends learning
     settledness: Settledness | None = None
+    #: what the next batch may gain over θ* (app.learning.gain), at the same times, when the
+    #: learner's config asks for it (``expected_gain``)
+    gain: NextBatchGain | None = None
     error: str | None = None
 
 
@@ -132,7 +136,9 @@ def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, A
                                 best=learner.best(), incumbent=learner.incumbent(),
                                 state=learner.snapshot(),
                                 slices=learner.posterior_slices(),
-                                settledness=learner.settledness() if batch_done else None)
+                                settledness=learner.settledness() if batch_done else None,
+                                gain=learner.expected_gain() if batch_done
+                                and learner.config.expected_gain else None)
         except LearningError as exc:
             reply = WorkerReply(request_id=request.request_id, error=str(exc))
         replies.put(reply.model_dump(mode="json"))
@@ -183,8 +189,9 @@ class LearnerClient:
         self.state: LearnerSnapshot | None = snapshot
         #: the posterior utility along each parameter through θ*, from the latest reply
         self.slices: list[PosteriorSlice] = []
-        #: the stopping signal of the latest reply (None unless it ended a batch)
+        #: the stopping signals of the latest reply (None unless it ended a batch)
         self.settledness: Settledness | None = None
+        self.gain: NextBatchGain | None = None
         self._snapshot = snapshot
         self._context = _context(start_method)
         if start_method == "forkserver":  # effective until this process's server has started
@@ -295,6 +302,7 @@ class LearnerClient:
             self.state = reply.state
             self.slices = reply.slices
             self.settledness = reply.settledness
+            self.gain = reply.gain
         if self._pending is None or reply.request_id != self._pending.request_id:
             logger.debug("dropped late reply to request %d", reply.request_id)
             return

@@ -17,6 +17,7 @@ from pydantic import BaseModel
 
 from app.learning.coactive import hinted_theta
 from app.learning.models import (
+    NextBatchGain,
     ParameterBox,
     PosteriorSlice,
     Settledness,
@@ -27,10 +28,10 @@ from app.learning.prior import PopulationPrior
 from app.learning.scale import comparisons_for_newest
 from app.learning.worker import LearnerClient
 from app.protocol import events as ev
+from app.protocol import stopping
 from app.protocol.earlier import earlier_participants_prior
 from app.protocol.errors import EventLogError, RefusedAction
 from app.protocol.hints import DIRECTIONS
-from app.protocol.learning_words import stop_reason
 from app.protocol.plan import Slot, protocol_slots
 from app.protocol.safety_record import DEFAULT_SAFETY, SafetyRecordSettings, safety_record
 from app.protocol.session_inputs import hand_seed, validation_sobol
@@ -136,6 +137,12 @@ class SessionEngine:
     def settledness(self) -> Settledness | None:
         """The stopping signal after the latest learning batch (the dashboard's), None before one."""
         return self.learner.settledness
+
+    @property
+    def gain(self) -> NextBatchGain | None:
+        """What the next batch may gain over θ* after the latest learning batch (the dashboard's,
+        with ``stop_when_no_gain``), None before one."""
+        return self.learner.gain
 
     def close(self) -> None:
         self.learner.close()
@@ -402,43 +409,49 @@ class SessionEngine:
         if suggestion.theta is None or suggestion.slot.index != slot.learner_index:
             raise RefusedAction(f"learner answered for slot {suggestion.slot.index}, the session "
                                 f"needs slot {slot.learner_index}")
-        if self._settled(slot, suggestion, learner):
+        checked = self._checked(slot, suggestion, learner)
+        stop = next((e for e in checked if isinstance(e, ev.LearningStopped)), None)
+        if stop is not None:
+            self._commit_all(list(checked))
+            log.info("learning stopped after interaction %d: %s", stop.after_interaction,
+                     stop.reason)
             self._plan_learned(suggestion, learner)
             return
         theta = Theta(**suggestion.theta)
         origin = ORIGIN_OF_KIND[suggestion.slot.kind]
         row = self.learner.snapshot_row(learner, slot.interaction - 1, suggestion)
-        self._commit(ev.ThetaPlanned(actor=Actor.LEARNER, interaction=slot.interaction,
-                                     **theta.model_dump(), origin=origin,
-                                     fallback=suggestion.fallback,
-                                     fit_failed=suggestion.fit.fit_failed),
-                     *self._stored(row))
+        self._commit_all([*checked, ev.ThetaPlanned(actor=Actor.LEARNER,
+                                                    interaction=slot.interaction,
+                                                    **theta.model_dump(), origin=origin,
+                                                    fallback=suggestion.fallback,
+                                                    fit_failed=suggestion.fit.fit_failed)],
+                         *self._stored(row))
 
-    def _settled(self, slot: Slot, suggestion: Suggestion, learner: LearnerClient) -> bool:
-        """At the opening of a learning batch, with ``stop_when_settled``: whether the learner's
-        latest reply (not a fallback) is settled enough to stop learning; if so, the stop is
-        recorded with its reason (:class:`~app.protocol.events.LearningStopped`)."""
-        rule = self.config.stopping_rule()
-        signal = learner.settledness
-        if (rule is None or signal is None or slot.phase is not Phase.LEARNING or slot.position != 1
-                or suggestion.fallback or not rule.stops(slot.batch - 1, signal)):
-            return False
-        probability = signal.probability_within(rule.epsilon)
-        reason = stop_reason(self.config, slot.batch - 1, probability)
-        self._commit(ev.LearningStopped(
-            actor=Actor.LEARNER, after_interaction=slot.interaction - 1, batches=slot.batch - 1,
-            probability=probability, epsilon=rule.epsilon, threshold=rule.threshold,
-            min_batches=rule.min_batches, reason=reason))
-        log.info("learning stopped after interaction %d: %s", slot.interaction - 1, reason)
-        return True
+    def _checked(self, slot: Slot, suggestion: Suggestion, learner: LearnerClient
+                 ) -> list[ev.LearningChecked | ev.LearningStopped]:
+        """At the opening of a learning batch, with a stopping rule: the check of the batch just
+        ended from the learner's latest reply (none after a fallback: no signal), and the stop if
+        the rule stops learning (:mod:`app.protocol.stopping`)."""
+        if slot.phase is not Phase.LEARNING or slot.position != 1 or suggestion.fallback:
+            return []
+        return stopping.check(self.config, slot.interaction - 1, slot.batch - 1,
+                              learner.settledness, learner.gain)
 
     def _plan_after_learning(self, timeout: float) -> None:
         """θ* of the finished learning phase for the best and validation interactions, and the
-        Sobol references of validation, all planned at once."""
-        self._plan_learned(*self.learner.suggestion(self.state, self.prior, timeout))
+        Sobol references of validation, all planned at once (with a stopping rule, the check of
+        the last batch too, which stops nothing)."""
+        suggestion, learner = self.learner.suggestion(self.state, self.prior, timeout)
+        last = [s for s in self.slots if s.learner_index is not None]
+        checked = [] if suggestion.fallback or self.state.stopped_after or not last else \
+            stopping.check(self.config, last[-1].interaction, last[-1].batch, learner.settledness,
+                           learner.gain, may_stop=False)
+        self._plan_learned(suggestion, learner, checked)
 
-    def _plan_learned(self, suggestion: Suggestion, learner: LearnerClient) -> None:
-        """Plan the best and validation interactions from the learner's latest reply."""
+    def _plan_learned(self, suggestion: Suggestion, learner: LearnerClient,
+                      checked: list[ev.LearningChecked | ev.LearningStopped] | None = None) -> None:
+        """Plan the best and validation interactions from the learner's latest reply (with the
+        check of the last batch, ``checked``, in the same transaction)."""
         if learner.best is None:
             raise RefusedAction("the learner has no θ* yet")
         best = Theta(**learner.best.theta)
@@ -447,7 +460,7 @@ class SessionEngine:
                      and s.interaction not in self.state.planned]
         after = self.state.stopped_after or remaining[0].interaction - 1
         row = self.learner.snapshot_row(learner, after, suggestion)
-        events: list[ev.ProtocolEvent] = []
+        events: list[ev.ProtocolEvent] = list(checked or [])
         for slot in remaining:
             theta = best if slot.origin is ThetaOrigin.BEST else next(references)
             events.append(ev.ThetaPlanned(actor=Actor.LEARNER, interaction=slot.interaction,

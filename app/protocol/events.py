@@ -67,17 +67,39 @@ class ThetaPlanned(_Event):
     fit_failed: bool = Field(False, description="the learner's last fit failed")
 
 
+class LearningChecked(_Event):
+    """After a batch of a session with a stopping rule (``stop_when_settled``,
+    ``stop_when_no_gain``): the rule's signal, and whether learning stops (then a
+    :class:`LearningStopped` follows in the same transaction)."""
+
+    kind: Literal["learning_checked"] = "learning_checked"
+    after_interaction: int = Field(ge=1, description="the last interaction of the batch")
+    batches: int = Field(ge=0, description="learning batches run (0: after the initial batch)")
+    rule: Literal["settled", "gain"] = Field(description="which rule: stop_when_settled or "
+                                             "stop_when_no_gain")
+    signal: float = Field(ge=0.0, le=1.0, description="settled: P(θ* within epsilon of the best "
+                          "θ); gain: the chance that the next batch shows a handover preferred "
+                          "to θ* more than the rule's preference (its bound (q − 1)·gain/epsilon)")
+    gain: float | None = Field(None, ge=0.0, description="gain: what the next batch is expected "
+                               "to add to θ*'s utility, max over θ of E[(u(θ) − u(θ*))⁺]")
+    epsilon: float = Field(gt=0.0, description="the utility difference of the rule's preference")
+    stops: bool = Field(description="learning stops here")
+
+
 class LearningStopped(_Event):
-    """Learning ended early (``stop_when_settled``): the session goes on to the best interaction,
-    the questionnaire and validation."""
+    """Learning ended early (``stop_when_settled``, ``stop_when_no_gain``): the session goes on to
+    the best interaction, the questionnaire and validation."""
 
     kind: Literal["learning_stopped"] = "learning_stopped"
     after_interaction: int = Field(ge=1, description="the last interaction that was learned from")
     batches: int = Field(ge=1, description="learning batches run")
-    probability: float = Field(ge=0.0, le=1.0, description="the stopping signal: P(θ* is within "
-                               "epsilon of the best θ)")
+    rule: Literal["settled", "gain"] = Field("settled", description="which rule stopped it")
+    probability: float = Field(ge=0.0, le=1.0, description="the stopping signal (settled: P(θ* is "
+                               "within epsilon of the best θ); gain: the chance that the next "
+                               "batch finds a handover preferred to θ* by more than epsilon)")
     epsilon: float = Field(gt=0.0)
-    threshold: float = Field(ge=0.0, le=1.0)
+    threshold: float = Field(ge=0.0, le=1.0, description="settled: stops at this probability or "
+                             "more; gain: at this chance or less")
     min_batches: int = Field(ge=1)
     reason: str = Field(description="why, in words")
 
@@ -195,7 +217,8 @@ class ValidationBlindingSet(_Event):
 
 
 ProtocolEvent = Annotated[
-    SessionCreated | SessionResumed | ThetaPlanned | LearningStopped | TrialStarted | TrialStage | TrialEnded
+    SessionCreated | SessionResumed | ThetaPlanned | LearningChecked | LearningStopped
+    | TrialStarted | TrialStage | TrialEnded
     | PlacementMade | HintGiven | ValidationRated | AnswerGiven | EntryNotUsed | Paused | Resumed
     | DevicesRecorded
     | RigChangeConfirmed | SimulatedParticipantSwitched | ValidationBlindingSet,

@@ -1,21 +1,25 @@
-"""Where learning stands and why it stopped, in words an experimenter can act on (issues 40, 45).
+"""Where learning stands and why it stopped, in words an experimenter can act on (issues 40, 45,
+46).
 
 Every sentence about the learner's progress is made here, for the dashboard (the Devices panel's
 learning line, the status line and the Recent events after a stop), for the ``learning_stopped``
-event's reason (which the report shows) and for the report's "Learning ended" column. A new
-stopping rule words itself here too.
+event's reason (which the report shows), for the report's "Learning ended" and "stopping rule"
+columns and for ``handover replay-stop``. A new stopping rule words itself here too.
 
-The stopping signal is the posterior probability that θ* is *close to the participant's best*:
-its regret is at most ε, ε set so that in a choice between their very best handover and θ* the
-participant would pick the best at most ``settled_preference`` of the time (docs/learning.md). The
-words say that, not "ε" or "regret".
+Two rules (docs/learning.md). ``stop_when_settled``: the signal is the posterior probability that
+θ* is *close to the participant's best*: its regret is at most ε, ε set so that in a choice between
+their very best handover and θ* the participant would pick the best at most ``settled_preference``
+of the time. ``stop_when_no_gain``: the signal is how likely the next batch is (at most, a bound)
+to find a handover the participant would pick over θ* more than ``gain_preference`` of the time.
+The words say that, not "ε", "regret" or "gain".
 """
 
 from __future__ import annotations
 
 import math
 
-from app.learning.models import Settledness
+from app.learning.config import GainRule, StoppingRule, preferred_for
+from app.learning.models import NextBatchGain, Settledness
 from app.protocol.state import SessionState, Step
 from app.protocol.study_config import StudyConfig
 from session_store.models import Event, LearnerSnapshotRow
@@ -30,10 +34,16 @@ def _percent(share: float) -> str:
     return f"{share * 100:.0f} %"
 
 
-def _close(config: StudyConfig) -> str:
+def _close(preference: float) -> str:
     """What "close to the participant's best" means, in their terms."""
-    return (f"they would pick their very best handover over it at most "
-            f"{_percent(config.settled_preference)} of the time")
+    return (f"they would pick their very best handover over it at most {_percent(preference)} of "
+            "the time")
+
+
+def _found(preference: float) -> str:
+    """What a handover worth another batch is, in the participant's terms."""
+    return (f"find a handover the participant would pick over the learner's best guess more than "
+            f"{_percent(preference)} of the time")
 
 
 def _batches(count: int) -> str:
@@ -44,13 +54,32 @@ def _handovers(count: int) -> str:
     return f"{count} handover{'' if count == 1 else 's'}"
 
 
-def stop_reason(config: StudyConfig, batches: int, probability: float) -> str:
-    """Why learning stopped after ``batches`` learning batches at the signal ``probability``: the
-    ``learning_stopped`` event's reason."""
-    return (f"after learning batch {batches} of {config.learning_batches} the learner was "
-            f"{_percent(probability)} sure that its best guess is close to the participant's best "
-            f"({_close(config)}); it stops at {_percent(config.settled_threshold)}, from batch "
-            f"{config.settled_min_batches} on")
+def rule_words(rule: StoppingRule | GainRule) -> str:
+    """A stopping rule as a lab pre-registers it (the report's learning table, replay-stop), e.g.
+    "stop once 50 % sure that the learner's best guess is close to the participant's best (they
+    would pick their very best handover over it at most 80 % of the time), from batch 1 on"."""
+    if isinstance(rule, GainRule):
+        return (f"stop once the next batch is at most {_percent(rule.chance)} likely to "
+                f"{_found(rule.preference)}, from batch {rule.min_batches} on")
+    return (f"stop once {_percent(rule.threshold)} sure that the learner's best guess is close to "
+            f"the participant's best ({_close(preferred_for(rule.epsilon))}), from batch "
+            f"{rule.min_batches} on")
+
+
+def stop_reason(config: StudyConfig, batches: int, signal: float) -> str:
+    """Why learning stopped after ``batches`` learning batches at the rule's ``signal`` (settled:
+    how sure; gain: how likely the next batch finds better): the ``learning_stopped`` event's
+    reason."""
+    rule = config.stopping_rule()
+    assert rule is not None, "a session without a stopping rule never stops early"
+    done = f"after learning batch {batches} of {config.learning_batches}"
+    if isinstance(rule, GainRule):
+        return (f"{done} the next batch was at most {_percent(signal)} likely to "
+                f"{_found(rule.preference)}; it stops at {_percent(rule.chance)} or less, from "
+                f"batch {rule.min_batches} on")
+    return (f"{done} the learner was {_percent(signal)} sure that its best guess is close to the "
+            f"participant's best ({_close(preferred_for(rule.epsilon))}); it stops at "
+            f"{_percent(rule.threshold)}, from batch {rule.min_batches} on")
 
 
 def learning_batches_done(state: SessionState) -> int:
@@ -90,10 +119,7 @@ def learning_end(state: SessionState, config: StudyConfig, stopped: str | None,
         return "early", stopped
     slot = state.slot
     if slot is None or slot.learner_index is None:
-        return "at the schedule's end", ("the fixed schedule (stop_when_settled off)"
-                                         if config.stopping_rule() is None else
-                                         "the fixed schedule: the learner was never sure enough "
-                                         f"to stop ({_percent(config.settled_threshold)})")
+        return "at the schedule's end", never_stopped(config.stopping_rule())
     where = WAITING[state.step] + ("" if paused is None else f"; paused: {paused}")
     if state.completed == 0:
         return "not started", f"no handover was completed ({where})"
@@ -101,6 +127,16 @@ def learning_end(state: SessionState, config: StudyConfig, stopped: str | None,
     return (f"interrupted after {state.completed} of {learned}",
             f"the session stopped before learning ended, at handover {slot.interaction} of "
             f"{state.interactions} ({where})")
+
+
+def never_stopped(rule: StoppingRule | GainRule | None) -> str:
+    """Why a session that learned to the schedule's end did not stop early."""
+    if rule is None:
+        return "the fixed schedule (no stopping rule)"
+    if isinstance(rule, GainRule):
+        return ("the fixed schedule: the next batch never became unlikely enough to find a better "
+                f"handover (at most {_percent(rule.chance)})")
+    return f"the fixed schedule: the learner was never sure enough to stop ({_percent(rule.threshold)})"
 
 
 def recorded_stop(events: list[Event]) -> str | None:
@@ -111,33 +147,42 @@ def recorded_stop(events: list[Event]) -> str | None:
 
 
 def learning_line(state: SessionState, config: StudyConfig, signal: Settledness | None,
-                  stopped: str | None, snapshots: list[LearnerSnapshotRow]) -> str | None:
+                  stopped: str | None, snapshots: list[LearnerSnapshotRow],
+                  gain: NextBatchGain | None = None) -> str | None:
     """Where learning stands now (the dashboard's learning line), from the session's ``state``,
-    the learner's latest stopping ``signal``, the recorded reason it ``stopped`` early (None: it
+    the learner's latest stopping signals (``signal``: how settled θ* is; ``gain``: what the next
+    batch may gain, with ``stop_when_no_gain``), the recorded reason it ``stopped`` early (None: it
     did not) and the learner ``snapshots`` in order; None before the first learning batch ends."""
     headline = stop_headline(state)
     if stopped is not None and headline is not None:
         return f"{headline} ({stopped})."
-    if signal is None:
+    rule = config.stopping_rule()
+    if (gain if isinstance(rule, GainRule) else signal) is None:
         return None
     done = learning_batches_done(state)
     unchanged = unchanged_batches(state, config, snapshots)
     guess = ("it is the learner's first best guess" if unchanged is None else
              f"the learner's best guess has not moved for {_batches(unchanged)}" if unchanged else
              "the learner's best guess moved in the last batch")
-    sure = (f"it is {_percent(signal.probability_within(config.settled_epsilon))} sure that "
-            f"this guess is close to the participant's best ({_close(config)})")
-    rule = config.stopping_rule()
+    if isinstance(rule, GainRule) and gain is not None:
+        where = (f"the next batch is at most {_percent(gain.chance(rule.epsilon))} likely to "
+                 f"{_found(rule.preference)}")
+        stops = f"once that is {_percent(rule.chance)} or less"
+    else:
+        assert signal is not None, "checked above"
+        where = (f"it is {_percent(signal.probability_within(config.settled_epsilon))} sure that "
+                 f"this guess is close to the participant's best "
+                 f"({_close(config.settled_preference)})")
+        stops = f"once it is {_percent(config.settled_threshold)} sure"
     left = config.learning_batches - done
     if rule is None:
-        goes_on = f"learning runs all {config.learning_batches} batches (stop_when_settled is off)"
+        goes_on = f"learning runs all {config.learning_batches} batches (no stopping rule)"
     elif left == 0:
         goes_on = "that was the last learning batch"
     else:
-        goes_on = (f"learning stops early once it is {_percent(rule.threshold)} sure (from batch "
-                   f"{rule.min_batches} on); until then it goes on, at most {left} more batch"
-                   f"{'' if left == 1 else 'es'}")
-    return (f"After learning batch {done} of {config.learning_batches}: {guess}; {sure}. "
+        goes_on = (f"learning stops early {stops} (from batch {rule.min_batches} on); until then "
+                   f"it goes on, at most {left} more batch{'' if left == 1 else 'es'}")
+    return (f"After learning batch {done} of {config.learning_batches}: {guess}; {where}. "
             f"{goes_on[0].upper()}{goes_on[1:]}.")
 
 

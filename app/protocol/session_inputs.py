@@ -23,6 +23,7 @@ def learner_config(config: StudyConfig, prior: PopulationPrior | None = None) ->
                          model=ModelConfig(batch_position_noise=config.batch_position_noise,
                                            ties=TieHandling(config.ties)),
                          settled_epsilon=config.settled_epsilon,
+                         expected_gain=config.stop_when_no_gain,
                          schedule=BatchSchedule(n_initial=config.initial_trials,
                                                 q=config.batch_size, n_unique=unique))
 

@@ -1,7 +1,7 @@
 """The session's learner process as the engine uses it (:mod:`app.protocol.engine`): started when a θ
 is needed — fresh, or restored from the store's last snapshot plus the placements (and hints) made
 after it —, taught each placed interaction's observations while it runs, and its latest posterior
-and stopping signal kept for the dashboard. It lives on the engine's thread.
+and stopping signals kept for the dashboard. It lives on the engine's thread.
 """
 
 from __future__ import annotations
@@ -11,7 +11,13 @@ from collections.abc import Callable
 from app.learning.coactive import hint_observations
 from app.learning.config import LearnerConfig, LearnerSnapshot
 from app.learning.models import Comparison as LearnedComparison
-from app.learning.models import Interaction, PosteriorSlice, Settledness, Suggestion
+from app.learning.models import (
+    Interaction,
+    NextBatchGain,
+    PosteriorSlice,
+    Settledness,
+    Suggestion,
+)
 from app.learning.models import Placement as ScalePlacement
 from app.learning.prior import PopulationPrior
 from app.learning.scale import comparisons_for_newest
@@ -44,6 +50,8 @@ class SessionLearner:
         self.posterior_slices: list[PosteriorSlice] = []
         #: the stopping signal after the latest learning batch (for the dashboard), None before one
         self.settledness: Settledness | None = None
+        #: what the next batch may gain over θ* after the latest batch (stop_when_no_gain), ditto
+        self.gain: NextBatchGain | None = None
 
     @property
     def pid(self) -> int | None:
@@ -109,6 +117,7 @@ class SessionLearner:
         suggestion = learner.get(timeout)
         self.posterior_slices = learner.slices or self.posterior_slices
         self.settledness = learner.settledness or self.settledness
+        self.gain = learner.gain or self.gain
         return suggestion, learner
 
     @staticmethod

@@ -224,6 +224,14 @@ def _learning_stopped(state: SessionState, event: ev.LearningStopped) -> None:
     state.stopped_after = event.after_interaction
 
 
+def _learning_checked(state: SessionState, event: ev.LearningChecked) -> None:
+    slot = state.slot
+    _check(state.step is Step.PLAN and slot is not None
+           and slot.interaction - 1 == event.after_interaction,
+           f"the batch ending with interaction {event.after_interaction} is checked while "
+           f"{_waiting_for(state)} at interaction {slot.interaction if slot else 'none'}")
+
+
 def _trial_started(state: SessionState, event: ev.TrialStarted) -> None:
     slot = state.slot
     _check(state.running_trial is None, f"trial {event.trial_index} starts while trial "
@@ -358,7 +366,7 @@ def _recorded(state: SessionState, event: ev.ProtocolEvent) -> None:
 #: event type → the function that folds it into the state (and checks that the state allows it).
 HANDLERS: dict[type, Callable[[SessionState, Any], None]] = {
     ev.SessionCreated: _created, ev.SessionResumed: _recorded, ev.ThetaPlanned: _theta_planned,
-    ev.LearningStopped: _learning_stopped,
+    ev.LearningChecked: _learning_checked, ev.LearningStopped: _learning_stopped,
     ev.TrialStarted: _trial_started, ev.TrialStage: _trial_stage, ev.TrialEnded: _trial_ended,
     ev.PlacementMade: _placement_made, ev.HintGiven: _hint_given,
     ev.ValidationRated: _validation_rated,

@@ -33,7 +33,7 @@ from pydantic.fields import FieldInfo
 
 from app.protocol.design import Assignment, StudyPlan
 from app.protocol.safety_record import SafetyRecordSettings
-from app.protocol.study_config import StudyConfig
+from app.protocol.study_config import PRESETS, StudyConfig
 from robot_io.config import ControllerConfig
 from robot_io.errors import ConfigError
 from robot_io.hands.simulated_hand import Scenario
@@ -42,7 +42,9 @@ from robot_io.hands.simulated_hand import Scenario
 #: types, bounds and documentation are StudyConfig's own.
 PROTOCOL_FIELDS = ("initial_trials", "batch_size", "learning_batches", "best_trials",
                    "validation_batches", "stop_when_settled", "settled_threshold",
-                   "settled_min_batches", "settled_preference", "coactive", "hint_step")
+                   "settled_min_batches", "settled_preference", "stop_when_no_gain",
+                   "gain_chance", "gain_preference", "gain_min_batches", "coactive", "hint_step",
+                   "preset")
 LEARNER_FIELDS = ("acquisition", "theta_bounds", "recommendation", "population_prior",
                   "prior_weight", "batch_position_noise", "ties")
 _FROZEN = ConfigDict(frozen=True, extra="forbid")
@@ -89,6 +91,14 @@ class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS)):  # type: 
         False, description="say so to run learning_batches = 0: sessions in which θ is never "
                            "learned (no learning batch), e.g. to pilot the tablet or the rig")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _preset(cls, data: Any) -> Any:
+        """``preset`` sets its keys (app.protocol.study_config.PRESETS); the lab's own keys win."""
+        if isinstance(data, dict) and data.get("preset") in PRESETS:
+            return {**PRESETS[data["preset"]], **data}
+        return data
+
     @model_validator(mode="after")
     def _learns_unless_told_not_to(self) -> ProtocolSettings:
         """A protocol without learning batches never learns θ (Sect. III-C: the GP is fitted on
@@ -102,8 +112,18 @@ class ProtocolSettings(_settings("_ProtocolCounts", PROTOCOL_FIELDS)):  # type: 
                              f"{self.learning_batches}: it goes with learning_batches = 0 only")
         return self
 
-    def counts(self) -> dict[str, int]:
-        """The phase counts (and the early stop) of a participant's :class:`StudyConfig`."""
+    @model_validator(mode="after")
+    def _one_stopping_rule(self) -> ProtocolSettings:
+        if self.stop_when_settled and self.stop_when_no_gain:
+            preset = {key: f' (preset = "{self.preset}" sets it)' for key in PRESETS[self.preset]}
+            raise ValueError(f"stop_when_settled{preset.get('stop_when_settled', '')} and "
+                             f"stop_when_no_gain{preset.get('stop_when_no_gain', '')} are both "
+                             "true: learning stops by one rule; set one of them to false")
+        return self
+
+    def counts(self) -> dict[str, Any]:
+        """The phase counts, the early stop, the hints and the preset of a participant's
+        :class:`StudyConfig`."""
         return self.model_dump(include=set(PROTOCOL_FIELDS))
 
 

@@ -294,7 +294,7 @@ class EngineSide:
                 for r in engine.store.rows("learner_snapshots") if r.theta_star_a is not None]
             self._learning = learning_line(
                 state, engine.config, engine.settledness, recorded_stop(engine.store.events()),
-                engine.store.rows("learner_snapshots", order_by="after_interaction"))
+                engine.store.rows("learner_snapshots", order_by="after_interaction"), engine.gain)
         trials = engine.store.rows("trials", order_by="trial_index")
         return SessionFacts(
             code=engine.participant.code, scenario=engine.config.scenario, seed=engine.config.seed,

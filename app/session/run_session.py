@@ -11,6 +11,7 @@ from pathlib import Path
 
 from app.arguments import argument_type
 from app.protocol.design import recorded_assignment
+from app.protocol.learning_words import recorded_stop
 from app.protocol.seeds import parse_seed
 from app.protocol.state import Step
 from app.protocol.stored_session import recorded_session
@@ -114,6 +115,7 @@ def run_session(args: argparse.Namespace) -> int:
     with reading(args.study, args.participant) as store:  # read, never written: a plain file stays
         counts = store.counts()
         snapshot = store.rows("learner_snapshots")[-1]
+        stopped = recorded_stop(store.events())
         assignment = recorded_assignment(store.participant().config)
     assert view.scenario is not None, "the view of an open session has its scenario"
     summary = {"participant": args.participant, "scenario": view.scenario.value,
@@ -122,6 +124,7 @@ def run_session(args: argparse.Namespace) -> int:
                "rig": view.arm, "hand": view.hand,
                "theta_star": {"a": snapshot.theta_star_a, "delta": snapshot.theta_star_delta,
                               "k": snapshot.theta_star_k},
+               "learning": {"interactions": snapshot.after_interaction, "stopped_early": stopped},
                "seconds": round(time.monotonic() - began, 2),
                "database_bytes": participant_path(args.study, args.participant).stat().st_size,
                "counts": counts}
@@ -139,6 +142,9 @@ def run_session(args: argparse.Namespace) -> int:
               f"{summary['completed']} handovers completed on {view.arm}; "
               f"θ* = (a {star['a']:.2f}, δ {star['delta']:.2f}, k {star['k']:.2f}); "
               f"{summary['seconds']} s; database {summary['database_bytes'] / 1e6:.1f} MB")
+        if stopped is not None:
+            print(f"learning stopped early, after {snapshot.after_interaction} interactions: "
+                  f"{stopped}")
         if observed is not None:
             print(f"the stand-in saw the gripper open {observed['gripper_opened']} times and "
                   f"{observed['moves_to_R']} moves to R; the TCP ended "

@@ -41,7 +41,7 @@ def learning(tmp_path_factory) -> tuple[pd.DataFrame, str]:
 def test_each_participants_learning_ended_as_it_did(learning):
     table, _ = learning
     assert table.loc["D01", "learning_ended"] == "at the schedule's end"
-    assert table.loc["D01", "why"] == "the fixed schedule (stop_when_settled off)"
+    assert table.loc["D01", "why"] == "the fixed schedule (no stopping rule)"
     assert table.loc["I01", "learning_ended"] == "interrupted after 4 of 6"
     assert table.loc["I01", "why"] == ("the session stopped before learning ended, at handover 5 "
                                        "of 9 (waiting for Start; paused: the participant had to "

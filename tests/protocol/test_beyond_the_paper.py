@@ -60,6 +60,18 @@ def test_learning_stops_early_on_an_easy_participant_with_its_reason(stopped):
     assert stopped.state.stopped_after == stop["after_interaction"]
 
 
+def test_every_batch_up_to_the_stop_is_checked_with_its_signal(stopped):
+    """Issue 46: the signal of every batch is in the log, not only the one that stopped."""
+    checks = [e.payload for e in stopped.store.events() if e.kind == "learning_checked"]
+    stop = next(e.payload for e in stopped.store.events() if e.kind == "learning_stopped")
+    assert [c["batches"] for c in checks] == list(range(stop["batches"] + 1))
+    assert all(c["rule"] == "settled" and c["gain"] is None for c in checks)
+    assert [c["stops"] for c in checks] == [False] * (len(checks) - 1) + [True]
+    # before the stop, no batch from the second on (min_batches = 2) reached the threshold
+    assert all(c["signal"] < 0.8 for c in checks[:-1] if c["batches"] >= 2)
+    assert checks[-1]["signal"] == stop["probability"] and stop["rule"] == "settled"
+
+
 def test_after_the_stop_the_best_the_questionnaire_and_validation_run(stopped):
     completed = [t for t in stopped.store.rows("trials") if t.outcome == "completed"]
     by_phase = {phase: sum(t.phase == phase for t in completed) for phase in Phase}
