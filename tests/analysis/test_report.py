@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from support.engine import drive_until, short_config
+from support.study import contents
 
 from app.analysis.report import build_report
 from app.analysis.trajectories import validation_distances
@@ -191,9 +192,9 @@ def test_a_report_into_the_study_folder_is_refused_and_writes_nothing(study, cap
     """``report --out`` pointing into the study folder wrote report.html, tables/ and figures/
     among the participants' databases (issue 45): as export, a report never writes into a study
     folder."""
-    before = sorted(p.relative_to(study) for p in study.rglob("*"))
+    before = contents(study)
     out = study / inside
     assert main(["report", str(study), "--out", str(out)]) == 2
     assert (f"handover report: error: --out {out} is inside the study folder {study}: a report "
             "never writes into a study folder") in capsys.readouterr().err
-    assert sorted(p.relative_to(study) for p in study.rglob("*")) == before
+    assert contents(study) == before

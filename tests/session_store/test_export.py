@@ -9,6 +9,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 from support.engine import drive_until, short_config
+from support.study import contents
 
 from app.cli import main
 from app.protocol.engine import SessionEngine
@@ -112,9 +113,9 @@ def test_an_export_into_the_study_folder_is_refused_and_writes_nothing(study, ca
     """``export --out`` pointing into the study folder wrote CSVs and a sqlite/ copy of every
     participant there, overwritten on a rerun (issue 45, item 9): export never writes into a study
     folder."""
-    before = sorted(p.relative_to(study) for p in study.rglob("*"))
+    before = contents(study)
     out = study / inside
     assert main(["export", str(study), "--out", str(out)]) == 2
     assert (f"handover export: error: --out {out} is inside the study folder {study}: export never "
             "writes into a study folder") in capsys.readouterr().err
-    assert sorted(p.relative_to(study) for p in study.rglob("*")) == before
+    assert contents(study) == before

@@ -16,6 +16,12 @@ import pytest
 from session_store.schema import V2_SAMPLE_COLUMNS, V2_TRIAL_COLUMNS
 
 
+def contents(study: Path) -> list[Path]:
+    """Every file and folder under ``study``, relative to it: equal before and after means nothing
+    was written into it."""
+    return sorted(p.relative_to(study) for p in study.rglob("*"))
+
+
 def fingerprint(path: Path) -> tuple[str, int, int]:
     """The file's SHA-256, its modification time and the size of its ``-wal`` (transactions
     written beside it): equal before and after means nothing was written."""
