@@ -104,7 +104,9 @@ def run_replay(args: argparse.Namespace) -> int:
     for rule, group in frame.groupby("rule", sort=False):
         print(f"{rule}:")
         for row in group.itertuples():
-            where = ("did not stop" if row.signal is None or pd.isna(row.signal)
+            # the last recorded batch is never a stop: nothing after it would have been saved
+            where = ("did not stop before the last recorded batch"
+                     if row.signal is None or pd.isna(row.signal)
                      else f"signal {row.signal:.0%}")
             print(f"  {row.participant} ({row.scenario}): stops after {row.stopped_after} of "
                   f"{row.learned} ({where}); θ* then {_theta(row.theta_stop)}, final "
