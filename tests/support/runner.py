@@ -11,7 +11,9 @@ from pathlib import Path
 
 from app.session.config import LabConfig
 from app.session.runner import PLAN_TIMEOUT_S, RunnerView, SessionRunner
+from session_store.models import Trial
 from support.engine import SESSION_CONTROLLER
+from support.repeats import TRIAL_ATTEMPTS, all_ended, note_repeat
 from support.waiting import CEILING_S, WaitTimeout
 
 
@@ -91,3 +93,34 @@ class Probe:
                     raise WaitTimeout(f"gave up after {timeout:g} s waiting for {what}; last view: "
                                       f"{describe(view)}")
                 self._changed.wait(min(left, 0.1))
+
+
+def ready(view: RunnerView) -> bool:
+    """The session waits for Start: the next θ is planned."""
+    return view.step is not None and view.step.value == "ready"
+
+
+def ended(view: RunnerView, index: int) -> Trial | None:
+    """Trial ``index`` of ``view`` once it has an outcome, else None."""
+    return next((t for t in view.trials if t.trial_index == index and t.outcome), None)
+
+
+def completed_trial(runner: SessionRunner, probe: Probe, attempts: int = TRIAL_ATTEMPTS) -> Trial:
+    """Start trials until one completes and return it (support.repeats): an aborted trial is
+    recovered from as an experimenter would (Recover when the arm has a fault or the rig ended) and
+    the trial started again, at most ``attempts`` times."""
+    reasons = []
+    for _ in range(attempts):
+        probe.wait(ready, what="ready for a trial", timeout=READY_CEILING_S)
+        index = runner.start_trial().trial_index
+        view = probe.wait(lambda v, i=index: ended(v, i) is not None, what=f"trial {index} ended",
+                          timeout=CEILING_S + READY_CEILING_S)
+        trial = ended(view, index)
+        assert trial is not None and trial.outcome is not None
+        if trial.outcome.value == "completed":
+            return trial
+        reasons.append(f"trial {index} {trial.outcome.value}: {trial.reason}")
+        note_repeat(f"trial {index}", reasons[-1])
+        if view.arm_fault or runner.rig is None or not runner.rig.alive:
+            runner.recover_arm(inspected=True)
+    raise all_ended("a completed trial", reasons)

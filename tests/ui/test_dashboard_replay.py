@@ -30,8 +30,8 @@ from support.browser import (
     what_it_showed,
 )
 from support.engine import SHORT_PROTOCOL
-from support.runner import READY_CEILING_S, Probe, busy_threads
-from support.waiting import CEILING_S, wait_for
+from support.runner import READY_CEILING_S, Probe, busy_threads, completed_trial, ready
+from support.waiting import wait_for
 
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
@@ -94,14 +94,8 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
     try:
         runner.set_auto(True)  # the simulated participant places it (no tablet needed: simulated rig)
         runner.open("P01", Scenario.PERTURBED)
-        probe.wait(lambda v: v.step is not None and v.step.value == "ready", what="the first θ",
-                   timeout=READY_CEILING_S)
-        runner.start_trial()
-        view = probe.wait(lambda v: v.step is not None and v.step.value == "ready" and v.trials,
-                          timeout=CEILING_S + READY_CEILING_S,  # the trial, then its plan
-                          what="the first trial placed and the next θ")
-        [trial] = view.trials
-        assert trial.outcome.value == "completed", f"trial 1: {trial.outcome.value} ({trial.reason})"
+        trial = completed_trial(runner, probe)  # repeated if the machine's load aborted it
+        probe.wait(ready, what="the next θ", timeout=READY_CEILING_S)
         store = ParticipantStore.open(runner.study, "P01")
         try:
             stored = stored_rows(store.samples(trial.trial_index))

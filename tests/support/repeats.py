@@ -1,0 +1,33 @@
+"""A trial on the wall clock that the machine, not the code under test, ended: started again.
+
+On a loaded 2-core machine (CI beside other work, a VM that the host holds still for seconds) even a
+rig under SCHED_FIFO can be starved past its limits: the stand-in controller sends no state for
+0.1 s, the tracker's samples arrive late, and the trial is aborted, as the rig must abort it. A test
+whose subject is not that trial's outcome (a replay of it, a fault injected into it) repeats it as
+an experimenter would, at most :data:`TRIAL_ATTEMPTS` times. Each repeat is a warning in the
+suite's summary (what ended the trial), so a run that needed one says so; a trial aborted every time
+fails the test with every reason.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+#: How many times a test starts the trial it needs before it fails.
+TRIAL_ATTEMPTS = 3
+
+
+class MachineEndedTrial(UserWarning):
+    """A trial a test needed was ended by the machine's load and started again."""
+
+
+def note_repeat(what: str, reason: str) -> None:
+    """Say in the suite's warnings summary that ``what`` ended for ``reason`` and is repeated."""
+    warnings.warn(MachineEndedTrial(f"{what} ended before its subject ({reason}): repeated"),
+                  stacklevel=3)
+
+
+def all_ended(what: str, reasons: list[str]) -> AssertionError:
+    """The failure of a test whose every attempt at ``what`` was ended (``reasons``, in order)."""
+    return AssertionError(f"{what}: all {len(reasons)} attempts ended before their subject: "
+                          + "; ".join(f"{i}. {r}" for i, r in enumerate(reasons, 1)))
