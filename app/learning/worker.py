@@ -29,12 +29,13 @@ restarted with the full history replayed (one fit), up to ``max_restarts`` times
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import multiprocessing as mp
-import queue
 import threading
 import time
+from multiprocessing.connection import Connection
 from multiprocessing.context import ForkContext, ForkServerContext, SpawnContext
 from typing import Any, cast
 
@@ -98,19 +99,22 @@ class WorkerReply(BaseModel):
     error: str | None = None
 
 
-def _next_request(requests: mp.Queue) -> dict[str, Any] | None:
-    """The next request; None to stop, also when the parent process has died (e.g. SIGKILL)."""
+def _next_request(requests: Connection) -> dict[str, Any] | None:
+    """The next request; None to stop, also when the caller's end of the pipe has closed or the
+    parent process has died (e.g. SIGKILL)."""
     while True:
         try:
-            return requests.get(timeout=_LIVENESS_PERIOD)
-        except queue.Empty:
-            parent = mp.parent_process()
-            if parent is not None and not parent.is_alive():
-                return None
+            if requests.poll(_LIVENESS_PERIOD):
+                return requests.recv()
+        except (EOFError, OSError):
+            return None
+        parent = mp.parent_process()
+        if parent is not None and not parent.is_alive():
+            return None
 
 
 def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, Any]],
-           requests: mp.Queue, replies: mp.Queue) -> None:  # pragma: no cover - child process
+           requests: Connection, replies: Connection) -> None:  # pragma: no cover - child process
     """Worker process: rebuild the learner (an exact snapshot, then earlier requests replayed),
     then answer requests."""
     import torch
@@ -141,7 +145,10 @@ def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, A
                                 and learner.config.expected_gain else None)
         except LearningError as exc:
             reply = WorkerReply(request_id=request.request_id, error=str(exc))
-        replies.put(reply.model_dump(mode="json"))
+        try:
+            replies.send(reply.model_dump(mode="json"))
+        except OSError:  # the caller's end has closed: nobody waits for a reply
+            return
 
 
 def _ready() -> None:  # pragma: no cover - child process
@@ -201,6 +208,7 @@ class LearnerClient:
         self._next_id = 0
         self._n_interactions = sum(i.shown for i in snapshot.interactions) if snapshot else 0
         self._ready: Suggestion | None = None
+        self._closed = False
         self._start([])
 
     @classmethod
@@ -223,7 +231,7 @@ class LearnerClient:
             self._history.append(self._pending)
         self._pending = request
         self._n_interactions += sum(i.shown for i in request.interactions)
-        self._requests.put(request.model_dump(mode="json"))
+        self._send(request)
         return request.request_id
 
     @property
@@ -253,16 +261,18 @@ class LearnerClient:
         return ready
 
     def close(self, timeout: float = 5.0) -> None:
-        """Stop the worker: a polite request first, then terminate if it does not exit."""
+        """Stop the worker: a polite request first, then terminate if it does not exit; then
+        release its pipes and its process handle here, not when the garbage collector gets to
+        them (an ended session must leave no file descriptor open behind it). A second call
+        does nothing."""
+        if self._closed:
+            return
         if self._process.is_alive():
-            self._requests.put(None)
+            with contextlib.suppress(OSError):  # the worker has just died: nothing to tell it
+                self._requests.send(None)
             self._process.join(timeout)
-        if self._process.is_alive():
-            logger.warning("learner worker %d did not stop; terminating", self._process.pid)
-            self._process.terminate()
-            self._process.join(timeout)
-        self._requests.close()
-        self._replies.close()
+        self._let_go(timeout)
+        self._closed = True
 
     def __enter__(self) -> LearnerClient:
         return self
@@ -272,24 +282,55 @@ class LearnerClient:
 
     @property
     def pid(self) -> int | None:
-        return self._process.pid
+        """The worker's process id; None once the client is closed."""
+        return None if self._closed else self._process.pid
 
     # -- internals --------------------------------------------------------------------------
     def _start(self, replay: list[ObserveRequest]) -> None:
-        self._requests: mp.Queue = self._context.Queue()
-        self._replies: mp.Queue = self._context.Queue()
+        """A worker and its two one-way pipes; this process keeps only its own ends (requests
+        out, replies in), so either side sees the other's death as a closed pipe."""
+        requests, self._requests = self._context.Pipe(duplex=False)
+        self._replies, replies = self._context.Pipe(duplex=False)
         self._process = self._context.Process(
             target=_serve, name="handover-learner", daemon=True,
             args=(self.config.model_dump_json(),
                   None if self._snapshot is None else self._snapshot.model_dump_json(),
-                  [r.model_dump(mode="json") for r in replay], self._requests, self._replies))
-        self._process.start()
+                  [r.model_dump(mode="json") for r in replay], requests, replies))
+        try:
+            self._process.start()  # hands the worker its ends before it returns
+        finally:
+            requests.close()
+            replies.close()
+
+    def _send(self, request: ObserveRequest) -> None:
+        """Send ``request`` to the worker; a dead worker's closed pipe is left to :meth:`_collect`,
+        which restarts it and sends the pending request again."""
+        with contextlib.suppress(OSError):
+            self._requests.send(request.model_dump(mode="json"))
+
+    def _let_go(self, timeout: float) -> None:
+        """Release the worker's pipes and process handle (its sentinel); terminated if it still
+        runs."""
+        if self._process.is_alive():
+            logger.warning("learner worker %d did not stop; terminating", self._process.pid)
+            self._process.terminate()
+            self._process.join(timeout)
+        if self._process.is_alive():
+            self._process.kill()
+            self._process.join()
+        self._requests.close()
+        self._replies.close()
+        self._process.close()
 
     def _collect(self, *, block: bool, timeout: float = 0.0) -> None:
         """Read replies; keep the one answering the pending request; restart a dead worker."""
         try:
-            message = self._replies.get(block=block, timeout=timeout if block else None)
-        except queue.Empty:
+            arrived = self._replies.poll(timeout if block else 0.0)
+            message = self._replies.recv() if arrived else None
+        except (EOFError, OSError):  # the worker's end closed: it died
+            arrived, message = False, None
+            self._process.join(_LIVENESS_PERIOD)  # its exit code, for the restart's message
+        if not arrived:
             if not self._process.is_alive():
                 self._restart()
             return
@@ -327,9 +368,10 @@ class LearnerClient:
         logger.warning("learner worker died (exit code %s); restart %d of %d, replaying %d "
                        "requests", self._process.exitcode, self.restarts, self.max_restarts,
                        len(self._history))
+        self._let_go(_LIVENESS_PERIOD)
         self._start(self._history)
         if self._pending is not None:
-            self._requests.put(self._pending.model_dump(mode="json"))
+            self._send(self._pending)
 
     @functools.cached_property
     def _fallback_engine(self) -> Any:  # scipy.stats.qmc.Sobol

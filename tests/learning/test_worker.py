@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import signal
 import time
+from pathlib import Path
 
 import pytest
 
@@ -23,7 +24,9 @@ def client():
                            schedule=BatchSchedule(n_initial=3, q=3, n_unique=8), seed=11)
     with LearnerClient(config) as handle:
         yield handle
-    assert not handle._process.is_alive()
+        last = handle.pid
+    # ended and released at close (its pipes and process handle too: tests/session/test_open_files)
+    assert handle.pid is None and last is not None and not Path(f"/proc/{last}").exists()
 
 
 def wait_until_answered(client: LearnerClient, limit: float = 60.0):

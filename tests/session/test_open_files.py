@@ -6,6 +6,7 @@ screens open, which also watches memory, is benchmarks/serve_soak.py.)"""
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 from pathlib import Path
 
@@ -47,9 +48,10 @@ def test_ended_sessions_leave_no_open_file_behind(tmp_path: Path) -> None:
     """Each participant opens its database and lock file, a rig process with its pipe and shared
     memory, LSL outlets, a learner worker; after the first (which also starts what lives as long as
     the application: the learner's forkserver, the rig's helpers), ending a session must close what
-    it opened. (Four sessions with a learner each: 40-90 s on two loaded cores.)"""
+    it opened, by its own close, not by the garbage collector later. (Four sessions with a learner each: 40-90 s on two loaded cores.)"""
     runner = SessionRunner(tmp_path / "study", LAB, auto_experimenter=True)
     probe = Probe(runner)
+    gc.disable()  # what only the garbage collector would release is not released by the close
     try:
         one_session(runner, probe, "F00")
         before = open_fds()
@@ -57,6 +59,7 @@ def test_ended_sessions_leave_no_open_file_behind(tmp_path: Path) -> None:
             one_session(runner, probe, f"F{n:02d}")
         after = open_fds()
     finally:
+        gc.enable()
         runner.close()
     opened = {fd: what for fd, what in after.items() if before.get(fd) != what}
     assert len(after) <= len(before), (f"{len(after) - len(before)} more open after "
