@@ -175,6 +175,7 @@ def warm_up(start_method: str = START_METHOD) -> threading.Thread:
         child = context.Process(target=_ready, name="handover-learner-warm-up", daemon=True)
         child.start()
         child.join()
+        child.close()  # its two pipes to the forkserver, now rather than when it is collected
 
     thread = threading.Thread(target=fork_one, name="learner-warm-up", daemon=True)
     thread.start()
