@@ -15,6 +15,15 @@ import warnings
 
 #: How many times a test starts the trial it needs before it fails.
 TRIAL_ATTEMPTS = 3
+#: What the rig says when the machine starved it (its own words): the stand-in controller sent no
+#: state for STATE_SILENCE_S, or the hand's samples grew older than the staleness limit. Only
+#: these are repeated; any other end of the trial is the test's to judge.
+STARVED = ("sent no new state", "no valid hand sample")
+
+
+def starved(reason: str | None) -> bool:
+    """Whether a trial that ended for ``reason`` was ended by a starved machine (:data:`STARVED`)."""
+    return reason is not None and any(words in reason for words in STARVED)
 
 
 class MachineEndedTrial(UserWarning):

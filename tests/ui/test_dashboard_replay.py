@@ -30,7 +30,7 @@ from support.browser import (
     what_it_showed,
 )
 from support.engine import SHORT_PROTOCOL
-from support.runner import READY_CEILING_S, Probe, busy_threads, completed_trial, ready
+from support.runner import READY_CEILING_S, Probe, busy_threads, ready, run_trial
 from support.waiting import wait_for
 
 from app.protocol.errors import RefusedAction
@@ -94,7 +94,8 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
     try:
         runner.set_auto(True)  # the simulated participant places it (no tablet needed: simulated rig)
         runner.open("P01", Scenario.PERTURBED)
-        trial = completed_trial(runner, probe)  # repeated if the machine's load aborted it
+        trial = run_trial(runner, probe)  # repeated if the machine starved it
+        assert trial.outcome.value == "completed", f"trial {trial.trial_index}: {trial.reason}"
         probe.wait(ready, what="the next θ", timeout=READY_CEILING_S)
         store = ParticipantStore.open(runner.study, "P01")
         try:

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from support.hand_replay import TRACKER, Replay
 from support.priority import REALTIME_CLI, realtime_threads
-from support.repeats import TRIAL_ATTEMPTS, all_ended, note_repeat
+from support.repeats import TRIAL_ATTEMPTS, all_ended, note_repeat, starved
 from support.ur import (
     MOVEL,
     SERVO_STOP,
@@ -87,18 +87,27 @@ def hand(config: ControllerConfig, seed: int = 0) -> SimulatedHand:
 @pytest.mark.slow
 def test_full_handover_from_the_cli_targets_follow_the_dmp_within_1mm(tmp_path):
     samples = tmp_path / "samples.npz"
-    with standin() as ur:
-        control = ur.control
-        run = subprocess.run(
-            [*REALTIME_CLI, "simulate-trial", "--arm", "ur", "--ur-host", ur.host,
-             "--scenario", "perturbed", "--theta", "5,-0.2,15", "--seed", "2", "--json",
-             "--samples", str(samples)],
-            capture_output=True, text=True, timeout=300)  # a ceiling for a hung run, not a measure
-        assert run.returncode == 0, run.stderr
-        summary = json.loads(run.stdout)
-        received = servo_targets_once_stopped(control)
-        sequence = commands(control)
-        state = control("state")
+    reasons = []
+    for _ in range(TRIAL_ATTEMPTS):  # a fresh stand-in each: its record is the run's
+        with standin() as ur:
+            control = ur.control
+            run = subprocess.run(
+                [*REALTIME_CLI, "simulate-trial", "--arm", "ur", "--ur-host", ur.host,
+                 "--scenario", "perturbed", "--theta", "5,-0.2,15", "--seed", "2", "--json",
+                 "--samples", str(samples)],
+                capture_output=True, text=True, timeout=300)  # a ceiling for a hung run
+            if run.returncode != 0 and starved(run.stderr):
+                reasons.append(run.stderr.strip().splitlines()[-1])
+                note_repeat("simulate-trial", reasons[-1])
+                continue
+            assert run.returncode == 0, run.stderr
+            summary = json.loads(run.stdout)
+            received = servo_targets_once_stopped(control)
+            sequence = commands(control)
+            state = control("state")
+            break
+    else:
+        raise all_ended("simulate-trial", reasons)
     assert summary["outcome"] == "completed" and summary["rate_hz"] == 125
     data = np.load(samples)
     dmp_path = data["x"][np.isfinite(data["commanded"][:, 0])]
@@ -183,13 +192,22 @@ def cycles_after(record, targets: int) -> int:
 
 def assert_recovers_for_the_next_trial(control: ControlClient, config: ControllerConfig,
                                       arm: URArm) -> None:
-    arm.recover()
-    assert arm.state is ArmState.IDLE
-    second = arm_trial(config, THETA, hand(config, 1), arm)
-    state = control("state")
-    assert second.summary.outcome is Outcome.COMPLETED, (
-        f"{second.summary.reason}; the stand-in's longest gap between cycles "
-        f"{state['longest_gap_s']:.3f} s, its last events {state['events'][-5:]}")
+    """recover() clears the fault and the next trial completes (repeated, recovered again, while
+    the machine starves it: support.repeats)."""
+    reasons = []
+    for _ in range(TRIAL_ATTEMPTS):
+        arm.recover()
+        assert arm.state is ArmState.IDLE
+        second = arm_trial(config, THETA, hand(config, 1), arm)
+        state = control("state")
+        reason = (f"{second.summary.reason}; the stand-in's longest gap between cycles "
+                  f"{state['longest_gap_s']:.3f} s, its last events {state['events'][-5:]}")
+        if not starved(second.summary.reason):
+            assert second.summary.outcome is Outcome.COMPLETED, reason
+            return
+        reasons.append(reason)
+        note_repeat("the trial after recover()", reason)
+    raise all_ended("the trial after recover()", reasons)
 
 
 @pytest.mark.slow
