@@ -10,7 +10,13 @@ so the run is ``%n`` — ``task`` %b, ``run`` %n/%r, ``participant`` %p, ``sessi
 stream, resolves the streams on the network (1 s) and records them all with LabRecorder's own
 engine (the ``labrecorder`` package) into root/template, moving an existing file aside to ``_old1``; ``stop``
 ends the recording. ``silent = True`` makes the faulty recorder the session must catch: it answers
-OK to everything and records nothing.
+OK to everything and records nothing. ``sees`` narrows "the network" to the streams its owner
+lets it see (a test's own, while other tests' streams come and go on the same machine).
+
+The engine records in a process of its own (:func:`_record`): destroying it joins its threads while
+it holds the interpreter lock, and a thread stuck on a stream that vanished froze every thread of
+the process that held it (a test run, for good); a recording that does not close within
+``CLOSE_S`` is killed (the file keeps what was written, without footers).
 
     python -m robot_io.standins.labrecorder_rcs [--port 22345] [--silent]
 """
@@ -18,14 +24,24 @@ OK to everything and records nothing.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
+import multiprocessing
 import re
 import socketserver
 import threading
 import time
+from collections.abc import Callable
+from multiprocessing.connection import Connection
 from pathlib import Path
-from typing import Any
 
 import pylsl
+
+log = logging.getLogger(__name__)
+
+#: How long a recording may take to close its file after ``stop`` [s] (the engine joins its
+#: clock-offset threads, up to 5 s each) before it is killed.
+CLOSE_S = 15.0
 
 OPTION = re.compile(r"{(?P<option>\w+?):(?P<value>[^}]*)}")
 #: LabRecorder's BIDS template, used until a ``template`` option replaces it.
@@ -35,13 +51,15 @@ BIDS_TEMPLATE = "sub-%p/ses-%s/%m/sub-%p_ses-%s_task-%b[_acq-%a]_run-%r_%m.xdf"
 class StandInLabRecorder:
     """LabRecorder's state behind its remote control (the GUI's fields)."""
 
-    def __init__(self, silent: bool = False, echo: bool = False) -> None:
+    def __init__(self, silent: bool = False, echo: bool = False,
+                 sees: Callable[[pylsl.StreamInfo], bool] | None = None) -> None:
         self.silent, self.echo = silent, echo  # echo: print each command with its Unix time
+        self.sees = sees  # None: every stream on the network, as LabRecorder's list
         self.fields = {"root": "", "template": BIDS_TEMPLATE, "task": "Default", "run": "1",
                        "participant": "P001", "session": "S001", "acquisition": "", "modality": "eeg"}
         self.bids = True
         self.lines: list[str] = []  # every command received, in order
-        self.recording: Any = None
+        self.recording: Recording | None = None
         self.path: Path | None = None
         self._lock = threading.Lock()
 
@@ -75,8 +93,6 @@ class StandInLabRecorder:
     def _start(self) -> None:
         if self.recording is not None or self.silent:
             return
-        import labrecorder  # LabRecorder's engine (the 'record' extra)
-
         path = self.filename()
         if path.exists():
             index = 1
@@ -84,13 +100,54 @@ class StandInLabRecorder:
                 index += 1
             path.rename(aside)
         path.parent.mkdir(parents=True, exist_ok=True)
-        streams = pylsl.resolve_streams(1.0)  # a remote start selects every stream first
-        self.path, self.recording = path, labrecorder.Recording(str(path), streams)
+        streams = [info for info in pylsl.resolve_streams(1.0)  # a start selects every stream
+                   if self.sees is None or self.sees(info)]
+        self.path, self.recording = path, Recording(path, streams)
 
     def _stop(self) -> None:
         if self.recording is not None:
-            self.recording.stop()
-            self.recording = None  # destroyed: the engine writes the footers and closes the file
+            self.recording.close()
+            self.recording = None
+
+
+class Recording:
+    """LabRecorder's engine recording ``streams`` into ``path`` in a process of its own (spawned);
+    :meth:`close` stops it and waits until the file is closed (killed after ``CLOSE_S``)."""
+
+    def __init__(self, path: Path, streams: list[pylsl.StreamInfo]) -> None:
+        context = multiprocessing.get_context("spawn")
+        self._conn, child = context.Pipe()
+        self.process = context.Process(target=_record, name="labrecorder-standin-engine",
+                                       args=(str(path), [info.as_xml() for info in streams], child),
+                                       daemon=True)
+        self.process.start()
+        child.close()
+        self._conn.recv()  # recording (or EOFError: the engine could not start)
+
+    def close(self) -> None:
+        with contextlib.suppress(OSError):  # it ended already
+            self._conn.send("stop")
+        self.process.join(CLOSE_S)
+        if self.process.is_alive():
+            log.error("the stand-in's recording did not close its file within %g s: killed",
+                      CLOSE_S)
+            self.process.kill()
+            self.process.join()
+        self._conn.close()
+        self.process.close()
+
+
+def _record(path: str, streams: list[str], conn: Connection) -> None:
+    """The engine's process: record until told to stop (or the pipe closes), then close the file
+    (the engine writes its footers as it is destroyed)."""
+    import labrecorder  # LabRecorder's engine (the 'record' extra)
+
+    recording = labrecorder.Recording(path, streams)
+    conn.send("recording")
+    with contextlib.suppress(EOFError):  # the stand-in has gone: stop as told
+        conn.recv()
+    recording.stop()
+    del recording
 
 
 class _Handler(socketserver.StreamRequestHandler):

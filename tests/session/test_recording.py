@@ -178,10 +178,14 @@ def test_a_file_that_stops_growing_while_a_trial_streams_is_warned_about(tmp_pat
 
 @pytest.fixture
 def stand_in():
+    """Start a stand-in LabRecorder that sees only the test's own ``streams`` (the other tests'
+    streams come and go on this machine) and records them; every one is closed afterwards."""
     servers = []
 
-    def start(silent: bool = False) -> RemoteControl:
-        servers.append(RemoteControl(StandInLabRecorder(silent)))
+    def start(*streams: LabStream, silent: bool = False) -> RemoteControl:
+        ours = {stream.source_id for stream in streams}
+        servers.append(RemoteControl(StandInLabRecorder(
+            silent, sees=lambda info: info.source_id() in ours)))
         return servers[-1]
 
     yield start
@@ -195,7 +199,8 @@ def _rcs(port: int, tmp_path: Path, stream: LabStream) -> SessionRecording:
 
 
 def test_labrecorder_over_its_remote_control_records_the_study_file(tmp_path, stand_in):
-    server, stream = stand_in(), LabStream(unique("Rcs"))
+    stream = LabStream(unique("Rcs"))
+    server = stand_in(stream)
     recording = _rcs(server.port, tmp_path, stream)
     stream.push(50)
     recording.close()
@@ -211,7 +216,8 @@ def test_labrecorder_over_its_remote_control_records_the_study_file(tmp_path, st
 def test_a_labrecorder_left_recording_by_a_crashed_session_records_the_next_run(tmp_path, stand_in):
     """A session killed leaves the lab's LabRecorder recording its run (nobody sent stop), and a
     LabRecorder that records ignores start: the next run's start stops it first."""
-    server, stream = stand_in(), LabStream(unique("Crashed"))
+    stream = LabStream(unique("Crashed"))
+    server = stand_in(stream)
     first = _rcs(server.port, tmp_path, stream)
     first._stopping.set()  # the session dies: its recording is never closed
     second = _rcs(server.port, tmp_path, stream)
@@ -221,7 +227,8 @@ def test_a_labrecorder_left_recording_by_a_crashed_session_records_the_next_run(
 
 
 def test_a_recorder_that_answers_ok_and_writes_nothing_is_caught_at_the_start(tmp_path, stand_in):
-    server, stream = stand_in(silent=True), LabStream(unique("Silent"))
+    stream = LabStream(unique("Silent"))
+    server = stand_in(stream, silent=True)
     began = time.monotonic()
     with pytest.raises(RecorderError, match=r"LabRecorder answered OK, but no file .* appeared "
                                             r"within 4 s: the session is not being recorded"):
