@@ -12,6 +12,10 @@ fails the test with every reason.
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
+from typing import TypeVar
+
+T = TypeVar("T")
 
 #: How many times a test starts the trial it needs before it fails.
 TRIAL_ATTEMPTS = 3
@@ -30,13 +34,20 @@ class MachineEndedTrial(UserWarning):
     """A trial a test needed was ended by the machine's load and started again."""
 
 
-def note_repeat(what: str, reason: str) -> None:
-    """Say in the suite's warnings summary that ``what`` ended for ``reason`` and is repeated."""
-    warnings.warn(MachineEndedTrial(f"{what} ended before its subject ({reason}): repeated"),
-                  stacklevel=3)
-
-
-def all_ended(what: str, reasons: list[str]) -> AssertionError:
-    """The failure of a test whose every attempt at ``what`` was ended (``reasons``, in order)."""
-    return AssertionError(f"{what}: all {len(reasons)} attempts ended before their subject: "
-                          + "; ".join(f"{i}. {r}" for i, r in enumerate(reasons, 1)))
+def unless_starved(what: str, attempt: Callable[[], tuple[T, str | None]],
+                   attempts: int = TRIAL_ATTEMPTS) -> T:
+    """``attempt()`` until it gives no reason to repeat it, and what it gave then: it returns its
+    result and None (the test judges the result), or a reason to repeat (the machine ended
+    ``what`` first: it has already recovered for the next attempt). Each repeat is a
+    :class:`MachineEndedTrial` warning in the suite's summary; after ``attempts`` the test fails
+    naming every reason."""
+    reasons = []
+    for _ in range(attempts):
+        result, repeat = attempt()
+        if repeat is None:
+            return result
+        reasons.append(repeat)
+        warnings.warn(MachineEndedTrial(f"{what} ended before its subject ({repeat}): repeated"),
+                      stacklevel=2)
+    raise AssertionError(f"{what}: all {len(reasons)} attempts ended before their subject: "
+                         + "; ".join(f"{i}. {r}" for i, r in enumerate(reasons, 1)))

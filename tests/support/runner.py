@@ -13,7 +13,7 @@ from app.session.config import LabConfig
 from app.session.runner import PLAN_TIMEOUT_S, RunnerView, SessionRunner
 from session_store.models import Trial
 from support.engine import SESSION_CONTROLLER
-from support.repeats import TRIAL_ATTEMPTS, all_ended, note_repeat, starved
+from support.repeats import TRIAL_ATTEMPTS, starved, unless_starved
 from support.waiting import CEILING_S, WaitTimeout
 
 
@@ -109,18 +109,18 @@ def run_trial(runner: SessionRunner, probe: Probe, attempts: int = TRIAL_ATTEMPT
     """Start a trial and return it once ended; a trial the starved machine aborted
     (support.repeats) is recovered from as an experimenter would (Recover when the arm has a fault
     or the rig ended) and started again, at most ``attempts`` times."""
-    reasons = []
-    for _ in range(attempts):
+
+    def attempt() -> tuple[Trial, str | None]:
         probe.wait(ready, what="ready for a trial", timeout=READY_CEILING_S)
         index = runner.start_trial().trial_index
-        view = probe.wait(lambda v, i=index: ended(v, i) is not None, what=f"trial {index} ended",
+        view = probe.wait(lambda v: ended(v, index) is not None, what=f"trial {index} ended",
                           timeout=CEILING_S + READY_CEILING_S)
         trial = ended(view, index)
         assert trial is not None and trial.outcome is not None
         if trial.outcome.value == "completed" or not starved(trial.reason):
-            return trial  # the test judges any other end
-        reasons.append(f"trial {index} {trial.outcome.value}: {trial.reason}")
-        note_repeat(f"trial {index}", reasons[-1])
+            return trial, None  # the test judges any other end
         if view.arm_fault or runner.rig is None or not runner.rig.alive:
             runner.recover_arm(inspected=True)
-    raise all_ended("a trial the machine did not starve", reasons)
+        return trial, f"trial {index} {trial.outcome.value}: {trial.reason}"
+
+    return unless_starved("a trial", attempt, attempts)

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from support.hand_replay import TRACKER, Replay
 from support.priority import REALTIME_CLI, realtime_threads
-from support.repeats import TRIAL_ATTEMPTS, all_ended, note_repeat, starved
+from support.repeats import starved, unless_starved
 from support.ur import (
     MOVEL,
     SERVO_STOP,
@@ -87,8 +87,8 @@ def hand(config: ControllerConfig, seed: int = 0) -> SimulatedHand:
 @pytest.mark.slow
 def test_full_handover_from_the_cli_targets_follow_the_dmp_within_1mm(tmp_path):
     samples = tmp_path / "samples.npz"
-    reasons = []
-    for _ in range(TRIAL_ATTEMPTS):  # a fresh stand-in each: its record is the run's
+
+    def attempt():  # a fresh stand-in each: its record is the run's
         with standin() as ur:
             control = ur.control
             run = subprocess.run(
@@ -97,17 +97,12 @@ def test_full_handover_from_the_cli_targets_follow_the_dmp_within_1mm(tmp_path):
                  "--samples", str(samples)],
                 capture_output=True, text=True, timeout=300)  # a ceiling for a hung run
             if run.returncode != 0 and starved(run.stderr):
-                reasons.append(run.stderr.strip().splitlines()[-1])
-                note_repeat("simulate-trial", reasons[-1])
-                continue
+                return None, run.stderr.strip().splitlines()[-1]
             assert run.returncode == 0, run.stderr
-            summary = json.loads(run.stdout)
-            received = servo_targets_once_stopped(control)
-            sequence = commands(control)
-            state = control("state")
-            break
-    else:
-        raise all_ended("simulate-trial", reasons)
+            return (json.loads(run.stdout), servo_targets_once_stopped(control),
+                    commands(control), control("state")), None
+
+    summary, received, sequence, state = unless_starved("simulate-trial", attempt)
     assert summary["outcome"] == "completed" and summary["rate_hz"] == 125
     data = np.load(samples)
     dmp_path = data["x"][np.isfinite(data["commanded"][:, 0])]
@@ -130,19 +125,20 @@ def aborted_by(control: ControlClient, config: ControllerConfig, arm: URArm, fau
     A trial that ended before the injection (the machine's load starved the stand-in: "no new
     state" with nothing injected) says nothing about the fault: the arm is recovered and the trial
     run again (support.repeats)."""
-    reasons = []
-    for attempt in range(TRIAL_ATTEMPTS):
+
+    def attempt():
         record, injected = _injected_trial(control, config, arm, fault, after_targets, arguments)
         if injected:
-            assert record.summary.outcome is Outcome.ARM_FAULT, record.summary.reason
-            assert reason in record.summary.reason
-            return record, injected["at"], injected["targets"]
-        reasons.append(f"attempt {attempt + 1}: {record.summary.outcome.value} "
-                       f"({record.summary.reason}) before {after_targets} targets")
-        note_repeat(f"the trial for the injected {fault!r}", reasons[-1])
+            return (record, injected), None
         if arm.state is ArmState.FAULT:
             arm.recover()
-    raise all_ended(f"a trial with {fault!r} injected", reasons)
+        return None, (f"{record.summary.outcome.value} ({record.summary.reason}) before "
+                      f"{after_targets} targets")
+
+    record, injected = unless_starved(f"the trial for the injected {fault!r}", attempt)
+    assert record.summary.outcome is Outcome.ARM_FAULT, record.summary.reason
+    assert reason in record.summary.reason
+    return record, injected["at"], injected["targets"]
 
 
 def _injected_trial(control: ControlClient, config: ControllerConfig, arm: URArm, fault: str,
@@ -194,20 +190,18 @@ def assert_recovers_for_the_next_trial(control: ControlClient, config: Controlle
                                       arm: URArm) -> None:
     """recover() clears the fault and the next trial completes (repeated, recovered again, while
     the machine starves it: support.repeats)."""
-    reasons = []
-    for _ in range(TRIAL_ATTEMPTS):
+
+    def attempt():
         arm.recover()
         assert arm.state is ArmState.IDLE
         second = arm_trial(config, THETA, hand(config, 1), arm)
         state = control("state")
         reason = (f"{second.summary.reason}; the stand-in's longest gap between cycles "
                   f"{state['longest_gap_s']:.3f} s, its last events {state['events'][-5:]}")
-        if not starved(second.summary.reason):
-            assert second.summary.outcome is Outcome.COMPLETED, reason
-            return
-        reasons.append(reason)
-        note_repeat("the trial after recover()", reason)
-    raise all_ended("the trial after recover()", reasons)
+        return (second, reason), (reason if starved(second.summary.reason) else None)
+
+    second, reason = unless_starved("the trial after recover()", attempt)
+    assert second.summary.outcome is Outcome.COMPLETED, reason
 
 
 @pytest.mark.slow
