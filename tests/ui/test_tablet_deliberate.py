@@ -27,6 +27,7 @@ from support.browser import (
     tablet_screen,
     tap,
     touch_drag_to,
+    wait_enabled,
     wait_gone,
     wait_text,
 )
@@ -95,6 +96,10 @@ def test_double_taps_store_one_answer_and_confirm_needs_a_move(tmp_path: Path) -
         assert tablet_screen(tablet, not_="Q1") == "Q2"
         settle()
         tap(tablet, "Maybe")
+        # the choice taken (Next enabled) before Back: a tap while the server still handles the
+        # page's previous input is dropped by design (app/ui/tablet.py _input), as a loaded run
+        # showed (Back 50 ms after Maybe, ignored)
+        wait_enabled(tablet, "Next")
         # Back and Next again: Q2 keeps its "Maybe" (issue 45, item 13: it came back empty)
         tap(tablet, "‹ Back")
         assert tablet_screen(tablet, not_="Q2") == "Q1"
