@@ -210,3 +210,5 @@ class Rehearsal:
         except subprocess.TimeoutExpired:
             self.standin.kill()
             self.standin.wait(5)
+        if self.standin.stdout:
+            self.standin.stdout.close()  # its pipe now, not when the garbage collector gets to it

@@ -59,7 +59,7 @@ class LabRecorder:
         """The file, once the recorder has closed it (it first ends its clock-offset measurement:
         up to ~5 s of wall time, no CPU)."""
         code = self.process.wait(CEILING_S)
-        self._reader.join(CEILING_S)
+        self._close_pipes()
         assert code == 0, f"LabRecorderCLI exited with {code}: {self.output()}"
         return self.path
 
@@ -67,3 +67,12 @@ class LabRecorder:
         if self.process.poll() is None:
             self.process.kill()
             self.process.wait()
+        self._close_pipes()
+
+    def _close_pipes(self) -> None:
+        """Once it has ended: the reader has read its last line; both pipes are closed here (left
+        to the garbage collector, one raised ResourceWarning inside another test's warning check)."""
+        self._reader.join(CEILING_S)
+        for pipe in (self.process.stdin, self.process.stdout):
+            if pipe is not None and not pipe.closed:
+                pipe.close()
