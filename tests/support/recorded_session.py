@@ -16,7 +16,6 @@ from datetime import datetime
 from pathlib import Path
 
 import numpy as np
-import pylsl
 import pyxdf
 
 from app.analysis.xdf import WINDOW_S
@@ -29,7 +28,7 @@ from robot_io.hands.simulated_hand import Scenario
 from session_store.models import Event
 from session_store.sample_rows import stored_rows
 from session_store.store import ParticipantStore
-from support.clocks import utc_minus
+from support.clocks import ClockWatch, offsets_around, wall_clock_steps
 from support.lab_recorder import LabRecorder
 from support.pupil import PupilTracker
 from support.runner import Probe
@@ -43,6 +42,9 @@ PROTOCOL = {"initial_trials": 2, "batch_size": 2, "learning_batches": 0, "withou
             "best_trials": 0, "validation_batches": 0}
 RATE_HZ = 125
 CODE = "L01"
+#: How long after an event its marker can have been pushed [s]: the product maps the stored time
+#: onto the LSL clock then, through the wall clock's offset of that moment.
+PUSHED_WITHIN_S = 5.0
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,7 @@ class RecordedSession:
     pupil: str
     xdf: Path  # the suite's recorder's file
     labrecorder: Path  # LabRecorder's file (without its last pull interval)
+    offsets: np.ndarray  # UTC − monotonic through the session: (monotonic, offset) rows (ClockWatch)
 
 
 def run_trials(runner: SessionRunner, probe: Probe, interactions: int) -> None:
@@ -98,6 +101,7 @@ def record_session(folder: Path, protocol: dict = PROTOCOL, pupil_spread: float 
     probe = Probe(runner)
     runner.set_auto(True)
     tracker = theirs = None
+    watch = ClockWatch()
     try:
         runner.open(CODE, Scenario.STRAIGHTFORWARD, seed=4)  # the outlets open with the participant
         tracker = PupilTracker(pupil, robot, pupil_spread, pupil_noise_mm)
@@ -134,7 +138,9 @@ def record_session(folder: Path, protocol: dict = PROTOCOL, pupil_spread: float 
         if tracker is not None:
             tracker.close()
         runner.close()
-    return RecordedSession(folder / "study", CODE, RATE_HZ, markers, robot, pupil, xdf, labrecorder)
+        offsets = watch.stop()
+    return RecordedSession(folder / "study", CODE, RATE_HZ, markers, robot, pupil, xdf, labrecorder,
+                           offsets)
 
 
 @dataclass(frozen=True)
@@ -144,6 +150,7 @@ class Agreement:
     stored: list[Event]  # the marked events, in the order of the events table
     recorded: list[dict]  # the markers, in the order of the recording
     marker_error_s: float  # max |marker time − its event's stored time (mapped onto the LSL clock)|
+    clock_steps: list[tuple[float, float]]  # (monotonic, step [s]) of the wall clock in the session
     robot_counts: dict[int, tuple[int, int]]  # trial → (samples recorded, sample rows stored)
     robot_error_s: float  # max |robot sample time − (its trial's go marker + its stored t)|
     robot_equal: bool  # every recorded robot sample holds its stored row's values
@@ -157,20 +164,22 @@ def named(streams: list[dict], name: str) -> dict:
 
 def agreement(session: RecordedSession) -> Agreement:
     """Compare the recording with the participant's database (the offset between the stored rows'
-    UTC times and the LSL clock is taken here, independently of the product's mapping)."""
+    UTC times and the LSL clock is the one a :class:`ClockWatch` saw when the marker was pushed,
+    measured independently of the product's mapping)."""
     store = ParticipantStore.open(session.study, session.code)
     try:
         stored = [e for e in store.events() if e.kind in MARKED]
     finally:
         store.close()
     rows = stored_samples(session.study, session.code)
-    offset = utc_minus(pylsl.local_clock)  # one reading of each was 8 ms off beside a hog
     streams, _ = pyxdf.load_xdf(session.xdf, dejitter_timestamps=False)
     markers, robot = named(streams, session.markers), named(streams, session.robot)
     recorded = [decode(m[0]) for m in markers["time_series"]]
-    stored_at = np.array([datetime.fromisoformat(e.at).timestamp() - offset for e in stored])
-    marker_error = (float(np.abs(markers["time_stamps"] - stored_at).max())
-                    if len(stored_at) == len(recorded) else math.inf)
+    utc = [datetime.fromisoformat(e.at).timestamp() for e in stored]
+    marker_error = (max(float(np.abs(stamp - (at - offsets_around(session.offsets, stamp,
+                                                                  PUSHED_WITHIN_S))).min())
+                        for stamp, at in zip(markers["time_stamps"], utc, strict=True))
+                    if len(utc) == len(recorded) else math.inf)
     go = {m["trial"]: stamp for m, stamp in zip(recorded, markers["time_stamps"], strict=True)
           if m["event"] == "go"}
     series, stamps = robot["time_series"], robot["time_stamps"]
@@ -187,5 +196,6 @@ def agreement(session: RecordedSession) -> Agreement:
         equal = equal and np.array_equal(series[mask, 1:], expected, equal_nan=True)
         steps.extend(np.diff(stamps[mask]))
     theirs, _ = pyxdf.load_xdf(session.labrecorder)
-    return Agreement(stored, recorded, marker_error, counts, robot_error, equal,
-                     1.0 / float(np.median(steps)), len(named(theirs, session.markers)["time_series"]))
+    return Agreement(stored, recorded, marker_error, wall_clock_steps(session.offsets), counts,
+                     robot_error, equal, 1.0 / float(np.median(steps)),
+                     len(named(theirs, session.markers)["time_series"]))
