@@ -31,6 +31,8 @@ def test_the_papers_validation_scores_give_its_p_value():
 
 
 def test_pilot_power_matches_a_direct_computation_from_its_rows(tmp_path, capsys):
+    """Slow: the power curve needs studies of participants: 3 studies × 2 scenarios × 3 simulated
+    participants, each learning with the real learner, the smallest pilot with a curve to check."""
     out = tmp_path / "pilot"
     args = ["pilot", "--studies", "3", "--participants", "3", "--scenarios", "2",
             "--noise", "0.2", "--initial", "3", "--batches", "1", "--batch-size", "3",

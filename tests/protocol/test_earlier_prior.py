@@ -40,6 +40,8 @@ def final_snapshot(study, code: str) -> LearnerSnapshot:
 
 
 def test_the_prior_comes_from_completed_participants_of_the_scenario_and_is_recorded(tmp_path):
+    """Slow: a prior needs completed participants: three whole sessions with the real learner (each
+    batch a BoTorch fit), one half session, then the participant whose prior is checked."""
     study = tmp_path / "study"
     complete(study, "P01", seed=1)  # the first participant: nobody earlier, no prior
     complete(study, "P02", seed=2)

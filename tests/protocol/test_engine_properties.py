@@ -210,4 +210,5 @@ SessionMachine.TestCase.settings = settings(max_examples=MAX_EXAMPLES, stateful_
 
 @pytest.mark.slow
 class TestSessionEngine(SessionMachine.TestCase):
-    pass
+    """Slow: MAX_EXAMPLES sessions of up to STEPS steps, each step a real trial of the mock arm or a
+    learner's batch, a kill and a reopening from the file; the invariants replay the file each step."""

@@ -389,11 +389,12 @@ def confirm_placement(tablet: Page) -> float:
     return time.perf_counter() - began  # reported (benchmarks/ui_latency.py), never asserted
 
 
-def open_participant(dashboard: Page, code: str, scenario: str = "perturbed") -> None:
+def open_participant(dashboard: Page, code: str, scenario: str = "straightforward") -> None:
     """Unlock the dashboard if it is locked, then create or resume ``code``, with ``scenario``
     when the Scenario field has none yet (no study plan proposed one; a resumed session keeps its
-    own). Waits until the page shows either state (the token prompt or the participant's Code
-    field) and acts on what came: a page read once before it rendered would look unlocked."""
+    own; straightforward by default: its handovers take half as long as the perturbed one's).
+    Waits until the page shows either state (the token prompt or the participant's Code field) and
+    acts on what came: a page read once before it rendered would look unlocked."""
     if dashboard_state(dashboard) == "locked":
         unlock_dashboard(dashboard)
     fill(dashboard, "Code", code)

@@ -7,6 +7,7 @@ states, never assert a time), and the list is read where the 25 slowest tests ar
 
 from __future__ import annotations
 
+import unittest
 from collections import defaultdict
 
 import pytest
@@ -32,7 +33,11 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
     outcome = yield
     if call.when == "teardown":
         function = getattr(item, "function", None)
-        documented = bool(function is not None and (function.__doc__ or "").strip())
+        # a unittest-style test (Hypothesis's state machines) says it in its class's docstring
+        cls = getattr(item, "cls", None)
+        doc = (getattr(function, "__doc__", None) or "").strip() or (
+            (cls.__doc__ or "").strip() if cls and issubclass(cls, unittest.TestCase) else "")
+        documented = bool(doc)
         outcome.get_result().user_properties.append((KEY, documented))
 
 

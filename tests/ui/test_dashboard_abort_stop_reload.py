@@ -39,6 +39,8 @@ pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 
 def test_dashboard_abort_stop_and_reload(tmp_path: Path) -> None:
+    """Slow: four trials through `handover serve` (one aborted, one stopped while it waits for Go,
+    two run on the wall clock and placed), a reload of both pages, and the learner's first model."""
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
         dashboard, tablet = open_screens(browser, served)

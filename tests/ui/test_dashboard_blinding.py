@@ -54,6 +54,8 @@ def learner_panel(served, shots: Path, name: str) -> tuple[list[list[str]], str]
 
 
 def test_serve_hides_validation_theta_and_origin_unless_unblind_and_records_both(tmp_path):
+    """Slow: a whole short session with the real learner first (the validation trials whose θ is
+    hidden), then two ``serve`` processes on it, each with Chromium, blind and not."""
     study = tmp_path / "study"
     engine = SessionEngine.create(study, "B01", short_config(seed=4, scenario=Scenario.PERTURBED))
     drive_until(engine, Step.DONE)

@@ -37,6 +37,8 @@ SHOTS = Path("/tmp/dashboard-shots")
 
 
 def test_the_experimenter_enters_placements_for_the_participant(tmp_path: Path) -> None:
+    """Slow: each placement entered on the dashboard follows a handover run on the wall clock, through
+    `handover serve` and both screens in Chromium."""
     with serve(tmp_path) as served, chromium() as browser:
         dashboard, tablet = open_screens(browser, served)
         open_participant(dashboard, "P01")

@@ -54,6 +54,8 @@ def wait_first_plan(dashboard: Page) -> None:
 
 
 def test_eight_participants_created_as_the_plan_proposes_make_balanced_groups(tmp_path: Path):
+    """Slow: eight participants created one after the other on the dashboard, each opened (its
+    learner process and first plan) and ended, as the plan's counts need."""
     proposed = [PLAN.proposal(n).proposed.value for n in range(1, 9)]
     with serve(tmp_path, protocol_toml=BRIEF_TOML, tables=PLAN_TOML) as served, \
             chromium() as browser:

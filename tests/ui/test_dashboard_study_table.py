@@ -56,10 +56,10 @@ def test_the_study_table_reads_apart_and_reopening_resumes(tmp_path: Path) -> No
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
         dashboard = open_page(browser, served.dashboard_url, size=(1280, 720))
-        open_participant(dashboard, "P01")
+        open_participant(dashboard, "P01", "perturbed")  # the longer word: the cells stay apart
         click(dashboard, "End session")
         wait_text(dashboard, "No participant open")
-        open_participant(dashboard, "P02")
+        open_participant(dashboard, "P02", "perturbed")
         wait_text(dashboard, "ended early")
         rows = cells_apart(dashboard)
         assert [c["text"] for c in rows[1][:4]] == ["P01", "perturbed", "0 of 9", "ended early"]

@@ -47,6 +47,9 @@ PROTOCOL = ("initial_trials = 2\nbatch_size = 2\nlearning_batches = 0\nwithout_l
 
 
 def test_double_taps_store_one_answer_and_confirm_needs_a_move(tmp_path: Path) -> None:
+    """Slow: a whole brief session by touch, on the wall clock: two placed handovers, the learned
+    best, the three questions and a validation pair; the pauses between taps (``settle``) let each
+    tap be a separate gesture, as a participant's are."""
     with serve(tmp_path, protocol_toml=PROTOCOL) as served, chromium() as browser:
         dashboard, tablet = open_screens(browser, served)
         open_participant(dashboard, "P01")

@@ -83,6 +83,8 @@ def wait_chosen(tablet: Page, text: str) -> None:
 
 
 def test_a_hint_given_by_touch_is_stored_exported_and_learned(tmp_path: Path) -> None:
+    """Slow: three handovers on the wall clock, each placed by touch and followed by a hint (at two
+    tablet sizes the first), until the real learner plans its first query from them."""
     with serve(tmp_path, protocol_toml=PROTOCOL) as served, chromium() as browser:
         dashboard, tablet = open_screens(browser, served)
         fill(dashboard, "Seed (empty: a fresh random one)", SEED)

@@ -83,6 +83,8 @@ def check_layout(page: Page, width: int, height: int) -> None:
 
 
 def test_kiosk_layouts_with_five_markers_and_the_offline_cover(tmp_path: Path) -> None:
+    """Slow: five markers need five handovers on the wall clock (each one driven from the dashboard
+    and placed by touch), then three layouts are checked and shot, and the server is killed."""
     screens = tmp_path / "screens"
     with serve(tmp_path, protocol_toml=FIVE) as served, chromium() as browser:
         dashboard = open_page(browser, served.dashboard_url, size=(1400, 900))

@@ -61,6 +61,8 @@ def readable(tablet: Page, folder: Path, name: str) -> None:
 
 
 def test_close_markers_and_one_at_the_end_stay_readable(tmp_path: Path) -> None:
+    """Slow: three handovers on the wall clock place the markers whose layout is checked, at four
+    tablet sizes, each with a screenshot."""
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
         dashboard, tablet = open_screens(browser, served)

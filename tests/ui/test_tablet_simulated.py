@@ -34,6 +34,8 @@ NOTHING_TO_ANSWER = {"Please wait", "Go!", "One moment", "Thank you!"}
 
 
 def test_the_tablet_asks_nothing_while_the_simulated_participant_rates(tmp_path: Path) -> None:
+    """Slow: a whole brief session on the wall clock, every handover of it, while the tablet page
+    records every title it shows."""
     with serve(tmp_path, "--auto-participant", protocol_toml=BRIEF_TOML) as served, \
             chromium() as browser:
         dashboard, tablet = open_screens(browser, served)
