@@ -45,7 +45,7 @@ def test_run_session_rehearse_completes_a_session_through_the_standin(tmp_path):
     config = tmp_path / "lab.toml"
     config.write_text(f"[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")
     done = handover("run-session", "--study", str(tmp_path), "--participant", "R01", "--scenario",
-                    "perturbed", "--seed", "5", "--auto", "--rehearse",
+                    "straightforward", "--seed", "5", "--auto", "--rehearse",
                     "--config", str(config), "--json", "--no-progress")
     assert done.returncode == 0, done.stderr[-3000:]
     summary = json.loads(done.stdout.strip().splitlines()[-1])
@@ -291,7 +291,7 @@ def test_a_resume_on_a_different_arm_is_refused_until_the_experimenter_confirms(
     ("natnet", "NatNet rigid body 'hand' (id 1) from Motive (NatNet 3.1"),
 ])
 def test_the_rehearsal_plays_the_hand_over_udp_and_natnet_too(tmp_path, hand, shown):
-    """Slow (about 20 s each): a rehearsal of its own (stand-in UR, the hand over UDP or a stand-in
+    """Slow (about 10 s each alone): a rehearsal of its own (stand-in UR, the hand over UDP or a stand-in
     Motive) and a whole trial on the wall clock."""
     lab = LabConfig.model_validate({"protocol": SHORT_PROTOCOL})
     rehearsal = Rehearsal(lab, hand=hand)
@@ -299,7 +299,7 @@ def test_the_rehearsal_plays_the_hand_over_udp_and_natnet_too(tmp_path, hand, sh
     runner.set_auto(True)
     probe = Probe(runner)
     try:
-        runner.open("U01", Scenario.PERTURBED, seed=6)
+        runner.open("U01", Scenario.STRAIGHTFORWARD, seed=6)
         assert runner.view.hand.startswith(shown), runner.view.hand
         trial = run_trial(runner, probe)  # repeated if the machine starved it
     finally:

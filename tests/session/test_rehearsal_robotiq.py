@@ -27,7 +27,7 @@ def test_run_session_rehearse_drives_a_robotiq_gripper_that_opens_once_per_trial
                       f"[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")
     done = subprocess.run(
         [sys.executable, "-m", "app.cli", "run-session", "--study", str(tmp_path), "--participant",
-         "R01", "--scenario", "perturbed", "--seed", "5", "--auto", "--rehearse",
+         "R01", "--scenario", "straightforward", "--seed", "5", "--auto", "--rehearse",
          "--config", str(config), "--json", "--no-progress"],
         capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr[-3000:]
