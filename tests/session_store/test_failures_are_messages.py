@@ -52,6 +52,8 @@ def stored(path: Path) -> list[tuple]:
 
 @pytest.mark.slow
 def test_a_full_disk_stops_the_session_with_a_message_and_loses_nothing(tmp_path):
+    """Slow: two ``run-session`` processes, each starting its learner (torch, a BoTorch fit per
+    batch): the first runs until the 2 MB disk is full, the second resumes and ends the session."""
     config = tmp_path / "lab.toml"
     config.write_text("[protocol]\n" + "".join(f"{k} = {v}\n" for k, v in SHORT_PROTOCOL.items()))
     command = [sys.executable, "-m", "app.cli", *run_session(tmp_path / "disk" / "study"),
