@@ -60,6 +60,8 @@ def csv(report, name: str) -> pd.DataFrame:
 
 
 def test_tables_ii_iii_match_the_databases(study, report):
+    """Slow as the module's first test: it builds the study the module reads (four short sessions
+    and a fifth stopped, each with the real learner) and its report."""
     scores = pd.concat([csv(report, "table2_straightforward"), csv(report, "table3_perturbed")])
     assert set(csv(report, "table2_straightforward").index) == {"P01", "P02"}
     assert set(csv(report, "table3_perturbed").index) == {"P03", "P04", STOPPED}

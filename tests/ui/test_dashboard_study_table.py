@@ -53,6 +53,8 @@ def cells_apart(dashboard: Page) -> list[list[dict]]:
 
 
 def test_the_study_table_reads_apart_and_reopening_resumes(tmp_path: Path) -> None:
+    """Slow: `handover serve` and Chromium; two participants created (each starting its learner)
+    and one of them opened again."""
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
         dashboard = open_page(browser, served.dashboard_url, size=(1280, 720))

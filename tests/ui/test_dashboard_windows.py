@@ -34,6 +34,8 @@ CONTROLS = "This window controls the session"
 
 def test_a_second_window_is_told_of_the_first_and_takes_control_only_when_asked(
         tmp_path: Path) -> None:
+    """Slow: `handover serve` and two dashboard windows in Chromium, each connecting and drawing,
+    control handed over and back, a stop and a re-arm; no trial runs."""
     screens = tmp_path / "screens"
     with serve(tmp_path) as served, chromium() as browser:
         first = open_page(browser, served.dashboard_url, size=(1280, 720))
