@@ -295,22 +295,37 @@ SCREENS = {"unused": "not in use", "pair": "Connect this tablet", "pairs": "pair
            **{q.id: q.text[:30] for q in QUESTIONS}}
 
 
-def tablet_screen(page: Page, not_: str | tuple[str, ...] = (), timeout_s: float = 90.0,
-                  unused_ok: bool = False) -> str:
-    """Wait until the tablet shows a known screen other than ``not_`` (one name or several);
-    return its name. "Not in use" counts only with ``unused_ok`` (a reloaded page is briefly the
-    second page, until the server has seen the old one close)."""
+def shown_screen(page: Page, not_: str | tuple[str, ...] = (), unused_ok: bool = False
+                 ) -> str | None:
+    """The known screen the tablet shows now if it is not one of ``not_`` (one name or several),
+    else None. "Not in use" counts only with ``unused_ok`` (a reloaded page is briefly the second
+    page, until the server has seen the old one close)."""
     skip = {not_} if isinstance(not_, str) else set(not_)
     if not unused_ok:
         skip.update(("unused", "pair"))
+    text = page.inner_text("body")
+    return next((name for name, marker in SCREENS.items() if marker in text and name not in skip),
+                None)
 
-    def shown() -> str | None:
-        text = page.inner_text("body")
-        return next((name for name, marker in SCREENS.items()
-                     if marker in text and name not in skip), None)
 
-    return wait_for(shown, f"the tablet to show a screen other than {sorted(skip)}",
+def tablet_screen(page: Page, not_: str | tuple[str, ...] = (), timeout_s: float = 90.0,
+                  unused_ok: bool = False) -> str:
+    """Wait until the tablet shows a known screen other than ``not_`` (:func:`shown_screen`);
+    return its name."""
+    return wait_for(lambda: shown_screen(page, not_, unused_ok),
+                    f"the tablet to show a screen other than {not_!r}",
                     timeout=timeout_s, seen=lambda: what_it_showed(page), poll=PAGE_POLL_S)
+
+
+#: A trial's end as the dashboard's Recent events say it (app/session/supervisor.py): "trial 1
+#: aborted: tracker_lost: no valid hand sample for 0.104 s (staleness_limit_s = 0.1)".
+TRIAL_ENDED = r"\btrial {index} (completed|not_taken|aborted)(?:: ([^\n]*))?"
+
+
+def trial_ended(dashboard: Page, index: int) -> tuple[str, str | None] | None:
+    """Trial ``index``'s outcome and reason once the dashboard says it ended; None before."""
+    found = re.search(TRIAL_ENDED.format(index=index), dashboard.inner_text("body"))
+    return None if found is None else (found.group(1), found.group(2))
 
 
 def start_trial(dashboard: Page) -> None:
