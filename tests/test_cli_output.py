@@ -21,6 +21,8 @@ def handover(*arguments: str) -> subprocess.CompletedProcess:
 
 
 def test_an_ascii_terminal_gets_escapes_not_a_failed_command(tmp_path):
+    """Slow (~25 s in a loaded full run): a whole session of the brief protocol and a report, each
+    a fresh `handover` process on an ASCII terminal, as a lab's old terminal would run them."""
     lab = tmp_path / "lab.toml"
     lab.write_text(f"{SESSION_LOOP_TOML}\n[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}")
     study = tmp_path / "study"

@@ -173,6 +173,8 @@ def test_empty_and_unreadable_study_folders_are_errors(tmp_path, capsys):
 
 
 def test_report_command_with_benchmark(study, tmp_path, capsys):
+    """Slow (~20 s in a loaded full run): a small `benchmark-pl` (two trials of preference learning)
+    before the report that cites it."""
     bench = tmp_path / "bench"
     assert main(["benchmark-pl", "--trials", "2", "--queries", "6", "--initial", "3", "--q", "2",
                  "--out", str(bench), "--no-progress"]) == 0

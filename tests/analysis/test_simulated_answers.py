@@ -79,6 +79,8 @@ def text_of(page: str) -> str:
 
 
 def test_learning_csv_counts_who_gave_each_kind_of_answer(study, tmp_path):
+    """Slow (~20 s in a loaded full run) as the module's first test: it pays for the ``study``
+    fixture, four whole sessions of the short protocol, each with its learner process."""
     report = build_report(study, tmp_path)
     table = pd.read_csv(report.tables["learning"]).set_index("participant")
     m01, c01, h01 = table.loc["M01"], table.loc["C01"], table.loc["H01"]

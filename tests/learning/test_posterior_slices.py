@@ -10,6 +10,8 @@ from app.learning.models import Comparison, Interaction, ParameterBox
 
 
 def test_slices_peak_near_the_target_the_comparisons_point_to():
+    """Slow (~20 s in a loaded full run): 25 suggestions of the preference learner, each a fit of
+    the GP and an acquisition optimisation, before the slices are read."""
     box = ParameterBox.from_bounds({"a": (1.0, 10.0), "delta": (-1.0, 1.0), "k": (0.01, 15.0)})
     target = np.array([0.8, 0.25, 0.6])  # in the unit cube
     learner = PreferenceLearner(LearnerConfig(box=box, seed=3))

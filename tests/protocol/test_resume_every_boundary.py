@@ -135,6 +135,8 @@ def _planned_and_snapshots(study: Path) -> tuple[np.ndarray, list[tuple]]:
 
 @pytest.mark.slow
 def test_a_crash_at_every_step_boundary_of_the_protocol_gives_the_uninterrupted_thetas(tmp_path):
+    """Slow (~20 s in a loaded full run): the short protocol twice, once whole and once crashed at
+    every step boundary, each crash restoring a learner process (:func:`_crashes_here`)."""
     config = study_config(21, Scenario.PERTURBED, **SHORT_PROTOCOL | {"validation_batches": 2})
     _run(tmp_path / "whole", config, crash=False)
     crashed = _run(tmp_path / "crashed", config, crash=True)

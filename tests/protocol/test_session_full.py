@@ -23,6 +23,8 @@ def session(tmp_path_factory):
 
 
 def test_all_34_interactions_complete_in_the_papers_phases(session):
+    """Slow (~20 s in a loaded full run) as the module's first test: it pays for the ``session``
+    fixture, a whole session of the paper's 34 interactions with its learner."""
     trials = [t for t in session.store.rows("trials") if t.outcome == "completed"]
     assert len(trials) == 34 and session.state.step is Step.DONE
     by_phase = {phase: sum(t.phase == phase for t in trials) for phase in Phase}

@@ -33,6 +33,8 @@ def lab_file(folder: Path) -> Path:
 
 
 def test_run_session_takes_the_plans_proposal_and_a_deviation_is_reported(tmp_path, capsys):
+    """Slow (~30 s in a loaded full run): two whole simulated sessions through `run-session --auto`
+    (each with its learner process) and two reports of the study, as the lab runs them."""
     lab, study = lab_file(tmp_path), tmp_path / "study"
     first, second = PLAN.proposal(1).proposed, PLAN.proposal(2).proposed
     assert main(["run-session", "--study", str(study), "--participant", "R01", "--auto",
@@ -58,6 +60,9 @@ def test_run_session_takes_the_plans_proposal_and_a_deviation_is_reported(tmp_pa
 
 @pytest.mark.slow
 def test_two_participants_created_at_once_get_two_places_of_the_plan(tmp_path):
+    """Slow (~25 s in a loaded full run): two whole `run-session --auto` processes at once, each
+    importing the application and starting its learner, so that they create their participants at
+    the same moment."""
     lab, study = lab_file(tmp_path), tmp_path / "study"
     logs = {code: tmp_path / f"{code}.log" for code in ("C01", "C02")}
     runs = {}

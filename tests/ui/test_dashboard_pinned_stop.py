@@ -83,6 +83,8 @@ def stop_stays_on_screen(dashboard: Page) -> list[str]:
 
 @pytest.mark.parametrize("size", [(1280, 720), (1440, 900)], ids=["1280x720", "1440x900"])
 def test_no_control_of_the_page_hides_stop_arm(tmp_path: Path, size: tuple[int, int]) -> None:
+    """Slow (~20 s in a loaded full run): every control of the dashboard is tried once in Chromium,
+    STOP ARM's place checked after each."""
     with serve(tmp_path) as served, chromium() as browser:
         dashboard = open_page(browser, served.dashboard_url, size=size)
         open_participant(dashboard, "P01")

@@ -23,6 +23,8 @@ def start_up(log: str) -> str:
 
 def test_the_terminal_shows_the_addresses_participant_and_token_and_the_rest_with_v(
         tmp_path, monkeypatch):
+    """Slow (~20 s in a loaded full run): two `handover serve` processes, each started up to its
+    open participant (rig process, learner) and shut down."""
     # the lab's own liblsl configuration, if the machine has one, would decide liblsl's log
     monkeypatch.delenv("LSLAPICFG", raising=False)
     with serve(tmp_path / "quiet", "--participant", "T01", "--scenario", "perturbed",
