@@ -40,6 +40,9 @@ def running(process: subprocess.Popen, log: Path) -> bool:
 @pytest.mark.slow
 @pytest.mark.soak
 def test_a_second_writer_is_refused_and_the_first_finishes_its_session(tmp_path, capsys):
+    """Slow (~25 s in a full run): three `handover` processes, a whole `run-session` of the short
+    protocol and the two refused second writers (`run-session --resume` and `serve`), each paying
+    the application's start-up."""
     study, database = tmp_path / "study", tmp_path / "study" / "P09.sqlite"
     log, lab = tmp_path / "first.log", tmp_path / "lab.toml"
     lab.write_text(f"{SESSION_LOOP_TOML}\n[protocol]\n{protocol_toml(SHORT_PROTOCOL)}")

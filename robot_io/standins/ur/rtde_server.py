@@ -17,6 +17,11 @@ from robot_io.standins.ur.model import Controller
 log = logging.getLogger(__name__)
 
 PROTOCOL_VERSION = 2
+#: How long a client may leave the controller's messages unread before the controller closes its
+#: connection: a real one does (a client that connects, starts and reads nothing for 10 s finds
+#: "received 0 bytes from Controller": UniversalRobots/RTDE_Python_Client_Library issue #6), and
+#: meanwhile sends every other client its packages on time.
+UNREAD_LIMIT_S = 10.0
 
 
 class Recipe:
@@ -28,7 +33,12 @@ class Recipe:
 
 
 class RTDEConnection:
-    """One client of the RTDE server."""
+    """One client of the RTDE server.
+
+    Every message to the client goes through one outgoing buffer that is written without blocking
+    (the reply to a request from the client's own thread, the output packages from the cycle
+    thread), so a client that stops reading holds up nobody: its messages wait for it, in order,
+    and once none of them has left for :data:`UNREAD_LIMIT_S` the connection is closed."""
 
     def __init__(self, sock: socket.socket, server: RTDEServer) -> None:
         self.sock, self.server = sock, server
@@ -38,10 +48,35 @@ class RTDEConnection:
         self.inputs: dict[int, Recipe] = {}
         self.started = False
         self._late: collections.deque[tuple[float, bytes]] = collections.deque()
+        self._outgoing = bytearray()  # guarded by send_lock
+        self._last_sent = time.monotonic()  # when bytes last left, or the buffer was last empty
 
     def send(self, message_type: int, payload: bytes = b"") -> None:
         with self.send_lock:
-            self.sock.sendall(rtde.frame(message_type, payload))
+            self._outgoing += rtde.frame(message_type, payload)
+            self._write()
+
+    def flush(self) -> None:
+        """Write what the client has not taken yet (each cycle: a client that reads again gets it)."""
+        with self.send_lock:
+            self._write()
+
+    def _write(self) -> None:
+        """As much of the outgoing buffer as the socket takes now; close a client that has taken
+        nothing for the server's unread limit (its reader thread then sees the connection end)."""
+        now = time.monotonic()
+        if self._outgoing:
+            with contextlib.suppress(BlockingIOError):
+                sent = self.sock.send(self._outgoing, socket.MSG_DONTWAIT)
+                del self._outgoing[:sent]
+                self._last_sent = now
+        if not self._outgoing:
+            self._last_sent = now
+        elif now - self._last_sent > self.server.unread_limit_s:
+            log.warning("RTDE client left %d bytes unread for %.1f s: connection closed",
+                        len(self._outgoing), now - self._last_sent)
+            self._outgoing.clear()
+            self.sock.shutdown(socket.SHUT_RDWR)
 
     def serve(self) -> None:
         try:
@@ -117,8 +152,9 @@ class RTDEConnection:
 class RTDEServer:
     """All RTDE connections and which of them owns which input variable."""
 
-    def __init__(self, controller: Controller) -> None:
+    def __init__(self, controller: Controller, unread_limit_s: float = UNREAD_LIMIT_S) -> None:
         self.controller = controller
+        self.unread_limit_s = unread_limit_s
         self.connections: list[RTDEConnection] = []
         self._owners: dict[str, RTDEConnection] = {}
         self._lock = threading.Lock()
@@ -159,3 +195,4 @@ class RTDEServer:
             # a closed socket: its reader thread sees it and releases the connection
             with contextlib.suppress(OSError):
                 connection.send_outputs(cycle)
+                connection.flush()

@@ -3,20 +3,24 @@ and the calibration command that goes with the hardware docs."""
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import struct
+import threading
 import time
 
 import numpy as np
 import pytest
 from support.hand_replay import TRACKER, to_tracker
 from support.ur import standin
+from support.waiting import wait_for
 
 from app.cli import main
 from app.session.rig_cli import load_config
 from robot_io.standins.ur import rtde_protocol as rtde
 from robot_io.standins.ur.dashboard import reply
 from robot_io.standins.ur.model import Controller, Safety, Series
+from robot_io.standins.ur.rtde_server import RTDEServer
 
 pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
 
@@ -85,3 +89,67 @@ def test_calibrate_tracker_prints_the_transform_that_maps_the_pairs(tmp_path, ca
     config = tmp_path / "lab.toml"
     config.write_text(out)
     assert np.allclose(load_config(config).hand_source.rotation, TRACKER.rotation, atol=1e-6)
+
+
+def frames(data: bytes) -> list[tuple[int, bytes]]:
+    """The whole RTDE messages in ``data`` (a connection cut mid-message leaves a torn last one)."""
+    found, at = [], 0
+    while at + rtde.HEADER.size <= len(data):
+        size, kind = rtde.HEADER.unpack_from(data, at)
+        if at + size > len(data):
+            break
+        found.append((kind, data[at + rtde.HEADER.size:at + size]))
+        at += size
+    return found
+
+
+def started_client(server: RTDEServer, names: bytes) -> socket.socket:
+    """A client of ``server`` (its side of a socket pair, served in a thread as the listener
+    would) with an output recipe of ``names`` at the controller's rate, started."""
+    ours, theirs = socket.socketpair()
+
+    def serve() -> None:
+        with contextlib.suppress(OSError):  # the connection ended (robot_io.standins.ur.listener)
+            server.handle(theirs)
+
+    threading.Thread(target=serve, daemon=True).start()
+    assert request(ours, rtde.SETUP_OUTPUTS, struct.pack(">d", 125.0) + names)[1][0] == 1
+    assert request(ours, rtde.START)[1] == b"\x01"
+    return ours
+
+
+def test_a_client_that_stops_reading_holds_up_no_other_and_is_disconnected():
+    """The cycle broadcasts each package to every client; one that reads nothing (a frozen
+    process, a dead link) filled its socket, and the blocking send held the cycle thread and so
+    every other client, for good. Now the reader gets every package of every cycle, in order, and
+    the silent client is cut off once it has taken nothing for the unread limit, as a real
+    controller cuts it off; what it got before is whole packages in order."""
+    controller = Controller(Series.CB3, np.zeros(6))
+    server = RTDEServer(controller, unread_limit_s=0.5)
+    names = b"timestamp,actual_TCP_pose,actual_q,actual_qd,target_q,target_TCP_pose"
+    reader, silent = started_client(server, b"timestamp"), started_client(server, names)
+    silent.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    cycle, stamps = 0, []
+
+    def cycles() -> bool:
+        """Ten cycles of the controller, the reader reading each one's package."""
+        nonlocal cycle
+        for _ in range(10):
+            with controller.lock:
+                controller.tick()
+            server.broadcast(cycle)
+            cycle += 1
+            size, kind = rtde.HEADER.unpack(reader.recv(3, socket.MSG_WAITALL))
+            assert kind == rtde.DATA_PACKAGE
+            stamps.append(struct.unpack(">d", reader.recv(size - 3, socket.MSG_WAITALL)[1:])[0])
+        return len(server.connections) == 1
+
+    wait_for(cycles, "the controller to close the connection of the client that reads nothing",
+             seen=lambda: f"{cycle} cycles, {len(server.connections)} connections")
+    assert np.allclose(np.diff(stamps), controller.period), "the reader missed packages"
+    received = b"".join(iter(lambda: silent.recv(65536), b""))  # up to the closed connection
+    silent_stamps = [struct.unpack(">d", body[1:9])[0] for kind, body in frames(received)]
+    assert 0 < len(silent_stamps) < cycle
+    assert np.allclose(np.diff(silent_stamps), controller.period)
+    reader.close()
+    silent.close()
