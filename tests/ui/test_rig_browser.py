@@ -73,10 +73,11 @@ def start(dashboard: Page, tablet: Page, seen: set[str]) -> None:
     click(dashboard, "Go")
 
 
-def starved_end(dashboard: Page, index: int, before: str) -> str:
+def starved_end(dashboard: Page, tablet: Page, index: int, before: str) -> str:
     """Trial ``index`` ended before its subject (``before``: what the test saw of it): it must have
     been the starved machine (support.repeats). Once the dashboard is ready to repeat it (after
-    Recover arm when the stand-in controller went silent), the reason to start it again."""
+    Recover arm when the stand-in controller went silent) and the tablet says "Please wait", the
+    reason to start it again."""
     end = wait_for(lambda: trial_ended(dashboard, index), f"the dashboard to say trial {index} ended",
                    seen=lambda: what_it_showed(dashboard))
     assert end[0] == "aborted" and starved(end[1]), f"trial {index} ended {end}; {before}"
@@ -87,6 +88,7 @@ def starved_end(dashboard: Page, index: int, before: str) -> str:
     if after == "fault":  # the stand-in controller went silent: the arm stopped, as it must
         click(dashboard, "Recover arm (cause inspected)")
         wait_text(dashboard, READY_TO_START)
+    assert tablet_screen(tablet, not_=("go", "back")) == "wait"  # an aborted trial is not rated
     return f"trial {index} aborted: {end[1]}"
 
 
@@ -99,7 +101,7 @@ def handover_to_place(dashboard: Page, tablet: Page, index: int, seen: set[str])
                    seen=lambda: what_it_showed(tablet))
     if cue == "go" and tablet_screen(tablet, not_=("go", "back")) == "place":
         return None
-    return starved_end(dashboard, index, f"after Go the tablet showed {cue!r}, then "
+    return starved_end(dashboard, tablet, index, f"after Go the tablet showed {cue!r}, then "
                                          f"{shown_screen(tablet)!r}")
 
 
@@ -113,14 +115,14 @@ def held_not_taken(dashboard: Page, tablet: Page, index: int, seen: set[str], sc
                     f"the dashboard to show the hold of trial {index} or its end",
                     seen=lambda: what_it_showed(dashboard))
     if held is not True:
-        return None, starved_end(dashboard, index, "it ended before its hold")
+        return None, starved_end(dashboard, tablet, index, "it ended before its hold")
     seen.add("[hold]")
     hold = shot(dashboard, screens, "dashboard-rehearsal-hold")
     end = wait_for(lambda: trial_ended(dashboard, index), f"the dashboard to say trial {index} ended",
                    seen=lambda: what_it_showed(dashboard))
     if end[0] == "not_taken":
         return hold, None
-    return None, starved_end(dashboard, index, "it ended during its hold")
+    return None, starved_end(dashboard, tablet, index, "it ended during its hold")
 
 
 def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_path: Path) -> None:
@@ -149,7 +151,9 @@ def test_a_rehearsed_batch_driven_from_the_dashboard_and_placed_by_touch(tmp_pat
         faults = shot(dashboard, screens, "dashboard-rehearse-a-fault")
         hold = unless_starved("the staged no-pull trial", lambda: held_not_taken(
             dashboard, tablet, next(indices), seen, screens))
-        assert tablet_screen(tablet) == "wait"  # a handover not taken is never rated
+        # a handover not taken is never rated: once the page has left the trial's screens (it
+        # can draw the robot's way back after the dashboard said the trial ended), "Please wait"
+        assert tablet_screen(tablet, not_=("go", "back")) == "wait"
         served.shutdown()
     publish([hold, faults])
     assert seen == set(SEEN_STAGES)

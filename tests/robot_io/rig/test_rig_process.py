@@ -85,23 +85,35 @@ def test_a_trial_through_the_rig_process_streams_its_samples_through_shared_memo
         done.summary.peak_pull_n)
 
 
-def test_a_rig_asked_for_its_stacks_prints_them_and_runs_on(capfd):
+@contextlib.contextmanager
+def stderr_to(path: Path) -> Iterator[None]:
+    """This process's fd 2 appends to ``path`` while inside, so a child started meanwhile writes
+    its stderr there for good; read it with a fresh open. (capfd's ``readouterr()`` seeks back and
+    truncates a file whose offset the child shares: what the child writes in between is lost, as a
+    run of two suites side by side lost the middle of a stack dump.)"""
+    saved = os.dup(2)
+    try:
+        with path.open("ab") as out:
+            os.dup2(out.fileno(), 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def test_a_rig_asked_for_its_stacks_prints_them_and_runs_on(tmp_path):
     """What the backstop sends a hung rig before killing it: each thread's stack on stderr (the
     application's log), to find the hang afterwards. The default action would end the rig."""
-    reports = Reports()
-    client = rig(realtime=False, reports=reports)
+    reports, log = Reports(), tmp_path / "rig-stderr.log"
+    with stderr_to(log):
+        client = rig(realtime=False, reports=reports)
     try:
         os.kill(client.pid, STACKS_SIGNAL)
-        printed = []
-
-        def stacks_printed() -> bool:
-            # the dump comes a thread at a time (the inbox's frames are in process.py too): wait
-            # for the main thread's, which is printed last
-            printed.append(capfd.readouterr().err)
-            return "in spawn_main" in "".join(printed)
-
-        wait_for(stacks_printed, "the rig's stacks on stderr", seen=lambda: tail("".join(printed)))
-        err = "".join(printed)
+        # the dump comes a thread at a time (the inbox's frames are in process.py too): wait for
+        # the main thread's, which is printed last
+        wait_for(lambda: "in spawn_main" in log.read_text(), "the rig's stacks on stderr",
+                 seen=lambda: tail(log.read_text()))
+        err = log.read_text()
         assert 'File "' in err and "robot_io/rig/process.py" in err and "in main" in err
         assert client.alive
         client.run_trial(trial())
