@@ -14,8 +14,8 @@ from pathlib import Path
 import pandas as pd
 
 from app.analysis import html
-from app.analysis.xdf import XDFError, readable
-from app.protocol.markers import MARKER_TYPE, decode
+from app.analysis.xdf import XDFError, decoded_markers, readable
+from app.protocol.markers import MARKER_TYPE
 from session_store.recordings import recordings_of
 
 COLUMNS = ["participant", "file", "bytes", "stream", "type", "samples", "footer"]
@@ -23,11 +23,6 @@ COLUMNS = ["participant", "file", "bytes", "stream", "type", "samples", "footer"
 
 def _load(load_xdf: Callable[..., tuple[list[dict], dict]], path: Path) -> list[dict]:
     return load_xdf(str(path))[0]
-
-
-def _go_trials(stream: dict) -> set[int]:
-    return {marker["trial"] for text in stream["time_series"]
-            if (marker := decode(text[0]))["event"] == "go"}
 
 
 def _ours(stream: dict, code: str, created_at: str) -> bool:
@@ -71,7 +66,13 @@ def recorded_runs(study_dir: Path, sessions: dict[str, str]) -> tuple[pd.DataFra
                              "samples": len(stream["time_stamps"]),
                              "footer": bool(stream.get("footer"))})
                 if _ours(stream, code, sessions[code]):
-                    found[code] |= _go_trials(stream)
+                    try:
+                        markers, torn = decoded_markers(path, stream)
+                    except XDFError as exc:
+                        problems.append(str(exc))
+                        continue
+                    problems += [f"{path}: {why}" for why in torn]
+                    found[code] |= {marker["trial"] for _, marker in markers if marker["event"] == "go"}
     return pd.DataFrame(rows, columns=COLUMNS), found, problems
 
 

@@ -152,10 +152,27 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
     participant = _desc(markers, "participant")
     if participant is None:
         raise XDFError(f"{path}: the study marker stream's description names no participant")
-    return Recording(path=Path(path), participant=participant,
-                     markers=[(float(stamp), decode(text[0])) for stamp, text
-                              in zip(markers["time_stamps"], markers["time_series"], strict=True)],
-                     streams=lab, cut_short=[why for s in streams if (why := _cut_short(s))])
+    decoded, torn = decoded_markers(path, markers)
+    return Recording(path=Path(path), participant=participant, markers=decoded, streams=lab,
+                     cut_short=[why for s in streams if (why := _cut_short(s))] + torn)
+
+
+def decoded_markers(path: Path, markers: dict) -> tuple[list[tuple[float, dict]], list[str]]:
+    """The study's markers, decoded (``app.protocol.markers``), and what was left out: in a marker
+    stream cut short (:func:`_cut_short`) the cut can fall inside the last marker's text, which is
+    then left out and said; any other marker that does not decode is an :class:`XDFError`."""
+    pairs = list(zip(markers["time_stamps"], markers["time_series"], strict=True))
+    decoded = []
+    for number, (stamp, text) in enumerate(pairs, start=1):
+        try:
+            decoded.append((float(stamp), decode(text[0])))
+        except ValueError as exc:
+            if number == len(pairs) and _cut_short(markers):
+                return decoded, [f"stream {_name(markers)!r}: its last marker was cut in the middle "
+                                 "and is left out"]
+            raise XDFError(f"{path}: marker {number} of {len(pairs)} of the study's marker stream "
+                           f"is not a study marker ({exc})") from exc
+    return decoded, []
 
 
 def around_go(recording: Recording, trials: pd.DataFrame,

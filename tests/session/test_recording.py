@@ -122,6 +122,15 @@ def test_a_session_records_its_streams_and_the_labs_and_a_resume_records_a_new_r
     assert report.gos_not_recorded == {}
     assert "R01: every stored trial's Go marker is in the recording" in \
         html.unescape(report.html.read_text())
+    # a recording cut inside its last marker's text (a recorder killed there; pyxdf reads the torn
+    # text, the last of its chunk): the markers before it are counted, the torn one is said
+    whole = first.read_bytes()
+    first.write_bytes(whole[:whole.rindex(b'{"event":') + 12])
+    report = build_report(study, tmp_path / "report")
+    assert report.gos_not_recorded == {}
+    assert "its last marker was cut in the middle and is left out" in \
+        html.unescape(report.html.read_text())
+    first.write_bytes(whole)
     first.rename(first.with_suffix(".moved"))
     report = build_report(study, tmp_path / "report")
     assert report.gos_not_recorded == {"R01": ", ".join(map(str, trials))}
