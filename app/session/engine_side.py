@@ -11,6 +11,7 @@ the engine's SQLite connection belongs to that thread. Other threads only read
 from __future__ import annotations
 
 import logging
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
@@ -50,6 +51,9 @@ log = logging.getLogger(__name__)
 #: and with its resume when the experimenter opens the participant again.
 END_REASON = "ended by the experimenter"
 REOPEN_REASON = "opened again by the experimenter"
+#: How long closing a session waits for its learner warm-up to end [s]: once the forkserver serves,
+#: a few milliseconds; only a close within seconds of the first open waits for its imports.
+WARM_UP_WAIT_S = 10.0
 
 
 class EngineSide:
@@ -63,6 +67,9 @@ class EngineSide:
         self.failed: str | None = None  # storing failed, or the simulated experimenter gave up
         self._participant: SimulatedParticipant | None = None
         self._lock: writer_lock.WriterLock | None = None
+        # the open session's learner warm-up (app.learning.worker.warm_up): its thread owns the
+        # warm-up child and closes its two pipes to the forkserver; close() waits for it
+        self._warming: threading.Thread | None = None
         self._learner: tuple[bool, str | None] = (False, None)  # preparing, the learner's fault
         self._store_fault: str | None = None  # a write to the study failed: the session stops
         self._theta_star: list[ThetaStar] = []
@@ -115,7 +122,7 @@ class EngineSide:
         self._open_recording(engine, notify)
         self._participant = SimulatedParticipant(engine.config.seed)
         if engine.state.step is not Step.DONE:
-            warm_up()  # the learner's imports run while the experimenter pairs the tablet
+            self._warming = warm_up()  # the learner's imports run while the tablet is paired
         self._theta_star_key = -1
         self._overview = None
         log.info("session %s open at step %s", code, engine.state.step)
@@ -176,7 +183,7 @@ class EngineSide:
 
     def close(self) -> None:
         """Stop the recording (it takes the last markers first), close the outlets, the engine and
-        its store, and release the writer lock."""
+        its store, release the writer lock, and wait for the learner warm-up (WARM_UP_WAIT_S)."""
         if self.recording is not None:
             self.recording.close()
             self.recording = None
@@ -189,6 +196,9 @@ class EngineSide:
         if self._lock is not None:
             self._lock.release()
             self._lock = None
+        if self._warming is not None:  # an ended session leaves no file open behind it
+            self._warming.join(WARM_UP_WAIT_S)
+            self._warming = None
 
     def record(self, what: str, record: Callable[[SessionEngine], None]) -> None:
         """``record`` in the open session, if one is open."""

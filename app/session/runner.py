@@ -329,7 +329,9 @@ class SessionRunner:
             planned, news = self._call(lambda: self._side.plan(PLAN_TIMEOUT_S))
             fault = "the learner was late: a Sobol point was used (fallback)" if planned.fallback else None
         except (LearningError, RefusedAction, StoreError) as exc:
-            log.exception("planning the next θ failed")
+            # the learner's failure with its stack; a stopped session or a refused write (a full
+            # disk: already said by _call) in words only, as the session's terminal says them
+            log.error("planning the next θ failed: %s", exc, exc_info=isinstance(exc, LearningError))
             fault = f"{type(exc).__name__}: {exc}"
         finally:
             self._call(lambda: self._side.planning(False, fault))
