@@ -25,10 +25,15 @@ from robot_io.standins.ur.rtde_server import RTDEServer
 pytestmark = pytest.mark.standin  # the stand-in UR in real time (tests/conftest.py)
 
 
+def receive(sock: socket.socket) -> tuple[int, bytes]:
+    """The next RTDE message the server sends: its type and payload."""
+    size, kind = rtde.HEADER.unpack(sock.recv(rtde.HEADER.size, socket.MSG_WAITALL))
+    return kind, sock.recv(size - rtde.HEADER.size, socket.MSG_WAITALL)
+
+
 def request(sock: socket.socket, message_type: int, payload: bytes = b"") -> tuple[int, bytes]:
     sock.sendall(rtde.frame(message_type, payload))
-    size, kind = rtde.HEADER.unpack(sock.recv(3, socket.MSG_WAITALL))
-    return kind, sock.recv(size - 3, socket.MSG_WAITALL)
+    return receive(sock)
 
 
 def test_rtde_handshake_recipes_not_found_in_use_and_data_packages_at_the_controller_rate():
@@ -53,8 +58,7 @@ def test_rtde_handshake_recipes_not_found_in_use_and_data_packages_at_the_contro
             layout = rtde.recipe_format(["DOUBLE", "VECTOR6D"])
             stamps = []
             for _ in range(50):
-                kind, payload = rtde.HEADER.unpack(first.recv(3, socket.MSG_WAITALL))[::-1]
-                body = first.recv(payload - 3, socket.MSG_WAITALL)
+                kind, body = receive(first)
                 assert kind == rtde.DATA_PACKAGE
                 stamps.append(layout.unpack(body[1:])[0])
             assert np.median(np.diff(stamps)) == pytest.approx(0.002)  # 500 Hz controller time
@@ -139,9 +143,9 @@ def test_a_client_that_stops_reading_holds_up_no_other_and_is_disconnected():
                 controller.tick()
             server.broadcast(cycle)
             cycle += 1
-            size, kind = rtde.HEADER.unpack(reader.recv(3, socket.MSG_WAITALL))
+            kind, body = receive(reader)
             assert kind == rtde.DATA_PACKAGE
-            stamps.append(struct.unpack(">d", reader.recv(size - 3, socket.MSG_WAITALL)[1:])[0])
+            stamps.append(struct.unpack(">d", body[1:])[0])
         return len(server.connections) == 1
 
     wait_for(cycles, "the controller to close the connection of the client that reads nothing",
