@@ -81,9 +81,11 @@ def starved_end(dashboard: Page, tablet: Page, index: int, before: str) -> str:
     end = wait_for(lambda: trial_ended(dashboard, index), f"the dashboard to say trial {index} ended",
                    seen=lambda: what_it_showed(dashboard))
     assert end[0] == "aborted" and starved(end[1]), f"trial {index} ended {end}; {before}"
-    after = wait_for(lambda: next((state for state, words in AFTER_STARVED.items()
-                                   if words in dashboard.inner_text("body")), None),
-                     f"the dashboard ready again after trial {index}",
+    def ready_or_fault() -> str | None:
+        text = dashboard.inner_text("body")
+        return next((state for state, words in AFTER_STARVED.items() if words in text), None)
+
+    after = wait_for(ready_or_fault, f"the dashboard ready again after trial {index}",
                      seen=lambda: what_it_showed(dashboard))
     if after == "fault":  # the stand-in controller went silent: the arm stopped, as it must
         click(dashboard, "Recover arm (cause inspected)")
