@@ -53,6 +53,7 @@ from robot_io.rig.messages import (
     StopReceived,
     TrialDone,
 )
+from robot_io.rig.silence import WatchedSilence
 from robot_io.rig.stream import SampleStream, capacity_for
 
 log = logging.getLogger(__name__)
@@ -327,17 +328,21 @@ class RigClient:
 
     def _watch(self) -> None:
         """Every HEARTBEAT_S: a heartbeat to the rig, and the backstop when the rig writes no sample
-        row for longer than :meth:`_silence_limit` allows. Runs under SCHED_FIFO where the OS
-        allows it: this machine's load must not pass for a frozen application."""
+        row for longer than :meth:`_silence_limit` allows, not counting the time this thread itself
+        was not run (robot_io.rig.silence). Runs under SCHED_FIFO where the OS allows it: this
+        machine's load must not pass for a frozen application."""
         raise_priority(SUPPORT_PRIORITY)
-        last_count, last_change = -1, time.monotonic()
+        last_count, silence = -1, WatchedSilence(HEARTBEAT_S, time.monotonic())
         while self.alive and not self._closing:
+            asked = time.monotonic()
             time.sleep(HEARTBEAT_S)
             self._beat()
             count, limit, now = self.stream.count, self._silence_limit(), time.monotonic()
+            silence.looked(asked, now)
             if count != last_count or limit is None:
-                last_count, last_change = count, now
-            elif now - last_change > limit[0]:
+                last_count = count
+                silence.heard(now)
+            elif silence.watched(now) > limit[0]:
                 self.backstop(f"the rig wrote no sample for {limit[0]:g} s while {limit[1]} "
                               f"({self.stage})")  # None if the trial just ended
                 return

@@ -35,6 +35,7 @@ HEARTBEAT_S = 0.1
 #: not shorter because a running application's heartbeat thread needs the interpreter's lock: under
 #: the test suite's load (3 workers on 2 cores) a thread at normal priority that held it was kept
 #: off the CPU long enough for 0.5 s of silence in a live session (a false stop, seen in a full run).
+#: Time the rig itself was not run (the machine held still) is not counted (robot_io.rig.process).
 APP_SILENCE_S = 2.0
 
 

@@ -50,6 +50,7 @@ from robot_io.rig.messages import (
     StopReceived,
     TrialDone,
 )
+from robot_io.rig.silence import WatchedSilence
 from robot_io.rig.stream import SampleStream, StreamRecorder
 from robot_io.rig.timing import TimingReporter, TimingWatch
 
@@ -106,16 +107,19 @@ class Inbox:
         self.commands: queue.Queue[tuple[RunTrial, Gates] | Recover | None] = queue.Queue()
         self.gates: Gates | None = None
         self.running = False
-        self._heard_at = time.monotonic()
+        #: the application's silence (the inbox thread owns it)
+        self._silence = WatchedSilence(HEARTBEAT_S / 2, time.monotonic())
         self._application = os.getppid()  # the process that started the rig (spawn)
         threading.Thread(target=self._receive, name="rig-inbox", daemon=True).start()
 
     def _receive(self) -> None:
         while True:
             try:
-                # a message already waiting is read before the silence is judged: a rig that was
-                # itself not scheduled for a while does not mistake that for the application's
+                # a message already waiting is read before the silence is judged, and the time
+                # this thread was itself not run is not the application's (robot_io.rig.silence)
+                asked = time.monotonic()
                 if not self._conn.poll(HEARTBEAT_S / 2):
+                    self._silence.looked(asked, time.monotonic())
                     self._check_application()
                     continue
                 command = self._conn.recv()
@@ -124,7 +128,7 @@ class Inbox:
                 self._stop("the application is gone")
                 self.commands.put(None)
                 return
-            self._heard_at = time.monotonic()
+            self._silence.heard(time.monotonic())
             if isinstance(command, RunTrial):
                 gates = Gates.of(self._cycle, automatic=command.automatic)
                 self.gates = gates
@@ -143,15 +147,18 @@ class Inbox:
 
     def _check_application(self) -> None:
         """Stop the running trial's arm if the application is frozen: stopped by a signal, as its
-        process state says (at once), or silent for APP_SILENCE_S (it hangs)."""
-        silent, gates = time.monotonic() - self._heard_at, self.gates
+        process state says (at once), or silent for APP_SILENCE_S while the rig watched (it hangs)."""
+        now, gates = time.monotonic(), self.gates
+        silent = self._silence.silent(now)
         if not self._watch_application or not self.running or gates is None or gates.stop.is_set():
             return
         if (state := process_state(self._application)) in STOPPED_STATES:
             reason = (f"the application is stopped (Ctrl-Z, SIGSTOP or a debugger: process state "
                       f"{state}) and sent nothing for {silent:.2f} s: the rig stopped the arm")
-        elif silent > APP_SILENCE_S:
-            reason = (f"the application sent nothing for {silent:.2f} s (APP_SILENCE_S = "
+        elif self._silence.watched(now) > APP_SILENCE_S:
+            held = (f", {self._silence.unwatched:.2f} s of it while the rig itself was held still"
+                    if self._silence.unwatched >= HEARTBEAT_S else "")
+            reason = (f"the application sent nothing for {silent:.2f} s{held} (APP_SILENCE_S = "
                       f"{APP_SILENCE_S:g} s: it hangs): the rig stopped the arm")
         else:
             return

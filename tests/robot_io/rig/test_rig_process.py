@@ -11,7 +11,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from multiprocessing.connection import _ConnectionBase
 from pathlib import Path
 
@@ -223,17 +223,31 @@ def test_close_never_closes_the_report_pipe_under_the_reader(monkeypatch):
     assert client._conn.closed, "the reader left the pipe open"
 
 
-def hold_the_interpreter(seconds: float) -> None:
+def hold_the_interpreter(seconds: float, at: float | None = None,
+                         then: Callable[[], None] | None = None) -> None:
     """Hang this process (the rig's application) as a stuck computation does: one thread keeps the
-    interpreter's lock for ``seconds``, so no other thread of it (the heartbeat's) runs."""
+    interpreter's lock for ``seconds``, so no other thread of it (the heartbeat's) runs; ``then()``
+    is called ``at`` seconds into the hold, still holding it."""
     interval = sys.getswitchinterval()
     sys.setswitchinterval(seconds * 10)  # no other thread is handed the lock before the loop ends
     try:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            pass
+        start = time.monotonic()
+        while (now := time.monotonic()) < start + seconds:
+            if then is not None and at is not None and now >= start + at:
+                then()
+                then = None
     finally:
         sys.setswitchinterval(interval)
+
+
+def waiting_for_go(reports: Reports) -> RigClient:
+    """A rig on the wall clock whose trial has been loaded and waits for Go (no end of its own)."""
+    client = rig(realtime=True, reports=reports)
+    client.run_trial(trial().model_copy(update={"automatic": False}))
+    reports.until(lambda r: isinstance(r, StageReached) and r.stage == Stage.PREPARE)
+    client.confirm(Stage.PREPARE)  # Object loaded
+    reports.until(lambda r: isinstance(r, StageReached) and r.stage == Stage.READY)
+    return client
 
 
 def test_a_rig_whose_application_hangs_mid_trial_stops_the_arm_and_says_why():
@@ -241,15 +255,31 @@ def test_a_rig_whose_application_hangs_mid_trial_stops_the_arm_and_says_why():
     tests/session/test_frozen_application.py): one that still runs but sends nothing, here holding
     its interpreter's lock, has its trial stopped by the rig after APP_SILENCE_S."""
     reports = Reports()
-    client = rig(realtime=True, reports=reports)
+    client = waiting_for_go(reports)
     try:
-        client.run_trial(trial().model_copy(update={"automatic": False}))
-        reports.until(lambda r: isinstance(r, StageReached) and r.stage == Stage.PREPARE)
-        client.confirm(Stage.PREPARE)  # Object loaded; it waits for Go: no end
-        reports.until(lambda r: isinstance(r, StageReached) and r.stage == Stage.READY)
         hold_the_interpreter(APP_SILENCE_S + 1.0)
         done = reports.until(lambda r: isinstance(r, TrialDone), "the stopped trial's TrialDone")
     finally:
         client.close()
     assert done.summary.outcome == "stopped" and done.rows == 0, done.summary
     assert done.summary.reason.startswith("the application sent nothing for"), done.summary.reason
+
+
+def test_a_machine_held_still_is_not_taken_for_a_hung_application():
+    """What CI met: the whole machine held still for 4 s (a stand-in under SCHED_FIFO sent a
+    sample 4 s late) and the rig, run again, stopped the trial for its application's 4 s of silence
+    before the application had run again to send anything. Here the rig is frozen (SIGSTOP) while
+    its application sends nothing for APP_SILENCE_S + 1 s; it runs again while the application still
+    holds its interpreter's lock (0.3 s more). The silence the rig itself slept through is not the
+    application's: the trial still waits for Go, and completes after it."""
+    reports = Reports()
+    client = waiting_for_go(reports)
+    try:
+        freeze(client.pid)
+        hold_the_interpreter(APP_SILENCE_S + 1.3, at=APP_SILENCE_S + 1.0,
+                             then=lambda: os.kill(client.pid, signal.SIGCONT))
+        client.confirm(Stage.READY)  # Go
+        done = reports.until(lambda r: isinstance(r, TrialDone), "the trial's TrialDone")
+    finally:
+        client.close()
+    assert done.summary.outcome == "completed", done.summary
