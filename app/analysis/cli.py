@@ -158,6 +158,8 @@ def run(args: argparse.Namespace) -> int:
     for code, missing in report.gos_not_recorded.items():
         print(f"warning: {code}: trials {missing} have no go marker in the study's recordings",
               file=sys.stderr)
+    for line in report.safety_over_limits:
+        print(f"warning: past the lab's safety limits: {line}", file=sys.stderr)
     for test in report.tests:
         print(f"{test.name}: {test.summary()}")
     print(f"report: {report.html} ({len(report.tables)} tables, {len(report.figures)} figures)")

@@ -23,7 +23,13 @@ from app.analysis import figures as fig
 from app.analysis.provenance import SIMULATED_MARK, Counting, answers_not_used, not_blind
 from app.analysis.recordings import go_check, recorded_runs, recordings_section, stored_gos
 from app.analysis.report_page import render_page
-from app.analysis.safety import draw_replays, safety_section, safety_summary
+from app.analysis.safety import (
+    draw_replays,
+    judged_by_lab_limits,
+    over_text,
+    safety_section,
+    safety_summary,
+)
 from app.analysis.stats import StatTest
 from app.analysis.study_analysis import StudyAnalysis
 from app.analysis.study_design import StudyDesign
@@ -58,6 +64,8 @@ class Report(BaseModel):
     recording_cut_short: list[str] = []  # the XDF recording's streams that end early, in words
     #: participant → the stored trials whose Go marker none of the study's own recordings holds
     gos_not_recorded: dict[str, str] = {}
+    #: each trial that went past the lab's [safety_record] limits in force when it was stored
+    safety_over_limits: list[str] = []
 
 
 def tests_frame(tests: list[StatTest]) -> pd.DataFrame:
@@ -158,6 +166,9 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
     tables["safety"] = out_dir / "tables" / "safety.csv"
     summary.to_csv(tables["safety"], index=False)
     figures |= draw_replays(Path(study_dir), summary, out_dir / "figures")
+    judged = judged_by_lab_limits(loaded.tables["trials"], loaded.tables["events"])
+    tables["safety_limits"] = out_dir / "tables" / "safety_limits.csv"
+    judged.to_csv(tables["safety_limits"], index=False)
     participants = loaded.tables["participants"]
     runs, found, unreadable_runs = recorded_runs(
         Path(study_dir), dict(zip(participants["participant"], participants["created_at"],
@@ -174,7 +185,7 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
                                 generated=datetime.now(UTC).isoformat(timespec="seconds"),
                                 ratings_counted=counted.text(),
                                 recording_cut_short=[] if recording is None else recording.cut_short,
-                                extra=[safety_section(summary, figures),
+                                extra=[safety_section(summary, figures, judged),
                                        recordings_section(runs, check, unreadable_runs)]))
     incomplete = analysis.status.loc[~analysis.status["complete"], "participant"].tolist()
     if incomplete:
@@ -186,5 +197,6 @@ def build_report(study_dir: Path, out_dir: Path, benchmark_dir: Path | None = No
                   not_blind=not_blind(analysis.status),
                   recording_cut_short=[] if recording is None else recording.cut_short,
                   gos_not_recorded={row.participant: row.missing for row in check.itertuples()
-                                    if row.missing})
+                                    if row.missing},
+                  safety_over_limits=over_text(judged))
 

@@ -1,10 +1,13 @@
 """The report's safety record (issue 47): each trial's figures (docs/data.md, "The safety record of
 every trial") summarised per participant and for the study — the median, the extreme (the closest
 distance, the largest of the rest) and the trial it happened in, whose replay (the tool–hand
-distance, the tool's speed and the pull over the trial) is drawn below the table and linked from it."""
+distance, the tool's speed and the pull over the trial) is drawn below the table and linked from it;
+and every trial past the lab's own limits, judged as the dashboard flagged it when it was stored."""
 
 from __future__ import annotations
 
+import json
+import math
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -13,7 +16,12 @@ import pandas as pd
 
 from app.analysis import html
 from app.analysis.figures import FigureFiles, save
-from app.protocol.safety_record import JUDGED, SafetyRecordSettings, safety_record
+from app.protocol.safety_record import (
+    JUDGED,
+    SafetyRecordSettings,
+    over_limits,
+    safety_record,
+)
 from session_store.paths import participant_path
 from session_store.sample_rows import read_samples
 
@@ -50,6 +58,37 @@ def safety_summary(trials: pd.DataFrame) -> pd.DataFrame:
                                        "trial_index"])
 
 
+def lab_limits(settings: SafetyRecordSettings) -> str:
+    """The limits ``settings`` set, in words (``min_distance_m 0.05, max_pull_n 20``), or ""."""
+    return ", ".join(f"{limit} {value:g}" for _, limit, _ in JUDGED
+                     if (value := getattr(settings, limit)) is not None)
+
+
+def judged_by_lab_limits(trials: pd.DataFrame, events: pd.DataFrame) -> pd.DataFrame:
+    """Every stored trial judged as the dashboard judged it when it was stored
+    (:func:`~app.protocol.safety_record.over_limits`), by the ``[safety_record]`` in force then: the
+    one the latest ``devices_recorded`` before its ``trial_ended`` carries (a session recorded
+    with none is judged by the defaults: no limit, a contact held past ``contact_hold_s``).
+    Columns: ``participant``, ``trial_index``, ``limits`` (those in force, in words; "" for none)
+    and ``over`` (what went past them, in words; "" for nothing)."""
+    rows = []
+    figures = trials.set_index(["participant", "trial_index"])
+    for code, mine in events.sort_values("seq").groupby("participant", sort=True):
+        settings = SafetyRecordSettings()
+        for kind, payload in zip(mine["kind"], mine["payload"], strict=True):
+            if kind == "devices_recorded":
+                settings = SafetyRecordSettings.model_validate(
+                    json.loads(payload)["config"].get("safety_record", {}))
+            elif kind == "trial_ended" and (code, index := json.loads(payload)["trial_index"]) \
+                    in figures.index:
+                row = {name: None if isinstance(value, float) and math.isnan(value) else value
+                       for name, value in figures.loc[(code, index)].items()}
+                rows.append({"participant": code, "trial_index": index,
+                             "limits": lab_limits(settings),
+                             "over": "; ".join(over_limits(row, settings))})
+    return pd.DataFrame(rows, columns=["participant", "trial_index", "limits", "over"])
+
+
 def replay_name(code: str, trial_index: int) -> str:
     return f"safety-{code}-{trial_index}"
 
@@ -79,8 +118,37 @@ def draw_replays(study_dir: Path, summary: pd.DataFrame, directory: Path) -> dic
     return drawn
 
 
-def safety_section(summary: pd.DataFrame, figures: dict[str, FigureFiles]) -> str:
-    """The report page's "Safety record" section."""
+def over_text(judged: pd.DataFrame) -> list[str]:
+    """Each trial that went past the lab's limits (``judged``: :func:`judged_by_lab_limits`), in
+    words: ``P01 trial 3: peak_pull_n 12 > 5 (max_pull_n)``."""
+    return [f"{row.participant} trial {row.trial_index}: {row.over}"
+            for row in judged.itertuples() if row.over]
+
+
+def limits_part(judged: pd.DataFrame) -> list[str]:
+    """The section's paragraphs on the lab's limits: those in force per participant, and every trial
+    that went past them (highlighted), or that none did."""
+    in_force = {code: ", ".join(sorted(set(frame["limits"]) - {""}))
+                for code, frame in judged.groupby("participant", sort=True)}
+    said = "; ".join(f"{code}: {limits}" for code, limits in in_force.items() if limits)
+    parts = [html.paragraph(
+        (f"The lab's limits ([safety_record], recorded with each open of a session) in force when "
+         f"each trial was stored: {said}." if said else
+         "The lab set no limits in [safety_record] (docs/data.md, \"Where the limits come from\"): "
+         "only a contact held past contact_hold_s is flagged.")
+        + " Each trial is judged as the dashboard flagged it then.")]
+    over = over_text(judged)
+    if over:
+        parts += [html.paragraph(f"{len(over)} of {len(judged)} trials went past them:", "problem"),
+                  html.items(over, "problem")]
+    elif not judged.empty:
+        parts.append(html.paragraph(f"None of the {len(judged)} trials went past them."))
+    return parts
+
+
+def safety_section(summary: pd.DataFrame, figures: dict[str, FigureFiles],
+                   judged: pd.DataFrame) -> str:
+    """The report page's "Safety record" section (``judged``: :func:`judged_by_lab_limits`)."""
     if summary.empty:
         return html.section("Safety record", html.paragraph(
             "No trial has a safety record (trials stored before schema version 6, or none ended "
@@ -105,5 +173,5 @@ def safety_section(summary: pd.DataFrame, figures: dict[str, FigureFiles]) -> st
             "Every trial's closest tool–hand distance, tool speed and closing speed with the hand "
             "near, peak pull, pull to open and longest contact (docs/data.md, \"The safety "
             "record of every trial\"), per participant and for the study; the trials of the "
-            "study's extremes are replayed below (the dashboard replays any trial)."), table,
-        links, *replays)
+            "study's extremes are replayed below (the dashboard replays any trial)."),
+        *limits_part(judged), table, links, *replays)
