@@ -183,9 +183,22 @@ class RigClient:
     def stop(self, reason: str) -> bool:
         """Stop the arm. True if the rig acknowledged; otherwise the backstop fired."""
         self._stop_ack.clear()
-        if self._send(Stop(reason=reason)) and self._stop_ack.wait(STOP_ACK_S):
+        if self._send(Stop(reason=reason)) and self._acknowledged():
             return True
         self.backstop(f"the rig did not acknowledge Stop within {STOP_ACK_S} s")
+        return False
+
+    def _acknowledged(self) -> bool:
+        """Whether the rig acknowledges the Stop within STOP_ACK_S of this thread's own waiting: a
+        wait that comes back late (the machine held still, the rig with it) is not counted
+        (robot_io.rig.silence), so a freeze of everything is not taken for a hung rig."""
+        look = STOP_ACK_S / 3
+        silence = WatchedSilence(look, time.monotonic())
+        while silence.watched(time.monotonic()) < STOP_ACK_S:
+            asked = time.monotonic()
+            if self._stop_ack.wait(look):
+                return True
+            silence.looked(asked, time.monotonic())
         return False
 
     def backstop(self, why: str) -> None:
