@@ -9,7 +9,10 @@ or, when the lab's file says ``[gripper] kind = "robotiq_socket"``, the stand-in
 socket at that address — so a session runs through ``ur_rtde``, ``pylsl`` (or ``natnet``), the lab's
 kind of gripper and the force release exactly as on the rig. The stand-in and the publisher run under
 SCHED_FIFO where the OS allows it (``realtime_priority``): the controller and the tracker they stand
-for have hardware of their own, which this machine's load cannot slow.
+for have hardware of their own, which this machine's load cannot slow. A lab whose ``[recording]``
+drives its LabRecorder over the remote control (``kind = "labrecorder_rcs"``) rehearses against the
+project's stand-in LabRecorder (:mod:`robot_io.standins.labrecorder_rcs`, LabRecorder's own engine)
+on a free loopback port instead, so the recording is rehearsed too without LabRecorder's GUI.
 """
 
 from __future__ import annotations
@@ -21,9 +24,11 @@ import random
 import socket
 import subprocess
 import sys
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
+import pylsl
 
 from app.session.config import LabConfig
 from robot_io.arms.kinds import ARMS
@@ -33,6 +38,7 @@ from robot_io.grippers.robotiq import ROBOTIQ_PORT, RobotiqSocketKind
 from robot_io.hands.config import NatNetSource, UDPSource
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.standins.hand_publisher import HandPublisher, PublisherSpec
+from robot_io.standins.labrecorder_rcs import RemoteControl, StandInLabRecorder
 from robot_io.standins.ur.control import ControlClient
 from robot_io.standins.ur.control_script import MOVEL
 from robot_io.standins.ur.standin import RTDE_PORT
@@ -95,6 +101,16 @@ def tool_output_of(gripper: GripperKind) -> ToolOutputKind:
     return gripper if isinstance(gripper, ToolOutputKind) else ToolOutputKind(kind="tool_output")
 
 
+def recorded_by_rehearsal(lab: LabConfig, hand_stream: str) -> Callable[[pylsl.StreamInfo], bool]:
+    """What a rehearsal's stand-in LabRecorder sees of the network: the session's own outlets
+    (``<[record] lsl_name>-robot`` and ``-markers``), the rehearsal's hand on LSL (``hand_stream``)
+    and the lab's ``[recording] streams`` by name or type. LabRecorder would record every stream on
+    the network; a rehearsal records its own, so that two on one machine do not record each other."""
+    named = {f"{lab.record.lsl_name}-robot", f"{lab.record.lsl_name}-markers", hand_stream,
+             *lab.recording.streams}
+    return lambda info: info.name() in named or info.type() in lab.recording.streams
+
+
 def gripper_moves(gripper: GripperKind, events: list[str]) -> tuple[int, int]:
     """How often the stand-in's events show the gripper opened and closed."""
     if isinstance(gripper, RobotiqSocketKind):
@@ -123,6 +139,8 @@ class Rehearsal:
              "--exit-with-stdin", *(["--realtime-priority"] if realtime_priority else [])],
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         self.publisher: HandPublisher | None = None
+        #: the stand-in LabRecorder's remote control (a ``labrecorder_rcs`` lab only)
+        self.recorder: RemoteControl | None = None
         try:
             assert self.standin.stdout is not None, "started with stdout=PIPE"
             line = self.standin.stdout.readline()
@@ -157,6 +175,14 @@ class Rehearsal:
             if hand == "natnet":
                 self.lab = self.lab.with_rig(hand_source=source.model_copy(
                     update={"natnet_command_port": self.publisher.natnet_port}))
+            if lab.recording.kind == "labrecorder_rcs":
+                self.recorder = RemoteControl(StandInLabRecorder(
+                    sees=recorded_by_rehearsal(lab, stream)))
+                log.info("rehearsal: the stand-in LabRecorder's remote control on 127.0.0.1:%d "
+                         "instead of the lab's at %s:%d", self.recorder.port, lab.recording.rcs_host,
+                         lab.recording.rcs_port)
+                self.lab = self.lab.model_copy(update={"recording": lab.recording.model_copy(
+                    update={"rcs_host": "127.0.0.1", "rcs_port": self.recorder.port})})
         except BaseException:
             self.close()
             raise
@@ -199,6 +225,8 @@ class Rehearsal:
                 "tcp_to_R_m": float(np.linalg.norm(pose - start))}
 
     def close(self) -> None:
+        if self.recorder is not None:  # the session has stopped its recording before this
+            self.recorder.close()
         if self.publisher is not None:
             self.publisher.close()
         with contextlib.suppress(Exception):

@@ -5,12 +5,14 @@ The paper's whole session through ``handover run-session --rehearse``, then one 
 from __future__ import annotations
 
 import json
+import os
 import sqlite3
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+import pyxdf
 from support.engine import BRIEF_PROTOCOL, SHORT_PROTOCOL, protocol_toml
 from support.runner import READY_CEILING_S, Probe, ended, run_trial
 from support.waiting import CEILING_S, wait_for
@@ -23,6 +25,7 @@ from app.session.runner import SessionRunner
 from robot_io.arms.ur_kinematics import forward
 from robot_io.control.stages import PAPER_CYCLE, Stage
 from robot_io.hands.simulated_hand import Scenario
+from session_store.recordings import recordings_of
 from session_store.sample_rows import stored_rows
 from session_store.store import ParticipantStore
 
@@ -76,6 +79,34 @@ def test_run_session_rehearse_completes_a_session_through_the_standin(tmp_path):
     assert stand_in["gripper_opened"] >= n and stand_in["gripper_closed"] >= n
     assert stand_in["moves_to_R"] >= 2 * n  # prepare and retract, every trial
     assert stand_in["tcp_to_R_m"] < 1e-3
+
+
+def test_a_rehearsal_records_through_the_stand_in_labrecorder_when_the_lab_drives_its_own(tmp_path):
+    """A lab whose session drives its LabRecorder over the remote control, on another machine,
+    rehearses with `run-session --rehearse`: the rehearsal starts the stand-in LabRecorder on
+    loopback instead, and the study folder gets the run's file with the session's two streams and
+    the rehearsal's hand, a Go marker for every stored trial. A whole rehearsed session on the
+    wall clock (~25 s alone), and the file closed after it."""
+    name = f"rcs_{os.getpid()}_{tmp_path.name}"
+    config = tmp_path / "lab.toml"
+    config.write_text(f"[protocol]\n{protocol_toml(BRIEF_PROTOCOL)}\n"
+                      f'[record]\nlsl_outlets = true\nlsl_name = "{name}"\n'
+                      '[recording]\nkind = "labrecorder_rcs"\nrcs_host = "recorder.invalid"\n'
+                      "rcs_port = 1\n")
+    done = handover("run-session", "--study", str(tmp_path), "--participant", "R01", "--scenario",
+                    "straightforward", "--seed", "6", "--auto", "--rehearse",
+                    "--config", str(config), "--json", "--no-progress")
+    assert done.returncode == 0, done.stderr[-3000:]
+    files = recordings_of(tmp_path, "R01")
+    assert [f.name for f in files] == ["sub-R01_ses-01_task-handover_run-001_beh.xdf"], files
+    streams = {s["info"]["name"][0]: s for s in pyxdf.load_xdf(str(files[0]))[0]}
+    hand = [n for n, s in streams.items() if s["info"]["type"][0] == "Mocap"]
+    assert set(streams) == {f"{name}-markers", f"{name}-robot", *hand} and len(hand) == 1, streams
+    assert hand[0].startswith("handover-rehearsal-") and len(streams[hand[0]]["time_stamps"]) > 100
+    markers = [json.loads(text[0]) for text in streams[f"{name}-markers"]["time_series"]]
+    with sqlite3.connect(tmp_path / "R01.sqlite") as db:
+        trials = [row[0] for row in db.execute("SELECT trial_index FROM trials ORDER BY trial_index")]
+    assert sorted(m["trial"] for m in markers if m["event"] == "go") == trials and len(trials) >= 3
 
 
 def moving(runner: SessionRunner) -> bool:
