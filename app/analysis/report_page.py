@@ -18,7 +18,7 @@ from app.analysis.provenance import (
     answers_text,
     not_blind,
 )
-from app.analysis.stats import MWU_METHOD, SIGN_TIE_RULE, StatTest
+from app.analysis.stats import MWU_METHOD, SIGN_TIE_RULE, TEST_WORDS, WILCOXON_METHOD, StatTest
 from app.analysis.study_analysis import StudyAnalysis
 from app.analysis.tables import INDISTINCT_ARRIVAL_S, SCENARIOS
 from session_store.vocabulary import questions
@@ -151,14 +151,19 @@ def validation_tables(analysis: StudyAnalysis) -> str:
 
 def statistics(tests: list[StatTest]) -> str:
     frame = pd.DataFrame([{
-        "name": t.name, "test": "sign test" if t.test == "sign" else "Mann–Whitney U",
+        "name": t.name, "test": TEST_WORDS[t.test],
         "sides": ALTERNATIVE_TEXT[t.alternative], "n": t.n, "n_total": t.n_total, "ties": t.n_ties,
         "groups": ", ".join(f"{k} {v}" for k, v in t.groups.items()),
         "statistic": t.statistic_text(), "p": t.p_text()} for t in tests])
     rules = [f"Sign test: exact binomial (p = ½); {SIGN_TIE_RULE}. Statistic S = number of values "
              "above the threshold; H1: values lie above it (the paper's directional hypotheses).",
              f"Mann–Whitney U: two-sided, {MWU_METHOD}; U is that of the first group "
-             "(straightforward); 'ties' counts the answers that share a rank.",
+             "(straightforward); 'ties' counts the answers that share a rank."
+             if any(t.test == "mann-whitney-u" for t in tests) else
+             f"Wilcoxon signed-rank (a within-subjects plan: each person's straightforward answer "
+             f"minus their perturbed one): two-sided, {WILCOXON_METHOD}; W is the smaller of the "
+             "two signed rank sums; 'ties' counts the zero differences. The sign tests take each "
+             "person once, the mean of their complete sessions.",
              "Only complete sessions enter the tests."]
     return html.section("Statistics (Sect. VI)", html.table(frame, {
         "name": "Hypothesis", "test": "Test", "sides": "Sidedness", "n": "N used",

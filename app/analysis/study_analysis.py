@@ -64,6 +64,7 @@ class StudyAnalysis:
         distances = validation_distances(tables["participants"], tables["trials"], tables["samples"])
         learning = learning_table(tables["participants"], tables["trials"], tables["events"]).merge(
             answered, on="participant")
-        return cls(tables, counting, study_design(tables["participants"]), status, pairs, scores,
-                   survey, paper_tests(scores, survey), distances, learning,
+        design = study_design(tables["participants"])
+        return cls(tables, counting, design, status, pairs, scores, survey,
+                   paper_tests(scores, survey, design.persons), distances, learning,
                    cycle_table(tables["events"]))

@@ -14,9 +14,9 @@ from app.protocol.design import PlanStatus, plan_participants, recorded_assignme
 
 NO_PLAN = ("Design: no study plan recorded — the experimenter chose each participant's scenario "
            "([study] in lab.toml proposes a balanced, seeded assignment and records it).")
-WITHIN_NOTE = (" The tests below compare the scenarios as independent groups; with a within-subjects "
-               "design each person is in both, so a paired test is the right one (not computed "
-               "here).")
+WITHIN_NOTE = (" Each person ran every scenario: the tests below compare the scenarios by Wilcoxon's "
+               "signed-rank test paired by person, and the sign tests take each person once (the "
+               "mean of their sessions).")
 
 
 class StudyDesign(BaseModel):
@@ -24,6 +24,9 @@ class StudyDesign(BaseModel):
 
     line: str
     deviations: list[str]
+    #: within-subjects plan: participant → person, for the participants created under it (the
+    #: tests pair their sessions); None for a between-subjects plan or none
+    persons: dict[str, int] | None = None
 
 
 def study_design(participants: pd.DataFrame) -> StudyDesign:
@@ -35,11 +38,15 @@ def study_design(participants: pd.DataFrame) -> StudyDesign:
     if not plans:
         return StudyDesign(line=NO_PLAN, deviations=[])
     plan = plans[-1]
-    status = PlanStatus.of(plan, plan_participants(configs))
+    participants = plan_participants(configs)
+    status = PlanStatus.of(plan, participants)
     deviations = status.deviations
     line = (f"Design: {plan.words()} (the study plan, [study] of lab.toml); as run: "
             f"{status.counts_words()}; "
             + (f"{len(deviations)} deviation{'' if len(deviations) == 1 else 's'} from the plan "
                "(under Data problems)." if deviations else "no deviation from the plan.")
             + (WITHIN_NOTE if plan.design == "within" else ""))
-    return StudyDesign(line=line, deviations=deviations)
+    persons = {p.code: p.assignment.person for p in participants if p.assignment is not None
+               and p.assignment.plan == plan and p.assignment.person is not None}
+    return StudyDesign(line=line, deviations=deviations,
+                       persons=persons if plan.design == "within" else None)

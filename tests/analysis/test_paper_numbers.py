@@ -1,18 +1,24 @@
-"""The statistics of Sect. VI fed the paper's own Tables II–IV: they must give the paper's outcomes.
+"""The statistics of Sect. VI fed the paper's own Tables II–IV: they must give the paper's outcomes;
+and the same tables read as a within-subjects study (each of 8 people ran both scenarios), whose
+scenarios are compared paired by person.
 
-Expected values are computed here from the formulas (binomial tail, Mann–Whitney U by counting pairs
-and its tie-corrected normal approximation), not copied from the implementation's output.
+Expected values are computed here from the formulas (binomial tail, Mann–Whitney U by counting pairs,
+Wilcoxon's signed ranks, and their tie-corrected normal approximations), not copied from the
+implementation's output.
 """
 
 from __future__ import annotations
 
+import json
 import math
 
 import pandas as pd
 import pytest
 
 from app.analysis.stats import paper_tests, sign_test
+from app.analysis.study_design import study_design
 from app.analysis.tables import survey_table, validation_scores
+from app.protocol.design import StudyPlan
 
 # Tables II and III: participant, a_d, δ_d, k, validation %; P3's 75 is the paper's "*75".
 TABLE_II_III = [
@@ -133,3 +139,74 @@ def test_incomplete_sessions_are_left_out_of_the_tests(scores, survey):
     assert (validation.n_total, validation.n_ties) == (15, 0)
     assert (q1.n_total, q1.n_ties) == (15, 5)
     assert mwu_q1.groups == {"straightforward": 8, "perturbed": 7}
+
+
+#: The paper's 16 read as 8 people who ran both scenarios: person i is P0i (straightforward) and
+#: P(i+8) (perturbed).
+PERSONS = {code(n): (n - 1) % 8 + 1 for n in range(1, 17)}
+
+
+def wilcoxon_by_hand(differences: list[float]) -> tuple[float, float]:
+    """T, the smaller of the signed rank sums (zero differences dropped, tied magnitudes given their
+    mean rank), and the two-sided p of the normal approximation with tie-corrected variance and
+    continuity correction."""
+    d = [v for v in differences if v != 0]
+    n, magnitudes = len(d), sorted(abs(v) for v in d)
+    rank = {m: (magnitudes.index(m) + n - 1 - magnitudes[::-1].index(m)) / 2 + 1 for m in magnitudes}
+    plus = sum(rank[abs(v)] for v in d if v > 0)
+    minus = sum(rank[abs(v)] for v in d if v < 0)
+    ties = [magnitudes.count(m) for m in set(magnitudes)]
+    variance = n * (n + 1) * (2 * n + 1) / 24 - sum(t**3 - t for t in ties) / 48
+    z = (abs(min(plus, minus) - n * (n + 1) / 4) - 0.5) / math.sqrt(variance)
+    return min(plus, minus), math.erfc(z / math.sqrt(2))
+
+
+@pytest.mark.parametrize(("index", "column"), [(2, 1), (3, 3)])
+def test_a_within_subjects_study_compares_the_scenarios_paired_by_person(scores, survey, index,
+                                                                        column):
+    result = paper_tests(scores, survey, PERSONS)[index]
+    d = [TABLE_IV[i][column] - TABLE_IV[i + 8][column] for i in range(8)]
+    t, p = wilcoxon_by_hand(d)
+    assert result.test == "wilcoxon-signed-rank" and result.alternative == "two-sided"
+    assert (result.n_total, result.n_ties, result.n) == (8, d.count(0), 8 - d.count(0))
+    assert result.groups == {"straightforward higher": sum(v > 0 for v in d),
+                             "perturbed higher": sum(v < 0 for v in d)}
+    assert result.statistic == pytest.approx(t) and result.p_value == pytest.approx(p)
+    assert "paired by person" in result.name
+
+
+def test_a_within_subjects_studys_sign_tests_take_each_person_once(scores, survey):
+    validation, q1, _, _ = paper_tests(scores, survey, PERSONS)
+    for result, values, threshold in (
+            (validation, [row[4] for row in TABLE_II_III], 50.0),
+            (q1, [row[1] for row in TABLE_IV], 3.0)):
+        means = [(values[i] + values[i + 8]) / 2 for i in range(8)]
+        above, at = sum(m > threshold for m in means), sum(m == threshold for m in means)
+        assert (result.n_total, result.n_ties, result.statistic) == (8, at, above)
+        assert result.p_value == pytest.approx(binomial_upper_tail(above, 8 - at))
+        assert result.name.endswith(", per person")
+
+
+def test_a_person_with_an_incomplete_session_is_left_out_of_the_paired_tests(scores, survey):
+    survey.loc[survey["participant"] == "P09", "complete"] = False  # person 1's perturbed session
+    scores.loc[scores["participant"] == "P09", "complete"] = False
+    validation, q1, paired_q1, _ = paper_tests(scores, survey, PERSONS)
+    assert paired_q1.n_total == 7  # person 1 has no pair
+    assert validation.n_total == q1.n_total == 8  # person 1 counts once, by its complete session
+
+
+def test_the_design_of_a_within_subjects_plan_names_each_participants_person():
+    plan = StudyPlan(design="within", group_size=2, seed=3)
+    proposals = [plan.proposal(n) for n in range(1, 5)]
+    participants = pd.DataFrame([
+        {"participant": f"W{n}", "created_at": f"2026-01-0{n}",
+         "config": json.dumps({"scenario": a.proposed.value, "assignment": a.model_dump(mode="json")})}
+        for n, a in enumerate(proposals, start=1)]
+        + [{"participant": "X1", "created_at": "2026-01-09",
+            "config": json.dumps({"scenario": "perturbed", "assignment": None})}])
+    design = study_design(participants)
+    assert design.persons == {"W1": 1, "W2": 1, "W3": 2, "W4": 2}  # X1: created without the plan
+    assert "paired by person" in design.line
+    between = StudyPlan(design="between", group_size=2, seed=3).proposal(1)
+    assert study_design(participants.assign(config=json.dumps({
+        "scenario": "perturbed", "assignment": between.model_dump(mode="json")}))).persons is None
