@@ -104,9 +104,10 @@ def test_a_rehearsal_records_through_the_stand_in_labrecorder_when_the_lab_drive
     assert set(streams) == {f"{name}-markers", f"{name}-robot", *hand} and len(hand) == 1, streams
     assert hand[0].startswith("handover-rehearsal-") and len(streams[hand[0]]["time_stamps"]) > 100
     markers = [json.loads(text[0]) for text in streams[f"{name}-markers"]["time_series"]]
-    with sqlite3.connect(tmp_path / "R01.sqlite") as db:
-        trials = [row[0] for row in db.execute("SELECT trial_index FROM trials ORDER BY trial_index")]
-    assert sorted(m["trial"] for m in markers if m["event"] == "go") == trials and len(trials) >= 3
+    with sqlite3.connect(tmp_path / "R01.sqlite") as db:  # a trial the machine ended before Go has none
+        with_go = [row[0] for row in db.execute(
+            "SELECT trial_index FROM trials WHERE go_at IS NOT NULL ORDER BY trial_index")]
+    assert sorted(m["trial"] for m in markers if m["event"] == "go") == with_go and len(with_go) >= 3
 
 
 def moving(runner: SessionRunner) -> bool:
