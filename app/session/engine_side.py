@@ -38,6 +38,7 @@ from app.session.view import SessionFacts, ThetaStar
 from robot_io.control.loop import TrialRecord
 from robot_io.hands.simulated_hand import Scenario
 from robot_io.rig.messages import DeviceReport, StageReached
+from robot_io.rig.silence import waited
 from robot_io.rig.stream import SampleStream
 from session_store import lock as writer_lock
 from session_store.errors import StoreError, StoreWriteError
@@ -54,6 +55,12 @@ REOPEN_REASON = "opened again by the experimenter"
 #: How long closing a session waits for its learner warm-up to end [s]: once the forkserver serves,
 #: a few milliseconds; only a close within seconds of the first open waits for its imports.
 WARM_UP_WAIT_S = 10.0
+
+
+def joined(thread: threading.Thread, seconds: float) -> bool:
+    """``thread`` joined for at most ``seconds``: whether it has ended."""
+    thread.join(seconds)
+    return not thread.is_alive()
 
 
 class EngineSide:
@@ -196,8 +203,10 @@ class EngineSide:
         if self._lock is not None:
             self._lock.release()
             self._lock = None
-        if self._warming is not None:  # an ended session leaves no file open behind it
-            self._warming.join(WARM_UP_WAIT_S)
+        if (warming := self._warming) is not None:  # an ended session leaves no file open behind
+            # it; the limit counts only this thread's own waiting (a machine held still: a VM
+            # paused for 50 s once used a 10 s join up and left the warm-up's two pipes open)
+            waited(lambda look: joined(warming, look), WARM_UP_WAIT_S, 0.1)
             self._warming = None
 
     def record(self, what: str, record: Callable[[SessionEngine], None]) -> None:

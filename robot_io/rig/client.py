@@ -53,7 +53,7 @@ from robot_io.rig.messages import (
     StopReceived,
     TrialDone,
 )
-from robot_io.rig.silence import WatchedSilence
+from robot_io.rig.silence import WatchedSilence, waited
 from robot_io.rig.stream import SampleStream, capacity_for
 
 log = logging.getLogger(__name__)
@@ -192,14 +192,7 @@ class RigClient:
         """Whether the rig acknowledges the Stop within STOP_ACK_S of this thread's own waiting: a
         wait that comes back late (the machine held still, the rig with it) is not counted
         (robot_io.rig.silence), so a freeze of everything is not taken for a hung rig."""
-        look = STOP_ACK_S / 3
-        silence = WatchedSilence(look, time.monotonic())
-        while silence.watched(time.monotonic()) < STOP_ACK_S:
-            asked = time.monotonic()
-            if self._stop_ack.wait(look):
-                return True
-            silence.looked(asked, time.monotonic())
-        return False
+        return waited(self._stop_ack.wait, STOP_ACK_S, STOP_ACK_S / 3)
 
     def backstop(self, why: str) -> None:
         """Stop the arm without the rig: the controller's own stop (UR), and kill the rig."""

@@ -8,10 +8,14 @@ the difference: the machine held still (a VM paused by its host, every process f
 what it watches could not have run either. That time is not counted against the watched side, so a
 freeze of everything is not taken for a hang of one; the watcher judges again as soon as it runs,
 so the stop it owes comes no later than it could have acted anyway. One object per watcher, owned by
-its thread.
+its thread. :func:`waited` is the same rule for a thread that waits for something with a limit (a
+Stop's acknowledgement, a thread to end): a machine held still does not use the limit up.
 """
 
 from __future__ import annotations
+
+import time
+from collections.abc import Callable
 
 
 class WatchedSilence:
@@ -40,3 +44,18 @@ class WatchedSilence:
     def watched(self, now: float) -> float:
         """The silence the watcher was run for: what it may judge [s]."""
         return self.silent(now) - self.unwatched
+
+
+def waited(done: Callable[[float], bool], limit: float, look: float) -> bool:
+    """Whether ``done(look)`` — a wait of its own of at most ``look`` seconds, True once what it
+    waits for has come — says True within ``limit`` seconds of the calling thread's own running
+    (:class:`WatchedSilence`: a look that comes back late does not count its lateness)."""
+    silence = WatchedSilence(look, time.monotonic())
+    while True:
+        asked = time.monotonic()
+        if done(look):
+            return True
+        now = time.monotonic()
+        silence.looked(asked, now)
+        if silence.watched(now) >= limit:
+            return False

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import threading
+import time
+
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from robot_io.rig.silence import WatchedSilence
+from robot_io.rig.silence import WatchedSilence, waited
 
 PERIOD = 0.05
 #: how much later than asked each look came [s]: on time, jitter, or a machine held still for seconds
@@ -48,3 +51,25 @@ def test_a_look_that_came_early_counts_no_lateness():
     silence = WatchedSilence(PERIOD, 10.0)
     silence.looked(10.0, 10.0 + PERIOD / 2)  # a poll that a message ended early
     assert silence.unwatched == 0.0 and silence.watched(10.0 + PERIOD / 2) == pytest.approx(PERIOD / 2)
+
+
+def test_a_wait_held_still_past_its_limit_still_waits_its_own_time():
+    """``waited`` with looks that each come back a whole limit late (the machine held still): it
+    does not give up after the first, but after as many looks as the limit holds."""
+    looks: list[float] = []
+
+    def late_look(look: float) -> bool:
+        looks.append(look)
+        time.sleep(look + 0.2)  # every look 0.2 s late: the first already passes the limit
+        return False
+
+    assert not waited(late_look, limit=0.1, look=0.02)
+    # 0.1 s of its own waiting at 20 ms a look (the moments between looks count as its own too,
+    # which a loaded machine may stretch): never the one look the clock alone would allow
+    assert 3 <= len(looks) <= 5, looks
+
+
+def test_a_wait_ends_as_soon_as_what_it_waits_for_has_come():
+    came = threading.Event()
+    threading.Timer(0.05, came.set).start()
+    assert waited(came.wait, limit=5.0, look=0.5)
