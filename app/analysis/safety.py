@@ -6,7 +6,6 @@ and every trial past the lab's own limits, judged as the dashboard flagged it wh
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import pandas as pd
 
 from app.analysis import html
 from app.analysis.figures import FigureFiles, save
+from app.analysis.tables import events_of
 from app.protocol.safety_record import (
     JUDGED,
     SafetyRecordSettings,
@@ -73,13 +73,13 @@ def judged_by_lab_limits(trials: pd.DataFrame, events: pd.DataFrame) -> pd.DataF
     and ``over`` (what went past them, in words; "" for nothing)."""
     rows = []
     figures = trials.set_index(["participant", "trial_index"])
-    for code, mine in events.sort_values("seq").groupby("participant", sort=True):
+    for code in sorted(events["participant"].unique()):
         settings = SafetyRecordSettings()
-        for kind, payload in zip(mine["kind"], mine["payload"], strict=True):
-            if kind == "devices_recorded":
+        for event in events_of(events, code):
+            if event.kind == "devices_recorded":
                 settings = SafetyRecordSettings.model_validate(
-                    json.loads(payload)["config"].get("safety_record", {}))
-            elif kind == "trial_ended" and (code, index := json.loads(payload)["trial_index"]) \
+                    event.payload["config"].get("safety_record", {}))
+            elif event.kind == "trial_ended" and (code, index := event.payload["trial_index"]) \
                     in figures.index:
                 row = {name: None if isinstance(value, float) and math.isnan(value) else value
                        for name, value in figures.loc[(code, index)].items()}

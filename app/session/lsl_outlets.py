@@ -113,13 +113,18 @@ class RobotFeed:
         self._outlet.push_chunk(chunk, (go + rows[:, T]).tolist())
 
 
+def outlet_names(settings: RecordSettings) -> tuple[str, str]:
+    """The names of a session's robot and marker outlets: ``<lsl_name>-robot``, ``<lsl_name>-markers``."""
+    return f"{settings.lsl_name}-robot", f"{settings.lsl_name}-markers"
+
+
 class StudyOutlets:
     """The robot and marker outlets of one participant's session (open while it is open)."""
 
     def __init__(self, settings: RecordSettings, code: str, created_at: str, rate_hz: int,
                  samples: Callable[[], SampleStream | None]) -> None:
         session = f"{code}:{created_at}"
-        self.robot_name, self.markers_name = f"{settings.lsl_name}-robot", f"{settings.lsl_name}-markers"
+        self.robot_name, self.markers_name = outlet_names(settings)
         #: the streams' source_ids, which name this session (the session's recording finds them by it)
         self.source_ids = [f"{self.markers_name}:{session}", f"{self.robot_name}:{session}"]
         self._markers = pylsl.StreamOutlet(stream_info(

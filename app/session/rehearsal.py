@@ -31,6 +31,7 @@ import numpy as np
 import pylsl
 
 from app.session.config import LabConfig
+from app.session.lsl_outlets import outlet_names
 from robot_io.arms.kinds import ARMS
 from robot_io.grippers.gripper import GripperKind, ToolOutputKind
 from robot_io.grippers.kinds import GRIPPERS
@@ -106,8 +107,7 @@ def recorded_by_rehearsal(lab: LabConfig, hand_stream: str) -> Callable[[pylsl.S
     (``<[record] lsl_name>-robot`` and ``-markers``), the rehearsal's hand on LSL (``hand_stream``)
     and the lab's ``[recording] streams`` by name or type. LabRecorder would record every stream on
     the network; a rehearsal records its own, so that two on one machine do not record each other."""
-    named = {f"{lab.record.lsl_name}-robot", f"{lab.record.lsl_name}-markers", hand_stream,
-             *lab.recording.streams}
+    named = {*outlet_names(lab.record), hand_stream, *lab.recording.streams}
     return lambda info: info.name() in named or info.type() in lab.recording.streams
 
 

@@ -44,7 +44,8 @@ def test_the_go_check_names_the_stored_trials_no_recording_holds():
 
 
 def event(code: str, seq: int, kind: str, **payload: object) -> dict:
-    return {"participant": code, "seq": seq, "kind": kind, "payload": json.dumps(payload)}
+    return {"participant": code, "seq": seq, "at": f"2026-01-01T00:00:{seq:02d}+00:00",
+            "actor": "system", "kind": kind, "payload": json.dumps(payload)}
 
 
 def opened(code: str, seq: int, **limits: float) -> dict:
