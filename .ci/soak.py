@@ -9,12 +9,17 @@ stress tests (marker ``stress``: shared objects opened and released in a loop wh
 them) run with ``--stress-cycles`` cycles each (default 500) beside the same hog. It is not part of
 CI: run it before saying that the suite is steady.
 
-    make soak [SOAK_RUNS=10] [SOAK_HOG=1] [PYTEST_WORKERS=3]
+A soak takes hours (the rehearsal's 500 stress cycles alone about one on the wall clock). With
+``--until HH:MM`` it starts no soak run that would not end by then (judged by its longest run so
+far) and reports the runs it made; without it, all ``--runs``.
+
+    make soak [SOAK_RUNS=10] [SOAK_HOGS=1] [SOAK_UNTIL=HH:MM] [PYTEST_WORKERS=3]
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import os
 import signal
 import subprocess
@@ -50,6 +55,21 @@ def outcomes(junit: Path) -> dict[str, str]:
     return result
 
 
+def deadline(until: str | None) -> float:
+    """``HH:MM`` (today, or tomorrow when that is past) as a ``time.monotonic()`` moment; none: inf."""
+    if not until:
+        return float("inf")
+    try:
+        at = datetime.datetime.combine(datetime.date.today(),
+                                       datetime.time.fromisoformat(until))
+    except ValueError as bad:
+        raise SystemExit(f"--until: {until!r} is not a time of day HH:MM ({bad})") from None
+    now = datetime.datetime.now()
+    if at <= now:
+        at += datetime.timedelta(days=1)
+    return time.monotonic() + (at - now).total_seconds()
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=10)
@@ -57,8 +77,10 @@ def main() -> int:
     parser.add_argument("--workers", default="3")
     parser.add_argument("--stress-cycles", type=int, default=500,
                         help="cycles of each lifetime stress test (run once, before the soak runs)")
+    parser.add_argument("--until", help="start no soak run that would not end by HH:MM")
     parser.add_argument("pytest_args", nargs="*", help="passed on to pytest (e.g. -k rehearsal)")
     args = parser.parse_args()
+    ends_by = deadline(args.until)
     passed, ran, seconds = Counter(), Counter(), []
     # a soak stopped with SIGTERM (kill, pkill) ends its hogs too: on Python's default action they
     # outlived it and doubled the next soak's load
@@ -76,6 +98,10 @@ def main() -> int:
                     passed[name] += outcome == "passed"
             print(f"stress run ({args.stress_cycles} cycles each): {took:.0f} s", flush=True)
             for i in range(args.runs):
+                if time.monotonic() + max(seconds, default=0.0) > ends_by:
+                    print(f"soak run {i + 1}/{args.runs} not started: it would not end by "
+                          f"{args.until}", flush=True)
+                    break
                 junit = Path(folder) / f"run-{i}.xml"
                 seconds.append(run_once(junit, args.workers, args.pytest_args))
                 run = outcomes(junit)
@@ -94,9 +120,10 @@ def main() -> int:
     for name in sorted(ran, key=lambda n: (passed[n] - ran[n], n)):
         print(f"{name:<{width}}  {passed[name]}/{ran[name]}")
     steady = sum(passed[n] == ran[n] for n in ran)
-    print(f"\n{steady} of {len(ran)} tests passed every run ({args.runs} soak runs, 1 stress run); "
-          f"run wall time median {sorted(seconds)[len(seconds) // 2]:.0f} s "
-          f"(min {min(seconds):.0f}, max {max(seconds):.0f})")
+    timing = (f"; run wall time median {sorted(seconds)[len(seconds) // 2]:.0f} s "
+              f"(min {min(seconds):.0f}, max {max(seconds):.0f})" if seconds else "")
+    print(f"\n{steady} of {len(ran)} tests passed every run ({len(seconds)} of {args.runs} soak "
+          f"runs, 1 stress run){timing}")
     return 0 if steady == len(ran) else 1
 
 
