@@ -93,6 +93,35 @@ def test_a_run_ends_non_zero_naming_the_test(tmp_path: Path, case: str) -> None:
     assert not missing, f"the run's output lacks {missing}: {tail(output, 4000)}"
 
 
+LONG = '''
+import time
+
+import pytest
+
+
+@pytest.mark.timeout(120)
+def test_long_with_its_own_ceiling():
+    time.sleep(6)
+
+
+def test_long_under_the_runs_ceiling():
+    time.sleep(6)
+'''
+
+
+@pytest.mark.parametrize("ceiling", ["its own mark", "--timeout=0"])
+def test_a_test_within_its_own_ceiling_is_not_taken_for_a_hang(tmp_path: Path, ceiling: str) -> None:
+    """Tests that run 6 s without a word, in a run whose ceiling (2 s) and idle limit (2 s) they
+    pass: one with its own ``timeout`` mark (120 s), and, with ``--timeout=0`` (no ceiling, as
+    ``make soak``'s stress run), one without. Both pass. Before the fix the watchdog took the run's
+    ceiling for every test and ``--timeout=0`` for "not given", and ended both runs as hung (so it
+    ended ``make soak``'s 500-cycle stress run after 17 minutes)."""
+    (tmp_path / "test_case.py").write_text(LONG)
+    selection = {"its own mark": ["-k", "own_ceiling"], "--timeout=0": ["--timeout=0"]}[ceiling]
+    code, output = run_pytest(tmp_path, ["-o", "timeout=2", "-o", "watchdog_idle=2", *selection])
+    assert code == 0 and "watchdog" not in output, tail(output, 4000)
+
+
 def test_a_slow_test_without_a_docstring_is_named_at_the_end(tmp_path: Path) -> None:
     """With the threshold at 0.2 s: a test that waits 0.3 s without a docstring is named, one with
     a docstring and a quick one are not (tests/support/slow_tests.py)."""

@@ -12,7 +12,8 @@ Three ways a run stopped making progress, and what ends each (issue 44):
   stack to the run's stderr and ends the worker, from C, so a test that holds the GIL ends too.
 - **A hung scheduler, or a worker hung outside any test** (collection, a session's teardown): this
   watchdog, in the xdist controller. When no test is running and nothing has happened for
-  ``watchdog_idle`` seconds (or nothing at all for the test timeout plus that, whatever runs), it
+  ``watchdog_idle`` seconds (or, while tests run, nothing for the longest ceiling among them plus
+  that: pytest-timeout's, the test's own ``timeout`` mark or the run's; none with ``--timeout=0``), it
   prints the tests in flight, the controller's threads (faulthandler) and every process of the run
   (psutil: pid, state, CPU, command) with its Python stack (``py-spy dump``), kills the workers and
   everything they started, and makes the run's exit status non-zero.
@@ -59,12 +60,14 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 class Watchdog:
     """The controller's view of the run: the tests in flight and the time of the last event."""
 
-    def __init__(self, idle_s: float, backstop_s: float, out: TextIO) -> None:
-        self.idle_s, self.backstop_s, self.out = idle_s, backstop_s, out
+    def __init__(self, idle_s: float, ceiling_s: float, out: TextIO) -> None:
+        #: a test whose own ceiling the controller has not heard yet (before its setup report) has
+        #: the run's; inf: none
+        self.idle_s, self.ceiling_s, self.out = idle_s, ceiling_s, out
         self.lock = threading.Lock()
         self.last = time.monotonic()
         self.last_event = "the run started"
-        self.in_flight: set[str] = set()
+        self.in_flight: dict[str, float] = {}  # node id → its ceiling [s]
         self.started = False  # the first test has started: the workers have collected
         self.collected: list[str] = []
         self.reported: set[str] = set()
@@ -72,22 +75,31 @@ class Watchdog:
         self.ended = threading.Event()
         self.thread = threading.Thread(target=self._watch, name="suite-watchdog", daemon=True)
 
-    def event(self, what: str, started: str | None = None, finished: str | None = None) -> None:
+    def event(self, what: str, started: str | None = None, finished: str | None = None,
+              ceiling: tuple[str, float] | None = None) -> None:
         with self.lock:
             self.last, self.last_event = time.monotonic(), what
             if started:
-                self.in_flight.add(started)
+                self.in_flight[started] = self.ceiling_s
                 self.started = True
             if finished:
-                self.in_flight.discard(finished)
+                self.in_flight.pop(finished, None)
+            if ceiling and ceiling[0] in self.in_flight:
+                self.in_flight[ceiling[0]] = ceiling[1]
+
+    def limit(self) -> float:
+        """How long the run may be quiet now [s] (with the lock held): no test running, the idle
+        limit; tests running, the longest of their ceilings plus it."""
+        if not self.in_flight:
+            return self.idle_s if self.started else self.ceiling_s + self.idle_s
+        return max(self.in_flight.values()) + self.idle_s
 
     def _watch(self) -> None:
         while not self.ended.wait(PERIOD_S):  # a sampling period, not a wait for a state
             with self.lock:
                 quiet = time.monotonic() - self.last
                 idle = self.started and not self.in_flight
-                limit = self.idle_s if idle else self.backstop_s
-                if quiet <= limit:
+                if quiet <= self.limit():
                     continue
                 what = "no test running" if idle else f"{len(self.in_flight)} test(s) in flight"
                 self.fired = (f"{what} and no event from any worker for {quiet:.0f} s "
@@ -176,11 +188,37 @@ def pytest_configure(config: pytest.Config) -> None:
         return
     if config.option.maxworkerrestart is None:
         config.option.maxworkerrestart = "0"
-    # pytest-timeout's ceiling for one test (0: none): a test may run that long without an event
-    timeout = float(config.getoption("timeout", None) or config.getini("timeout") or 0)
-    idle = float(config.getini("watchdog_idle"))
-    _current = Watchdog(idle, timeout + idle if timeout else float("inf"), _stderr())
+    _current = Watchdog(float(config.getini("watchdog_idle")), run_ceiling(config), _stderr())
     _current.thread.start()
+
+
+def run_ceiling(config: pytest.Config) -> float:
+    """pytest-timeout's ceiling for a test of this run [s]: ``--timeout`` when given (0: none, inf
+    here), else the ini's; inf without pytest-timeout."""
+    if not config.pluginmanager.hasplugin("timeout"):
+        return float("inf")
+    given = config.getoption("timeout", None)
+    seconds = float(given if given is not None else config.getini("timeout") or 0)
+    return seconds if seconds > 0 else float("inf")
+
+
+def test_ceiling(item: pytest.Item) -> float:
+    """The ceiling pytest-timeout applies to ``item`` [s]: its ``timeout`` mark's, else the run's
+    (inf: none)."""
+    mark = item.get_closest_marker("timeout")
+    if mark is None:
+        return run_ceiling(item.config)
+    seconds = float(mark.args[0] if mark.args else mark.kwargs.get("timeout", 0) or 0)
+    return seconds if seconds > 0 else float("inf")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
+    """In an xdist worker: the setup report carries the test's ceiling to the controller's
+    watchdog (a report's extra attributes travel with it)."""
+    outcome = yield
+    if _worker_stderr is not None and call.when == "setup":
+        outcome.get_result().ceiling_s = test_ceiling(item)
 
 
 def pytest_unconfigure() -> None:
@@ -225,7 +263,9 @@ def pytest_runtest_logfinish(nodeid: str) -> None:
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
     if _current is not None:
         _current.reported.add(report.nodeid)
-        _current.event(f"{report.nodeid} {report.when} {report.outcome}")
+        ceiling = getattr(report, "ceiling_s", None)
+        _current.event(f"{report.nodeid} {report.when} {report.outcome}",
+                       ceiling=(report.nodeid, ceiling) if ceiling is not None else None)
 
 
 @pytest.hookimpl(optionalhook=True)  # xdist's hook
