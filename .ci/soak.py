@@ -19,6 +19,7 @@ far) and reports the runs it made; without it, all ``--runs``.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime
 import os
 import signal
@@ -30,6 +31,8 @@ import xml.etree.ElementTree as ET
 from collections import Counter
 from pathlib import Path
 
+import psutil
+
 SELECTION = "(browser or soak) and not stress"
 #: The lifetime stress tests read their cycles from this variable (tests/support/lifetimes.py).
 STRESS_CYCLES = "HANDOVER_STRESS_CYCLES"
@@ -39,10 +42,29 @@ def run_once(junit: Path, workers: str, extra: list[str], selection: str = SELEC
              env: dict[str, str] | None = None) -> float:
     """One pytest run of ``selection``; its wall time [s]."""
     began = time.monotonic()
-    subprocess.run([sys.executable, "-m", "pytest", "-m", selection, "-n", workers,
-                    "--dist", "loadgroup", "-p", "no:cacheprovider", "-q", "--no-header",
-                    f"--junitxml={junit}", *extra], check=False, env=env)
+    with subprocess.Popen([sys.executable, "-m", "pytest", "-m", selection, "-n", workers,
+                           "--dist", "loadgroup", "-p", "no:cacheprovider", "-q", "--no-header",
+                           f"--junitxml={junit}", *extra], env=env) as run:
+        try:
+            run.wait()
+        except BaseException:  # SIGTERM or Ctrl-C: the run's workers, servers and browsers go too
+            end_tree(run.pid)
+            raise
     return time.monotonic() - began
+
+
+def end_tree(pid: int) -> None:
+    """Kill ``pid`` and every process it started (a killed pytest left its xdist workers, and
+    they their servers and browsers, running on)."""
+    try:
+        root = psutil.Process(pid)
+        processes = [root, *root.children(recursive=True)]
+    except psutil.NoSuchProcess:
+        return
+    for process in processes:
+        with contextlib.suppress(psutil.Error):  # ended since it was listed
+            process.kill()
+    psutil.wait_procs(processes, timeout=30)
 
 
 def outcomes(junit: Path) -> dict[str, str]:
@@ -82,8 +104,8 @@ def main() -> int:
     args = parser.parse_args()
     ends_by = deadline(args.until)
     passed, ran, seconds = Counter(), Counter(), []
-    # a soak stopped with SIGTERM (kill, pkill) ends its hogs too: on Python's default action they
-    # outlived it and doubled the next soak's load
+    # a soak stopped with SIGTERM (kill, pkill) ends its hogs and its pytest run's processes too:
+    # on Python's default action they outlived it and doubled the next soak's load
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
     hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(args.hogs)]
     try:
