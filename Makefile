@@ -16,8 +16,10 @@ PYTEST_ARGS ?=
 # SOAK_HOGS busy cores (not in CI).
 SOAK_RUNS ?= 10
 SOAK_HOGS ?= 1
-# SOAK_UNTIL=HH:MM: start no soak run that would not end by then (report the runs made)
+# SOAK_UNTIL=HH:MM: start no soak run that would not end by then (report the runs made);
+# SOAK_STRESS_CYCLES: each lifetime stress test's cycles, run once before the soak runs (0: none)
 SOAK_UNTIL ?=
+SOAK_STRESS_CYCLES ?= 500
 
 install: $(VENV)/.installed
 
@@ -77,7 +79,7 @@ test: install chromium bytecode
 		$(BIN)/pytest -n $(PYTEST_WORKERS) --dist loadgroup --durations=25 $(PYTEST_ARGS)
 
 soak: install chromium bytecode
-	PYTHONDONTWRITEBYTECODE= $(BIN)/python .ci/soak.py --runs $(SOAK_RUNS) --hogs $(SOAK_HOGS) --workers $(PYTEST_WORKERS) $(if $(SOAK_UNTIL),--until $(SOAK_UNTIL))
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python .ci/soak.py --runs $(SOAK_RUNS) --hogs $(SOAK_HOGS) --workers $(PYTEST_WORKERS) --stress-cycles $(SOAK_STRESS_CYCLES) $(if $(SOAK_UNTIL),--until $(SOAK_UNTIL))
 
 # `make soak-serve`: `handover serve` with the simulated participant and both screens open for
 # SOAK_MINUTES, participant after participant; prints the serve process's memory, open files and

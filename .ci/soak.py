@@ -13,7 +13,7 @@ A soak takes hours (the rehearsal's 500 stress cycles alone about one on the wal
 ``--until HH:MM`` it starts no soak run that would not end by then (judged by its longest run so
 far) and reports the runs it made; without it, all ``--runs``.
 
-    make soak [SOAK_RUNS=10] [SOAK_HOGS=1] [SOAK_UNTIL=HH:MM] [PYTEST_WORKERS=3]
+    make soak [SOAK_RUNS=10] [SOAK_HOGS=1] [SOAK_UNTIL=HH:MM] [SOAK_STRESS_CYCLES=500] [PYTEST_WORKERS=3]
 """
 
 from __future__ import annotations
@@ -98,7 +98,8 @@ def main() -> int:
     parser.add_argument("--hogs", type=int, default=1, help="cores kept busy by `yes > /dev/null`")
     parser.add_argument("--workers", default="3")
     parser.add_argument("--stress-cycles", type=int, default=500,
-                        help="cycles of each lifetime stress test (run once, before the soak runs)")
+                        help="cycles of each lifetime stress test (run once, before the soak runs; "
+                             "0: no stress run)")
     parser.add_argument("--until", help="start no soak run that would not end by HH:MM")
     parser.add_argument("pytest_args", nargs="*", help="passed on to pytest (e.g. -k rehearsal)")
     args = parser.parse_args()
@@ -107,18 +108,25 @@ def main() -> int:
     # a soak stopped with SIGTERM (kill, pkill) ends its hogs and its pytest run's processes too:
     # on Python's default action they outlived it and doubled the next soak's load
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
+
+    def count(run: dict[str, str]) -> int:
+        """Adds one run's outcomes to the counts; how many passed."""
+        for name, outcome in run.items():
+            if outcome != "skipped":
+                ran[name] += 1
+                passed[name] += outcome == "passed"
+        return sum(outcome == "passed" for outcome in run.values())
+
     hogs = [subprocess.Popen(["yes"], stdout=subprocess.DEVNULL) for _ in range(args.hogs)]
     try:
         with tempfile.TemporaryDirectory(prefix="soak-") as folder:
-            junit = Path(folder) / "stress.xml"
-            # no run-wide ceiling (each stress test carries its own: tests/support/lifetimes.py)
-            took = run_once(junit, args.workers, ["--timeout=0", *args.pytest_args], "stress",
-                            {**os.environ, STRESS_CYCLES: str(args.stress_cycles)})
-            for name, outcome in outcomes(junit).items():
-                if outcome != "skipped":
-                    ran[name] += 1
-                    passed[name] += outcome == "passed"
-            print(f"stress run ({args.stress_cycles} cycles each): {took:.0f} s", flush=True)
+            if args.stress_cycles:
+                junit = Path(folder) / "stress.xml"
+                # no run-wide ceiling (each stress test carries its own: tests/support/lifetimes.py)
+                took = run_once(junit, args.workers, ["--timeout=0", *args.pytest_args], "stress",
+                                {**os.environ, STRESS_CYCLES: str(args.stress_cycles)})
+                print(f"stress run ({args.stress_cycles} cycles each): {took:.0f} s, "
+                      f"{count(outcomes(junit))} passed", flush=True)
             for i in range(args.runs):
                 if time.monotonic() + max(seconds, default=0.0) > ends_by:
                     print(f"soak run {i + 1}/{args.runs} not started: it would not end by "
@@ -126,13 +134,8 @@ def main() -> int:
                     break
                 junit = Path(folder) / f"run-{i}.xml"
                 seconds.append(run_once(junit, args.workers, args.pytest_args))
-                run = outcomes(junit)
-                for name, outcome in run.items():
-                    if outcome != "skipped":
-                        ran[name] += 1
-                        passed[name] += outcome == "passed"
                 print(f"soak run {i + 1}/{args.runs}: {seconds[-1]:.0f} s, "
-                      f"{sum(o == 'passed' for o in run.values())} passed", flush=True)
+                      f"{count(outcomes(junit))} passed", flush=True)
     finally:
         for hog in hogs:
             hog.kill()
@@ -145,7 +148,7 @@ def main() -> int:
     timing = (f"; run wall time median {sorted(seconds)[len(seconds) // 2]:.0f} s "
               f"(min {min(seconds):.0f}, max {max(seconds):.0f})" if seconds else "")
     print(f"\n{steady} of {len(ran)} tests passed every run ({len(seconds)} of {args.runs} soak "
-          f"runs, 1 stress run){timing}")
+          f"runs, {'1 stress run' if args.stress_cycles else 'no stress run'}){timing}")
     return 0 if steady == len(ran) else 1
 
 
