@@ -202,23 +202,18 @@ def run_ceiling(config: pytest.Config) -> float:
     return seconds if seconds > 0 else float("inf")
 
 
-def test_ceiling(item: pytest.Item) -> float:
-    """The ceiling pytest-timeout applies to ``item`` [s]: its ``timeout`` mark's, else the run's
-    (inf: none)."""
-    mark = item.get_closest_marker("timeout")
-    if mark is None:
-        return run_ceiling(item.config)
-    seconds = float(mark.args[0] if mark.args else mark.kwargs.get("timeout", 0) or 0)
-    return seconds if seconds > 0 else float("inf")
+#: In an xdist worker: the ceiling pytest-timeout set for a test (none set: it has none).
+CEILING = pytest.StashKey[float]()
 
 
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
-    """In an xdist worker: the setup report carries the test's ceiling to the controller's
-    watchdog (a report's extra attributes travel with it)."""
+    """In an xdist worker: the setup report carries the test's ceiling, as pytest-timeout resolved
+    it (its mark's or the run's), to the controller's watchdog (a report's extra attributes travel
+    with it)."""
     outcome = yield
     if _worker_stderr is not None and call.when == "setup":
-        outcome.get_result().ceiling_s = test_ceiling(item)
+        outcome.get_result().ceiling_s = item.stash.get(CEILING, float("inf"))
 
 
 def pytest_unconfigure() -> None:
@@ -238,6 +233,7 @@ def pytest_timeout_set_timer(item: pytest.Item, settings) -> bool | None:
     the worker's end (xdist then reports the test as the one its worker crashed in)."""
     if _worker_stderr is None:
         return None
+    item.stash[CEILING] = settings.timeout
     faulthandler.dump_traceback_later(settings.timeout, exit=True, file=_worker_stderr)
     return True
 
