@@ -8,7 +8,8 @@ the longest gap between two cycles);
 ``events`` (all of them); ``received`` (every command
 data package: ``[t, command id, doubles]``, ``t`` in the stand-in's ``time.monotonic``);
 ``protective_stop``; ``emergency_stop``; ``release_emergency_stop``; ``drop_sockets`` (close every
-client connection on every port); ``stall`` with ``seconds`` (no cycles, no output packages);
+client connection on every port); ``clients`` (how many client connections each port has open, by
+port number: what a client's close left behind); ``stall`` with ``seconds`` (no cycles, no output packages);
 ``lag_readers`` with ``seconds`` (the clients that only read, such as RTDEReceiveInterface, get
 every package that late: a loaded host);
 ``set_force`` with ``force`` (6 values, N and N·m); ``set_pose`` with ``pose`` (6 values);
@@ -26,18 +27,19 @@ import dataclasses
 import json
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Sequence
 
 import numpy as np
 
 from robot_io.hands.simulated_pull import SimulatedPull
-from robot_io.standins.ur.listener import read_lines
+from robot_io.standins.ur.listener import Listener, read_lines
 from robot_io.standins.ur.model import Controller
 
 DEFAULT_PORT = 30100
 
 
-def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int]) -> dict:
+def handle(controller: Controller, request: dict, ports: Sequence[Listener]) -> dict:
+    """The answer to one request; ``ports``: the client ports' listeners (not the control port's)."""
     op = request.get("op")
     with controller.lock:
         if op == "ping":
@@ -100,18 +102,20 @@ def handle(controller: Controller, request: dict, drop_sockets: Callable[[], int
         if op == "set_pose":
             controller.arm.pose = np.asarray(request["pose"], dtype=float).reshape(6)
             return {"ok": True}
+    if op == "clients":
+        return {"ok": True, "clients": {str(port.address[1]): port.open_connections() for port in ports}}
     if op == "drop_sockets":
-        count = drop_sockets()
+        count = sum(port.drop_all() for port in ports)
         with controller.lock:
             controller.event(f"dropped {count} client connections")
         return {"ok": True, "dropped": count}
     return {"ok": False, "error": f"unknown op {op!r}"}
 
 
-def serve(controller: Controller, drop_sockets: Callable[[], int], sock: socket.socket) -> None:
+def serve(controller: Controller, ports: Sequence[Listener], sock: socket.socket) -> None:
     for line in read_lines(sock):
         try:
-            answer = handle(controller, json.loads(line), drop_sockets)
+            answer = handle(controller, json.loads(line), ports)
         except (ValueError, KeyError, TypeError) as exc:
             answer = {"ok": False, "error": f"{type(exc).__name__}: {exc}"}
         sock.sendall((json.dumps(answer) + "\n").encode())

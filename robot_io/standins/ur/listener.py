@@ -53,6 +53,11 @@ class Listener:
                 self.connections.discard(sock)
             sock.close()
 
+    def open_connections(self) -> int:
+        """How many client connections are open (each ends when its client closes it)."""
+        with self._lock:
+            return len(self.connections)
+
     def drop_all(self) -> int:
         """Close every open connection; returns how many."""
         with self._lock:

@@ -30,8 +30,7 @@ class StandinController:
         pose = np.array([0.35, -0.35, 0.35, 0.0, 3.14159, 0.0]) if start_pose is None else start_pose
         self.controller = Controller(series, pose)
         self.rtde = RTDEServer(self.controller)
-        serve_control = functools.partial(control.serve, self.controller, self.drop_sockets)
-        self.listeners = [
+        self.listeners: list[Listener] = [
             Listener(host, RTDE_PORT, self.rtde.handle),
             Listener(host, DASHBOARD_PORT, functools.partial(dashboard.serve, self.controller)),
             *(Listener(host, port, functools.partial(script_server.serve, self.controller))
@@ -39,14 +38,12 @@ class StandinController:
             Listener(host, ROBOTIQ_PORT, functools.partial(
                 urcap.serve, self.controller.robotiq, self.controller.lock, self.controller.event)),
         ]
-        self.control = Listener(host, control_port, serve_control)
+        self.control = Listener(host, control_port,
+                                functools.partial(control.serve, self.controller, self.listeners))
         self._running = True
         self._thread = threading.Thread(target=self._cycle, name="controller-cycle", daemon=True)
         self._thread.start()
         log.info("stand-in %s controller on %s", series.name, host)
-
-    def drop_sockets(self) -> int:
-        return sum(listener.drop_all() for listener in self.listeners)
 
     def _cycle(self) -> None:
         controller, period = self.controller, self.controller.period

@@ -41,6 +41,7 @@ from robot_io.errors import ArmFault
 from robot_io.hands.simulated_hand import Scenario, SimulatedHand
 from robot_io.hands.udp_hand import UDPHand
 from robot_io.standins.ur.control import ControlClient
+from robot_io.standins.ur.standin import DASHBOARD_PORT, RTDE_PORT
 from robot_io.theta import Theta
 
 # real processes and sockets on the clock: `make soak` repeats them
@@ -255,6 +256,25 @@ def test_a_target_beyond_the_speed_cap_is_refused_and_a_far_start_pose_is_not_mo
         with pytest.raises(ArmFault, match="m/s"):
             arm.command(arm.read_pose() + np.array([0.05, 0.0, 0.0]))  # 6.25 m/s at 125 Hz
         assert settled_servo_targets(control, arm, expected=0) == [] and MOVEL not in commands(control)
+
+
+def test_close_leaves_no_client_connection_open_on_the_controller():
+    """``URArm.close`` releases every ur_rtde client the arm opened: the receive interface (by
+    dropping it: its destructor disconnects), the dashboard client, the control worker's."""
+    with standin() as ur_standin:
+        config = ur_config(ur_standin.host)
+        arm = URArm(config.ur, config.safety)
+
+        def clients() -> dict[str, int]:
+            """Open client connections by port number."""
+            return ur_standin.control("clients")["clients"]
+
+        opened = clients()
+        arm.close()
+        wait_for(lambda: not any(clients().values()), "the arm's client connections to end",
+                 seen=clients)
+    # RTDE: the receive interface's and the control worker's; the dashboard's
+    assert opened[str(RTDE_PORT)] == 2 and opened[str(DASHBOARD_PORT)] >= 1, opened
 
 
 def test_check_devices_reports_versions_and_rate_and_moves_nothing(capsys):
