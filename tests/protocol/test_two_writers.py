@@ -15,7 +15,8 @@ from pathlib import Path
 
 import pytest
 from support.engine import SESSION_LOOP_TOML, SHORT_PROTOCOL, protocol_toml
-from support.store import event_count
+from support.processes import stopped, thread_states
+from support.store import event_count, events
 from support.waiting import CEILING_S, tail, wait_for
 
 from app.cli import main
@@ -57,6 +58,8 @@ def test_a_second_writer_is_refused_and_the_first_finishes_its_session(tmp_path,
         # The first writer is held mid-session while the second ones try, whatever the machine's
         # load: a short session could otherwise end before a slow second writer had started.
         first.send_signal(signal.SIGSTOP)
+        wait_for(lambda: stopped(first.pid), "every thread of the first writer stopped by SIGSTOP",
+                 seen=lambda: thread_states(first.pid))
         for second in ([*HANDOVER, "run-session", "--study", str(study), "--participant", "P09",
                         "--auto", "--resume", "--no-progress"],
                        _serve(study, "--participant", "P09")):
@@ -102,18 +105,22 @@ def test_serve_holding_a_participant_refuses_run_session(tmp_path):
                  "serve to print its dashboard token (participant P10 open)",
                  seen=lambda: tail(log.read_text()))
         # serve is held while the second writer tries: its own worker plans the first θ in the
-        # background after the token is printed, and that event is not the refused writer's
+        # background after the token is printed, and that event is not the refused writer's. The
+        # signal takes hold after kill() returns (a commit of serve's landed after it: assert 4 ==
+        # 3, three times), so the events are counted once every thread of serve has stopped.
         serve.send_signal(signal.SIGSTOP)
-        events = event_count(study / "P10.sqlite")
+        wait_for(lambda: stopped(serve.pid), "every thread of serve stopped by SIGSTOP",
+                 seen=lambda: thread_states(serve.pid))
+        before = events(study / "P10.sqlite")
         refused = subprocess.run([*HANDOVER, "run-session", "--study", str(study), "--participant",
                                   "P10", "--auto", "--resume", "--no-progress"],
                                  capture_output=True, text=True, timeout=120)
-        after = event_count(study / "P10.sqlite")  # still held: the plan it resumes is its own
+        after = events(study / "P10.sqlite")  # still held: the plan it resumes is its own
         serve.send_signal(signal.SIGCONT)
         assert refused.returncode == 2
         assert f"open for writing by pid {serve.pid} on " in refused.stderr
         assert "serve --study" in refused.stderr
-        assert after == events
+        assert after == before, f"written while serve was held: {after[len(before):]}"
     finally:
         serve.send_signal(signal.SIGCONT)  # held above; a failed assertion may leave it stopped
         serve.send_signal(signal.SIGINT)

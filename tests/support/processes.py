@@ -17,13 +17,32 @@ PROC = Path("/proc")
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
 
-def _fields(pid: int) -> list[str] | None:
-    """The fields of /proc/<pid>/stat after "pid (comm) ": state, ppid, … (None: no such process)."""
+def _fields(pid: int, stat: Path | None = None) -> list[str] | None:
+    """The fields of /proc/<pid>/stat (or of a thread's ``stat``) after "pid (comm) ": state, ppid,
+    … (None: no such process)."""
     try:
-        text = (PROC / str(pid) / "stat").read_text()
+        text = (stat or PROC / str(pid) / "stat").read_text()
     except (FileNotFoundError, ProcessLookupError):
         return None
     return text[text.rindex(")") + 2:].split()
+
+
+def thread_states(pid: int) -> dict[int, str]:
+    """The state letter of each thread of ``pid``, by thread id (empty: no such process)."""
+    try:
+        tasks = list((PROC / str(pid) / "task").iterdir())
+    except (FileNotFoundError, ProcessLookupError):
+        return {}
+    return {int(task.name): fields[0] for task in tasks
+            if (fields := _fields(pid, task / "stat")) is not None}
+
+
+def stopped(pid: int) -> bool:
+    """Every thread of ``pid`` is stopped (state T). ``kill(pid, SIGSTOP)`` returns before the
+    signal has taken hold: measured beside a CPU hog, right after it some thread still ran in 66 of
+    100 tries, and in 12 of 100 a thread committed an SQLite transaction after it."""
+    states = thread_states(pid)
+    return bool(states) and all(state == "T" for state in states.values())
 
 
 def _stat(pid: int) -> tuple[str, int] | None:

@@ -15,6 +15,16 @@ def _read_only(path: Path) -> sqlite3.Connection:
     return sqlite3.connect(f"file:{path}?mode=ro", uri=True)
 
 
+def events(path: Path) -> list[tuple[int, str, str]]:
+    """``(seq, actor, kind)`` of the events written so far (none before the session exists);
+    read-only, beside the writer."""
+    try:
+        with _read_only(path) as conn:
+            return conn.execute("SELECT seq, actor, kind FROM events ORDER BY seq").fetchall()
+    except sqlite3.Error:
+        return []
+
+
 def event_count(path: Path) -> int:
     """Events written so far (0 before the session exists); read-only, beside the writer."""
     try:

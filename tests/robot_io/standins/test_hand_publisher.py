@@ -90,7 +90,8 @@ class SilentControlPort:
     def _serve(self) -> None:
         connection, _ = self._listener.accept()
         self.connection = connection
-        with connection, connection.makefile("rb") as lines:
+        # close() shuts the connection down, perhaps under an answer being sent: that ends it
+        with connection, connection.makefile("rb") as lines, contextlib.suppress(OSError):
             for line in lines:
                 self.requests.append(line)
                 self._answering.wait()
