@@ -1,8 +1,9 @@
 """How long the UR backend takes to let go of the controller, against the stand-in.
 
-    python benchmarks/ur_close.py [--closes 5] [--host 127.0.0.17]
+    python benchmarks/ur_close.py [--closes 5]
 
-Connects ``URArm`` to a stand-in CB-series controller and closes it ``--closes`` times; prints the
+Connects ``URArm`` to a stand-in CB-series controller (tests/support/ur.py: a free loopback address,
+always ended) and closes it ``--closes`` times; prints the
 median of ``URArm.close()`` and, as the baseline of the same run, the median of releasing ur_rtde's
 receive interface as the backend did before (``disconnect()``, then the drop, whose destructor
 disconnects again) and of dropping it alone (what ``close`` does now). A rig's close is part of
@@ -14,10 +15,16 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-import subprocess
 import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
+# the checkout before tests/, whose robot_io/ folder would pass for the robot_io package
+sys.path.insert(0, str(Path(__file__).parents[1]))
+
+from support.ur import standin
 
 from robot_io.arms.ur_arm import URArm
 from robot_io.config import ControllerConfig
@@ -43,25 +50,18 @@ def receive_release(host: str, disconnect_first: bool) -> float:
     return timed(release)
 
 
-def report(closes: int, host: str) -> None:
-    """Start the stand-in at ``host``, time ``closes`` closes of each kind, print the medians."""
+def report(closes: int) -> None:
+    """Start a stand-in, time ``closes`` closes of each kind, print the medians."""
     print(f"load average at start: {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
-    config = ControllerConfig()
-    config = config.model_copy(update={"ur": config.ur.model_copy(update={"host": host})})
-    standin = subprocess.Popen([sys.executable, "-m", "robot_io.standins.ur", "--host", host,
-                                "--exit-with-stdin"], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                               text=True)
-    try:
-        standin.stdout.readline()  # "ready <host>"
+    with standin() as ur:
+        config = ControllerConfig()
+        config = config.model_copy(update={"ur": config.ur.model_copy(update={"host": ur.host})})
         arm_closes = []
         for _ in range(closes):
             arm = URArm(config.ur, config.safety)
             arm_closes.append(timed(arm.close))
-        before = [receive_release(host, disconnect_first=True) for _ in range(closes)]
-        now = [receive_release(host, disconnect_first=False) for _ in range(closes)]
-    finally:
-        standin.stdin.close()
-        standin.wait(10)
+        before = [receive_release(ur.host, disconnect_first=True) for _ in range(closes)]
+        now = [receive_release(ur.host, disconnect_first=False) for _ in range(closes)]
     median_before, median_now = statistics.median(before), statistics.median(now)
     print(f"URArm.close(): median {statistics.median(arm_closes):.3f} s over {closes} closes\n"
           f"the receive interface released by disconnect() then the drop (before): median "
@@ -72,7 +72,6 @@ def report(closes: int, host: str) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--closes", type=int, default=5, help="connect-close cycles of each kind")
-    parser.add_argument("--host", default="127.0.0.17", help="the stand-in's loopback address")
     report(**vars(parser.parse_args()))
 
 
