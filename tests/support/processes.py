@@ -17,11 +17,15 @@ PROC = Path("/proc")
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
 
-def _fields(pid: int, stat: Path | None = None) -> list[str] | None:
-    """The fields of /proc/<pid>/stat (or of a thread's ``stat``) after "pid (comm) ": state, ppid,
-    … (None: no such process)."""
+def _fields(pid: int) -> list[str] | None:
+    """The fields of /proc/<pid>/stat after "pid (comm) ": state, ppid, … (None: no such process)."""
+    return _stat_fields(PROC / str(pid) / "stat")
+
+
+def _stat_fields(stat: Path) -> list[str] | None:
+    """The fields of a process's or a thread's ``stat`` file after "id (comm) " (None: gone)."""
     try:
-        text = (stat or PROC / str(pid) / "stat").read_text()
+        text = stat.read_text()
     except (FileNotFoundError, ProcessLookupError):
         return None
     return text[text.rindex(")") + 2:].split()
@@ -34,7 +38,7 @@ def thread_states(pid: int) -> dict[int, str]:
     except (FileNotFoundError, ProcessLookupError):
         return {}
     return {int(task.name): fields[0] for task in tasks
-            if (fields := _fields(pid, task / "stat")) is not None}
+            if (fields := _stat_fields(task / "stat")) is not None}
 
 
 def stopped(pid: int) -> bool:
