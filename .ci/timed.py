@@ -24,6 +24,8 @@ import subprocess
 import sys
 import time
 
+import psutil
+
 #: The issue-44 calibration loop: its CPU-seconds are quoted with every figure of the suite's time.
 CALIBRATION = "s=0\nfor i in range(20_000_000): s+=i*i"
 #: ``prctl(2)`` option: orphaned descendants are re-parented to this process instead of init.
@@ -73,16 +75,7 @@ def reap_orphans(ceiling_s: float = ORPHANS_CEILING_S) -> None:
 
 def survivors() -> list[str]:
     """The processes still handed to this one: ``pid name`` of each child alive now."""
-    found = []
-    for entry in os.listdir("/proc"):
-        try:
-            with open(f"/proc/{entry}/stat") as stat:
-                text = stat.read()
-        except (OSError, ValueError):
-            continue
-        if int(text[text.rindex(")") + 2:].split()[1]) == os.getpid():
-            found.append(f"{entry} {text[text.index('(') + 1:text.rindex(')')]}")
-    return found
+    return [f"{child.pid} {child.name()}" for child in psutil.Process().children()]
 
 
 def main() -> int:

@@ -40,8 +40,7 @@ BURN_S = 1.0
 #: A command that leaves an orphan running (for ten minutes) and exits.
 ORPHAN_STAYS = '''
 import os, time
-pid = os.fork()
-if pid == 0:
+if os.fork() == 0:
     if os.fork() == 0:
         time.sleep(600)
     os._exit(0)
