@@ -9,17 +9,25 @@ worker for the next trial. It also keeps the constructor, which holds the GIL wh
 the controller, off the control loop's interpreter.
 
 Parent → worker messages: ``("servo", args)`` (servoL, no reply: one per control cycle) and
-``("call", method, args)`` answered by ``("ok", result)`` or ``("error", message)``.
+``("call", number, method, args)`` answered by ``("ok", number, result)`` or ``("error", number,
+message)``; the connection is answered as call 0. The number pairs an answer with its call: an answer
+that comes after its call gave up waiting (a loaded host, a stalled controller) is dropped, never
+taken as the answer to the next call (a late ``stopL``'s ``None`` read as ``isProgramRunning``).
 """
 
 from __future__ import annotations
 
+import logging
 import multiprocessing
 import os
+import time
+import traceback
 from multiprocessing.connection import Connection
 
 from robot_io.clock import children_start_on_the_normal_policy, raise_priority
 from robot_io.errors import ArmFault
+
+log = logging.getLogger(__name__)
 
 #: Methods of RTDEControlInterface the arm backend may call through the worker.
 CALLS = frozenset({"moveL", "stopL", "servoStop", "stopScript", "setWatchdog", "reuploadScript",
@@ -37,28 +45,32 @@ def _serve(conn: Connection, host: str, flags: int, priority: int | None) -> Non
     try:
         control = rtde_control.RTDEControlInterface(host, -1.0, flags)
     except Exception as exc:  # the constructor throws RuntimeError, std::logic_error, ...
-        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        conn.send(("error", 0, f"{type(exc).__name__}: {exc}"))
         return
-    conn.send(("ok", None))
+    conn.send(("ok", 0, None))
     try:
         while True:
             message = conn.recv()
             if message[0] == "servo":
                 control.servoL(*message[1])
                 continue
-            _, method, args = message
+            _, number, method, args = message
             try:
-                conn.send(("ok", getattr(control, method)(*args)))
+                conn.send(("ok", number, getattr(control, method)(*args)))
             except Exception as exc:
-                conn.send(("error", f"{method}: {type(exc).__name__}: {exc}"))
+                conn.send(("error", number, f"{method}: {type(exc).__name__}: {exc}"))
     except (EOFError, OSError):
         pass  # the arm backend is gone: the controller's watchdog stops the program
+    except Exception:  # servoL's (it has no answer to carry it)
+        traceback.print_exc()  # os._exit below would end the process before Python printed it
     finally:
         try:
             control.servoStop(5.0)
-            control.stopScript()
         finally:
-            os._exit(0)  # do not wait in ur_rtde's destructor (it can hang on a dead connection)
+            try:
+                control.stopScript()
+            finally:
+                os._exit(0)  # not ur_rtde's destructor: it can hang on a dead connection
 
 
 class ControlWorker:
@@ -77,6 +89,7 @@ class ControlWorker:
                                            name=f"ur_rtde-control-{host}", daemon=True)
             self.process.start()
         child.close()
+        self._calls = 0  # the number of the last call; the connection is call 0
         self._wait_reply(timeout, f"connecting the control interface to {host}")
 
     @property
@@ -95,20 +108,30 @@ class ControlWorker:
         """Call a method of RTDEControlInterface in the worker and return its result."""
         if method not in CALLS:
             raise ValueError(f"method = {method!r} is not one of {sorted(CALLS)}")
+        self._calls += 1
         try:
-            self._conn.send(("call", method, args))
+            self._conn.send(("call", self._calls, method, args))
         except (OSError, ValueError) as exc:
             raise ArmFault(f"the ur_rtde control process is gone ({exc})") from exc
         return self._wait_reply(timeout, method)
 
     def _wait_reply(self, timeout: float, what: str):
-        try:
-            if not self._conn.poll(timeout):
-                raise ArmFault(f"{what}: no answer from the ur_rtde control process within {timeout} s")
-            status, value = self._conn.recv()
-        except (EOFError, OSError) as exc:
-            raise ArmFault(f"{what}: the ur_rtde control process exited "
-                           f"(exit code {self.process.exitcode})") from exc
+        """The answer to call number ``self._calls``; answers to earlier calls, which gave up
+        waiting for them, are dropped."""
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                if not self._conn.poll(max(0.0, deadline - time.monotonic())):
+                    raise ArmFault(f"{what}: no answer from the ur_rtde control process within "
+                                   f"{timeout} s")
+                status, number, value = self._conn.recv()
+            except (EOFError, OSError) as exc:
+                raise ArmFault(f"{what}: the ur_rtde control process exited "
+                               f"(exit code {self.process.exitcode})") from exc
+            if number == self._calls:
+                break
+            log.warning("dropped a late answer of the ur_rtde control process (call %d, %s: %r) "
+                        "while waiting for call %d, %s", number, status, value, self._calls, what)
         if status == "error":
             raise ArmFault(f"{what}: {value}")
         return value

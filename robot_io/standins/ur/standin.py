@@ -55,11 +55,11 @@ class StandinController:
                 time.sleep(delay)
             elif delay < -10 * period:
                 deadline = time.monotonic()  # far behind (machine busy): resync, no burst
-            now = time.monotonic()
-            if now < controller.stalled_until:
-                last = None  # an injected stall is no late cycle
-                continue
-            with controller.lock:
+            with controller.lock:  # a stall injected before a command is seen by its cycle
+                now = time.monotonic()
+                if now < controller.stalled_until:
+                    last = None  # an injected stall is no late cycle
+                    continue
                 if last is not None:
                     controller.longest_gap_s = max(controller.longest_gap_s, now - last)
                 controller.tick()
