@@ -407,14 +407,31 @@ class URArm:
             return
         if self._state is ArmState.STREAMING:
             self._state = ArmState.STOPPING
-        try:
-            if self._worker is not None and self._worker.alive:
-                self._worker.call("servoStop", self.config.stop_deceleration, timeout=1.0)
-                self._worker.call("stopScript", timeout=1.0)
-        except ArmFault as exc:
-            log.error("stopping the UR arm: %s", exc)
+        self._end_script()
         if self._state is ArmState.STOPPING:
             self._state = ArmState.STOPPED
+
+    def _end_script(self) -> None:
+        """servoStop, then stopScript even if servoStop failed; every way it can fail is logged
+        (ur_rtde answers False, or None with the script still running, where it gave up)."""
+        worker = self._worker
+        if worker is None or not worker.alive:
+            log.error("stopping the UR arm: the ur_rtde control process had exited (exit code %s); "
+                      "the controller's watchdog stops the script",
+                      None if worker is None else worker.process.exitcode)
+            return
+        for method, args in (("servoStop", (self.config.stop_deceleration,)), ("stopScript", ())):
+            try:
+                if worker.call(method, *args, timeout=1.0) is False:
+                    log.error("stopping the UR arm: the controller did not accept %s", method)
+            except ArmFault as exc:
+                log.error("stopping the UR arm: %s", exc)
+        try:
+            if worker.call("isProgramRunning", timeout=1.0):
+                log.error("stopping the UR arm: the control script still runs after stopScript "
+                          "(the controller's watchdog ends it)")
+        except ArmFault as exc:
+            log.error("stopping the UR arm: %s", exc)
 
     def recover(self, timeout: float = 15.0) -> None:
         """The recovery path after a fault; moves nothing. Waits out the controller's 5 s rule."""

@@ -56,6 +56,8 @@ def standin(series: str = "cb3") -> Iterator[Standin]:
                         yield Standin(host, control, process)
                     finally:
                         control.close()
+                        _end(process)
+                        _show_log(stderr, host)
                     return
                 process.wait(30)
                 stderr.seek(0)
@@ -66,6 +68,14 @@ def standin(series: str = "cb3") -> Iterator[Standin]:
             finally:
                 _end(process)
     raise AssertionError(f"no free loopback address for a stand-in after {ATTEMPTS} tries")
+
+
+def _show_log(stderr, host: str) -> None:
+    """What the stand-in logged, on the test's stderr: pytest shows it beside a failure (a
+    warning of the stand-in's, such as a package for an unknown recipe, explains what the test saw)."""
+    stderr.seek(0)
+    if log := stderr.read().strip():
+        print(f"the stand-in on {host} logged:\n{tail(log)}", file=sys.stderr)
 
 
 def _end(process: subprocess.Popen) -> None:

@@ -389,7 +389,9 @@ def test_a_move_to_the_start_right_after_a_stop_waits_for_the_script_a_late_read
         control("lag_readers", seconds=0.5)
         arm.stop()  # as at the end of a trial: servoStop, then stopScript
         wait_for(lambda: control("state")["program"] is None, "the stand-in's script to end",
-                 seen=lambda: control("state")["events"][-3:])
+                 seen=lambda: f"events {control('state')['events'][-3:]}, last commands received "
+                              f"{commands(control)[-5:]}, control process alive "
+                              f"{arm._control.alive} (exit code {arm._control.process.exitcode})")
         arm.move_to(start + 10 * STEP)
         control("lag_readers", seconds=0.0)
         moves = commands(control).count(MOVEL)
