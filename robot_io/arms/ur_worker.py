@@ -34,10 +34,21 @@ CALLS = frozenset({"moveL", "stopL", "servoStop", "stopScript", "setWatchdog", "
                    "isProgramRunning"})
 
 
+#: How far below ur_rtde's own threads the worker's command thread runs. ur_rtde 1.6's
+#: ``sendCommand`` waits for the control script's "ready" in a loop that never sleeps (measured: a
+#: servoL sent while the controller did not answer for 1.0 s used 1.0 CPU-s). At their priority,
+#: two such waits held both cores of a 2-core machine under SCHED_FIFO, and the threads that would
+#: have ended them (ur_rtde's receiver, which reads "ready"; the stand-in; the arm's reader) could
+#: not run: the stand-in "sent no new state", the servoL targets never arrived. Below them, a wait
+#: lasts until the answer comes, as it should; it still runs above every normal-policy process.
+COMMAND_PRIORITY_BELOW = 5
+
+
 def _serve(conn: Connection, host: str, flags: int, priority: int | None) -> None:
     """The worker process: construct the interface, then execute messages until the pipe closes.
-    It starts on the normal policy and, with a ``priority``, runs under SCHED_FIFO at it once its
-    imports are done (ur_rtde's threads, started by the constructor, inherit it)."""
+    It starts on the normal policy and, with a ``priority``, runs under SCHED_FIFO once its imports
+    are done: ur_rtde's threads, started by the constructor, at ``priority``; this thread, which
+    sends the commands and spins in ur_rtde's waits, COMMAND_PRIORITY_BELOW below it."""
     import rtde_control
 
     if priority is not None:
@@ -47,6 +58,8 @@ def _serve(conn: Connection, host: str, flags: int, priority: int | None) -> Non
     except Exception as exc:  # the constructor throws RuntimeError, std::logic_error, ...
         conn.send(("error", 0, f"{type(exc).__name__}: {exc}"))
         return
+    if priority is not None:
+        raise_priority(priority - COMMAND_PRIORITY_BELOW)  # this thread only (Linux: per thread)
     conn.send(("ok", 0, None))
     try:
         while True:
