@@ -126,7 +126,7 @@ class URArm:
         self.rate_hz = 125 if self.polyscope_version.startswith("3.") else 500
         self.period = 1.0 / self.rate_hz
         try:
-            self._worker = ControlWorker(host, cfg.upper_range_registers, cfg.connect_timeout_s)
+            self._start_worker()
         except ArmFault:
             self.close()  # leave no receive or dashboard connection behind
             raise
@@ -148,9 +148,7 @@ class URArm:
     def close(self) -> None:
         """Stop, end the control worker, disconnect. Safe to call twice."""
         self.stop()
-        if self._worker is not None:
-            self._worker.close()
-            self._worker = None
+        self._end_worker()
         # The receive interface is released by dropping it: its destructor disconnects. ur_rtde
         # 1.6 sleeps 0.5 s in disconnect() and again in the destructor, so disconnect() and then
         # the drop took the rig's close 1.0 s (measured against the stand-in, both times). This is
@@ -162,13 +160,19 @@ class URArm:
 
     def _reconnect(self) -> None:
         log.warning("reconnecting to the UR controller at %s", self.config.host)
-        if self._worker is not None:
-            self._worker.close()
-            self._worker = None
+        self._end_worker()
         if self._receive is not None and not self._receive.isConnected():
             self._receive.reconnect()
         self._dash.disconnect()
         self._dash.connect(int(self.config.connect_timeout_s * 1000))
+        self._start_worker()
+
+    def _end_worker(self) -> None:
+        if self._worker is not None:
+            self._worker.close()
+            self._worker = None
+
+    def _start_worker(self) -> None:
         self._worker = ControlWorker(self._host, self.config.upper_range_registers,
                                      self.config.connect_timeout_s)
 
@@ -314,7 +318,15 @@ class URArm:
         reads reports the program stopped), not the reader's: a reader behind by a moment (a loaded
         host) still reported the script that a trial's stop had just ended, the script was not
         re-uploaded, and the next moveL was refused. The wait ends when both see it running, as
-        ``_check`` reads the reader's bit while streaming."""
+        ``_check`` reads the reader's bit while streaming.
+
+        A control process that exited since the last motion (a crash inside ur_rtde, which it is
+        there to contain) is replaced first: the arm is stopped, and the controller lost nothing."""
+        if self._worker is None or not self._worker.alive:
+            log.warning("the ur_rtde control process had exited (exit code %s): starting a new one",
+                        None if self._worker is None else self._worker.process.exitcode)
+            self._end_worker()
+            self._start_worker()
         if not self._control.call("isProgramRunning"):
             log.info("control script not running: re-uploading it")
             self._control.call("reuploadScript")
@@ -412,26 +424,38 @@ class URArm:
             self._state = ArmState.STOPPED
 
     def _end_script(self) -> None:
-        """servoStop, then stopScript even if servoStop failed; every way it can fail is logged
-        (ur_rtde answers False, or None with the script still running, where it gave up)."""
+        """servoStop, then stopScript even if servoStop failed. A script that outlives them (the
+        control process gone or not answering, or ur_rtde gave up waiting) is stopped from the
+        dashboard server; each of these is logged."""
         worker = self._worker
         if worker is None or not worker.alive:
-            log.error("stopping the UR arm: the ur_rtde control process had exited (exit code %s); "
-                      "the controller's watchdog stops the script",
+            log.error("stopping the UR arm: the ur_rtde control process had exited (exit code %s)",
                       None if worker is None else worker.process.exitcode)
-            return
-        for method, args in (("servoStop", (self.config.stop_deceleration,)), ("stopScript", ())):
+        else:
+            for method, args in (("servoStop", (self.config.stop_deceleration,)),
+                                 ("stopScript", ())):
+                try:
+                    worker.call(method, *args, timeout=1.0)  # False after a safety stop: checked below
+                except ArmFault as exc:
+                    log.error("stopping the UR arm: %s", exc)
             try:
-                if worker.call(method, *args, timeout=1.0) is False:
-                    log.error("stopping the UR arm: the controller did not accept %s", method)
+                if not worker.call("isProgramRunning", timeout=1.0):
+                    return
+                log.error("stopping the UR arm: the control script still runs after stopScript")
             except ArmFault as exc:
                 log.error("stopping the UR arm: %s", exc)
+        self._stop_from_dashboard()
+
+    def _stop_from_dashboard(self) -> None:
+        """The program stopped by the dashboard server (port 29999), this process's own link."""
+        if self._dashboard is None:
+            return
+        log.warning("stopping the control script from the dashboard server")
         try:
-            if worker.call("isProgramRunning", timeout=1.0):
-                log.error("stopping the UR arm: the control script still runs after stopScript "
-                          "(the controller's watchdog ends it)")
-        except ArmFault as exc:
-            log.error("stopping the UR arm: %s", exc)
+            self._dashboard.stop()
+        except Exception as exc:  # the pybind layer raises RuntimeError or boost errors
+            log.error("the dashboard stop failed too (%s): the controller's watchdog stops the "
+                      "script", exc)
 
     def recover(self, timeout: float = 15.0) -> None:
         """The recovery path after a fault; moves nothing. Waits out the controller's 5 s rule."""
