@@ -120,8 +120,9 @@ def aborted_by(control: ControlClient, config: ControllerConfig, arm: URArm, fau
                reason: str, after_targets: int = 75, **arguments):
     """A trial with the stand-in fault ``fault`` injected once the stand-in has received
     ``after_targets`` servo targets (75: 0.6 s into the reach at 125 Hz, counted, not timed);
-    asserts it ended as an arm fault whose reason says ``reason``; returns (record, injected_at,
-    targets received when injected).
+    asserts it ended as an arm fault whose reason says ``reason``; returns the record, when it was
+    injected, this trial's targets received by then, and the targets the stand-in had received
+    before this trial (an earlier attempt's: its record of them is not cleared).
 
     A trial that ended before the injection (the machine's load starved the stand-in: "no new
     state" with nothing injected) says nothing about the fault: the arm is recovered and the trial
@@ -139,25 +140,28 @@ def aborted_by(control: ControlClient, config: ControllerConfig, arm: URArm, fau
     record, injected = unless_starved(f"the trial for the injected {fault!r}", attempt)
     assert record.summary.outcome is Outcome.ARM_FAULT, record.summary.reason
     assert reason in record.summary.reason
-    return record, injected["at"], injected["targets"]
+    return record, injected["at"], injected["targets"], injected["earlier"]
 
 
 def _injected_trial(control: ControlClient, config: ControllerConfig, arm: URArm, fault: str,
                     after_targets: int, arguments: dict):
     """One trial, ``fault`` injected at ``after_targets`` unless the trial ended first; the record
     and, if it was injected, when and at how many targets (an empty dict if not)."""
+    earlier = len(servo_targets(control))
     injected: dict = {}
     decided = threading.Lock()  # the injection, or the trial's end: whichever comes first
     over = threading.Event()
 
     def later() -> None:
         targets = wait_for(
-            lambda: over.is_set() or ((n := len(servo_targets(control))) >= after_targets and n),
-            f"{after_targets} servo targets at the stand-in (or the trial's end)", timeout=120.0)
+            lambda: over.is_set() or ((n := len(servo_targets(control)) - earlier) >= after_targets
+                                      and n),
+            f"{after_targets} servo targets of this trial at the stand-in (or the trial's end)",
+            timeout=120.0)
         with decided:
             if over.is_set():
                 return
-            injected.update(targets=targets, at=time.monotonic())
+            injected.update(targets=targets, at=time.monotonic(), earlier=earlier)
             control(fault, **arguments)
 
     timer = threading.Thread(target=later)
@@ -208,8 +212,9 @@ def assert_recovers_for_the_next_trial(control: ControlClient, config: Controlle
 @pytest.mark.slow
 def test_protective_stop_aborts_the_trial_stops_streaming_and_recovers_for_the_next():
     with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
-        record, at, targets = aborted_by(control, config, arm, "protective_stop", "protective stop")
-        received = servo_targets_once_stopped(control)  # the loop's stop ended the script
+        record, at, targets, earlier = aborted_by(control, config, arm, "protective_stop",
+                                                  "protective stop")
+        received = servo_targets_once_stopped(control)[earlier:]  # the loop's stop ended the script
         # the stand-in got no target the loop did not command (it records none once the stop has
         # ended the script, so one in flight then is not recorded), and the loop stopped commanding
         assert len(received) <= np.isfinite(record.samples["commanded"][:, 0]).sum()
@@ -225,8 +230,8 @@ def test_protective_stop_aborts_the_trial_stops_streaming_and_recovers_for_the_n
 @pytest.mark.slow
 def test_dropped_socket_mid_trial_aborts_and_a_reconnect_serves_the_next_trial():
     with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
-        record, _, targets = aborted_by(control, config, arm, "drop_sockets",
-                                        "lost the RTDE connection")
+        record, _, targets, _ = aborted_by(control, config, arm, "drop_sockets",
+                                           "lost the RTDE connection")
         assert cycles_after(record, targets) <= STOP_WITHIN_CYCLES
         assert_recovers_for_the_next_trial(control, config, arm)
 
@@ -291,6 +296,10 @@ def test_check_devices_reports_versions_and_rate_and_moves_nothing(capsys):
     assert pose_after[:3] == pytest.approx([0.35, -0.35, 0.35])
 
 
+#: Servo targets into the reach (0.2 s at 125 Hz) when the stale-hand test's tracker goes silent.
+MID_REACH_TARGETS = 25
+
+
 @pytest.mark.slow
 def test_a_stale_hand_source_stops_the_arm():
     """The tracker (UDP/JSON at 100 Hz) goes silent mid-reach: the loop stops, servoL stops, the
@@ -310,11 +319,26 @@ def test_a_stale_hand_source_stops_the_arm():
             sender.sendto(json.dumps(dict(zip("xyz", xyz.tolist(), strict=True))).encode(),
                           tracker.address)
 
-        replay = Replay(hand(config), send, 100.0, stop_after=0.8).start()
+        replay = Replay(hand(config), send, 100.0).start()
+        over = threading.Event()
+
+        def silence_mid_reach() -> None:
+            """The tracker goes silent once the reach is under way (counted at the controller,
+            not timed: a replay stopped after 0.8 s went silent before a loaded machine's move to
+            the start had ended, and the trial was lost before its first target)."""
+            wait_for(lambda: over.is_set() or len(servo_targets(ur.control)) >= MID_REACH_TARGETS,
+                     f"{MID_REACH_TARGETS} servo targets at the stand-in (or the trial's end)")
+            replay.stop()
+
+        silencer = threading.Thread(target=silence_mid_reach)
         try:
             tracker.wait_for_sample(30.0, config.loop.staleness_limit_s)  # a ceiling
+            silencer.start()
             record = arm_trial(config, THETA, tracker, arm)
         finally:
+            over.set()
+            if silencer.is_alive():
+                silencer.join()
             replay.stop()
             tracker.close()
             sender.close()
@@ -340,8 +364,8 @@ def test_a_stalled_controller_aborts_the_trial_within_a_few_cycles():
     who inspected the cause would (recover() called while the stand-in was still stalled, which
     the trial's stop path can outlast under load, left the next moveL refused: CI, today)."""
     with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, config, arm):
-        record, _, targets = aborted_by(control, config, arm, "stall", "sent no new state",
-                                        after_targets=62, seconds=1.0)
+        record, _, targets, _ = aborted_by(control, config, arm, "stall", "sent no new state",
+                                           after_targets=62, seconds=1.0)
         assert record.summary.stop_commanded_s is not None
         # STATE_SILENCE_S of silence (0.1 s: 13 cycles at 125 Hz), then as any fault
         assert cycles_after(record, targets) <= 13 + STOP_WITHIN_CYCLES
@@ -397,4 +421,30 @@ def test_a_move_to_the_start_right_after_a_stop_waits_for_the_script_a_late_read
         moves = commands(control).count(MOVEL)
         pose = control("state")["pose"]
     assert moves == 1
+    assert np.linalg.norm(np.asarray(pose[:3]) - (start + 10 * STEP)) < 1e-3
+
+
+def test_a_control_process_that_died_is_stopped_from_the_dashboard_and_replaced_for_the_next_move(
+        caplog):
+    """The ur_rtde control process gone mid-stream (killed here; a crash inside ur_rtde alike): the
+    stop cannot send servoStop or stopScript, says so, and stops the program through the dashboard
+    server instead of leaving it to the controller's watchdog (100 s here); the next move to the
+    start starts a new control process, uploads the script again, and arrives."""
+    with connected_arm(watchdog_hz=PATIENT_WATCHDOG_HZ) as (control, _, arm):
+        arm.begin_stream()
+        start = arm.read_pose()
+        arm.command(start + STEP)
+        worker = arm._control.process
+        worker.kill()
+        worker.join(10.0)
+        arm.stop()
+        wait_for(lambda: control("state")["program"] is None, "the stand-in's script to end",
+                 seen=lambda: control("state")["events"][-3:])
+        events = control("state")["events"]
+        arm.move_to(start + 10 * STEP)
+        pose = control("state")["pose"]
+        assert arm._control.process.pid != worker.pid
+    assert "program rtde_control ended: dashboard stop" in events
+    assert "the ur_rtde control process had exited (exit code -9)" in caplog.text
+    assert "starting a new one" in caplog.text
     assert np.linalg.norm(np.asarray(pose[:3]) - (start + 10 * STEP)) < 1e-3
