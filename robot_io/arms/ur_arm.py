@@ -167,6 +167,15 @@ class URArm:
         self._dash.connect(int(self.config.connect_timeout_s * 1000))
         self._start_worker()
 
+    @property
+    def _worker_running(self) -> bool:
+        return self._worker is not None and self._worker.alive
+
+    @property
+    def _worker_exit_code(self) -> int | None:
+        """The exit code of a control process that has exited (None: none has, or there is none)."""
+        return None if self._worker is None else self._worker.process.exitcode
+
     def _end_worker(self) -> None:
         if self._worker is not None:
             self._worker.close()
@@ -251,7 +260,7 @@ class URArm:
                        "or a safety limit); inspect the cause, then call recover() — the controller "
                        f"unlocks no sooner than {UNLOCK_DELAY_S:g} s after the stop", safety=True)
         elif self._state is ArmState.STREAMING:
-            if self._worker is None or not self._worker.alive:
+            if not self._worker_running:
                 self._trip("the ur_rtde control process exited; call recover()")
             elif not self._program_running():
                 self._trip("the control script stopped on the controller (watchdog: no target for "
@@ -322,9 +331,9 @@ class URArm:
 
         A control process that exited since the last motion (a crash inside ur_rtde, which it is
         there to contain) is replaced first: the arm is stopped, and the controller lost nothing."""
-        if self._worker is None or not self._worker.alive:
+        if not self._worker_running:
             log.warning("the ur_rtde control process had exited (exit code %s): starting a new one",
-                        None if self._worker is None else self._worker.process.exitcode)
+                        self._worker_exit_code)
             self._end_worker()
             self._start_worker()
         if not self._control.call("isProgramRunning"):
@@ -428,9 +437,9 @@ class URArm:
         control process gone or not answering, or ur_rtde gave up waiting) is stopped from the
         dashboard server; each of these is logged."""
         worker = self._worker
-        if worker is None or not worker.alive:
+        if worker is None or not self._worker_running:
             log.error("stopping the UR arm: the ur_rtde control process had exited (exit code %s)",
-                      None if worker is None else worker.process.exitcode)
+                      self._worker_exit_code)
         else:
             for method, args in (("servoStop", (self.config.stop_deceleration,)),
                                  ("stopScript", ())):
@@ -463,7 +472,7 @@ class URArm:
             return
         deadline = time.monotonic() + timeout
         link_down = not self._rtde.isConnected()
-        if link_down or self._worker is None or not self._worker.alive:
+        if link_down or not self._worker_running:
             self._reconnect()
         self.links_restored += link_down
         safety = self._bits("getSafetyStatusBits")
