@@ -56,8 +56,6 @@ def standin(series: str = "cb3") -> Iterator[Standin]:
                         yield Standin(host, control, process)
                     finally:
                         control.close()
-                        _end(process)
-                        _show_log(stderr, host)
                     return
                 process.wait(30)
                 stderr.seek(0)
@@ -67,6 +65,7 @@ def standin(series: str = "cb3") -> Iterator[Standin]:
                                          f"exit code {process.returncode}; stderr: {tail(log)}")
             finally:
                 _end(process)
+                _show_log(stderr, host)
     raise AssertionError(f"no free loopback address for a stand-in after {ATTEMPTS} tries")
 
 
