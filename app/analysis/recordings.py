@@ -14,15 +14,15 @@ from pathlib import Path
 import pandas as pd
 
 from app.analysis import html
-from app.analysis.xdf import XDFError, decoded_markers, readable
+from app.analysis.xdf import WholeChunks, XDFError, decoded_markers, readable
 from app.protocol.markers import MARKER_TYPE
 from session_store.recordings import recordings_of
 
 COLUMNS = ["participant", "file", "bytes", "stream", "type", "samples", "footer"]
 
 
-def _load(load_xdf: Callable[..., tuple[list[dict], dict]], path: Path) -> list[dict]:
-    return load_xdf(str(path))[0]
+def _load(load_xdf: Callable[..., tuple[list[dict], dict]], whole: WholeChunks) -> list[dict]:
+    return load_xdf(whole.open())[0]
 
 
 def _ours(stream: dict, code: str, created_at: str) -> bool:
@@ -55,10 +55,12 @@ def recorded_runs(study_dir: Path, sessions: dict[str, str]) -> tuple[pd.DataFra
         found[code] = set()
         for path in paths:
             try:
-                streams: list[dict] = readable(path, partial(_load, pyxdf.load_xdf, path))
+                whole = readable(path, partial(WholeChunks.of, path))
+                streams: list[dict] = readable(path, partial(_load, pyxdf.load_xdf, whole))
             except XDFError as exc:
                 problems.append(str(exc))
                 continue
+            problems += [f"{path}: {why}" for why in whole.left_out]
             for stream in streams:
                 rows.append({"participant": code, "file": path.name,
                              "bytes": path.stat().st_size, "stream": stream["info"]["name"][0],

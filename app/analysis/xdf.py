@@ -10,11 +10,12 @@ per trial (:data:`WINDOW_S`) and joined with the trial's row of the participant'
 
 from __future__ import annotations
 
+import io
 import struct
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import BinaryIO, TypeVar
 
 import numpy as np
 import pandas as pd
@@ -85,14 +86,76 @@ def _name(stream: dict) -> str:
 
 def readable(path: Path, read: Callable[[], T]) -> T:
     """``read()``, or an :class:`XDFError` saying that ``path`` is not a readable XDF file (a file
-    cut short ends in a chunk's XML or binary header: ParseError, struct.error, KeyError)."""
+    cut short ends in a chunk's XML or binary header: ParseError, struct.error, KeyError; pyxdf's
+    reading of a missing byte is a TypeError)."""
     try:
         return read()
     except (OSError, ValueError, EOFError, RuntimeError, SyntaxError, struct.error, KeyError,
-            IndexError) as exc:
+            IndexError, TypeError) as exc:
         raise XDFError(f"{path}: not a readable XDF file ({type(exc).__name__}: {exc}); a file "
                        "cut short (a copy that stopped, a recorder that crashed) loses its end") \
             from exc
+
+
+#: An XDF chunk's tag for samples, and how many bytes of tag and stream id precede them.
+SAMPLES_TAG, TAG_AND_ID = 3, 6
+
+
+@dataclass(frozen=True)
+class WholeChunks:
+    """What pyxdf can read of an XDF file that may be cut short: its chunks up to the first one the
+    file does not hold whole. XDF lays each chunk out as one byte giving the size of the length (1,
+    4 or 8), the length (little endian), then that many bytes of tag and content. pyxdf reads a cut
+    samples chunk (tag 3) as far as it goes, but raises on a cut anywhere else (a chunk's length,
+    its tag or stream id, a clock offset, a stream header): such a chunk is left out, and said."""
+
+    path: Path
+    length: int  # the bytes pyxdf is given
+    size: int  # the file's
+
+    @classmethod
+    def of(cls, path: Path) -> WholeChunks:
+        with Path(path).open("rb") as f:
+            size = f.seek(0, io.SEEK_END)
+            f.seek(0)
+            return cls(Path(path), _readable_length(f, size), size)
+
+    def open(self) -> str | BinaryIO:
+        """The input for one pyxdf call (which closes a file it was given): the file's name when
+        pyxdf reads it all, else a copy of the bytes it can read."""
+        if self.length == self.size:
+            return str(self.path)
+        with self.path.open("rb") as f:
+            return io.BytesIO(f.read(self.length))
+
+    @property
+    def left_out(self) -> list[str]:
+        """The cut chunk, in words (none when the file is read whole)."""
+        if self.length == self.size:
+            return []
+        return [f"the file ends {self.size - self.length} bytes into a chunk, which is left out "
+                "(cut short: a copy that stopped, a recorder that crashed)"]
+
+
+def _readable_length(f: BinaryIO, size: int) -> int:
+    """How many bytes of the XDF file ``f`` (``size`` bytes) pyxdf reads without raising (see
+    :class:`WholeChunks`): all of a file that is whole, or not XDF at all (pyxdf says so)."""
+    start = 4
+    if f.read(start) != b"XDF:":
+        return size
+    while start < size:
+        f.seek(start)
+        count = f.read(1)[0]
+        if count not in (1, 4, 8):  # not a cut: pyxdf reads on from the next boundary chunk
+            return size
+        length = f.read(count)
+        end = start + 1 + count + int.from_bytes(length, "little")
+        if len(length) < count or end > size:  # the last chunk, cut
+            whole_header = len(length) == count and size - (start + 1 + count) >= TAG_AND_ID
+            tag = int.from_bytes(f.read(2), "little") if whole_header else None
+            return size if tag == SAMPLES_TAG else start
+        start = end
+    return size
 
 
 def _samples(stream: dict) -> np.ndarray:
@@ -124,7 +187,9 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
         import pyxdf
     except ImportError as exc:
         raise XDFError("reading XDF needs pyxdf: pip install 'handover-lab[xdf]'") from exc
-    headers = readable(path, lambda: pyxdf.resolve_streams(str(path)))
+    whole = readable(path, lambda: WholeChunks.of(path))
+    cut = "".join(f"; {why}" for why in whole.left_out)
+    headers = readable(path, lambda: pyxdf.resolve_streams(whole.open()))
     found = sorted(h["name"] for h in headers)
     missing = [name for name in names if name not in found]
     if missing:
@@ -135,11 +200,12 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
                        "holds (Fig. 4 draws them): name the lab's own streams")
     chosen = [h["stream_id"] for h in headers if h["type"] == MARKER_TYPE or (
         h["name"] in names if names else h["type"] != ROBOT_TYPE and h["channel_format"] != "string")]
-    streams = readable(path, lambda: pyxdf.load_xdf(str(path), select_streams=chosen)[0]) if chosen else []
+    streams = readable(path, lambda: pyxdf.load_xdf(whole.open(), select_streams=chosen)[0]) \
+        if chosen else []
     ours = [s for s in streams if _desc(s, "software") == SOFTWARE and s["info"]["type"][0] == MARKER_TYPE]
     if len(ours) != 1:
         raise XDFError(f"{path}: {len(ours)} study marker streams (type Markers from {SOFTWARE}), "
-                       f"1 needed; the file holds {found}")
+                       f"1 needed; the file holds {found}{cut}")
     markers, lab = ours[0], {}
     for stream in streams:
         name = _name(stream)
@@ -153,8 +219,11 @@ def load_recording(path: Path, names: Sequence[str] = ()) -> Recording:
     if participant is None:
         raise XDFError(f"{path}: the study marker stream's description names no participant")
     decoded, torn = decoded_markers(path, markers)
+    if not decoded:
+        raise XDFError(f"{path}: the study marker stream holds no markers, so no trial to align{cut}")
     return Recording(path=Path(path), participant=participant, markers=decoded, streams=lab,
-                     cut_short=[why for s in streams if (why := _cut_short(s))] + torn)
+                     cut_short=whole.left_out + [why for s in streams if (why := _cut_short(s))]
+                     + torn)
 
 
 def decoded_markers(path: Path, markers: dict) -> tuple[list[tuple[float, dict]], list[str]]:

@@ -22,6 +22,7 @@ from support.engine import SHORT_PROTOCOL
 from support.recorded_session import PROTOCOL as TWO_HANDOVERS
 from support.runner import Probe
 from support.waiting import wait_for
+from support.xdf_chunks import chunks
 
 from app.analysis.report import build_report
 from app.analysis.xdf import load_recording
@@ -130,6 +131,11 @@ def test_a_session_records_its_streams_and_the_labs_and_a_resume_records_a_new_r
     assert report.gos_not_recorded == {}
     assert "its last marker was cut in the middle and is left out" in \
         html.unescape(report.html.read_text())
+    # cut in the head of its last chunk (a footer), between its length and its tag: read up to it
+    first.write_bytes(whole[:chunks(whole)[-1][0] + 2])
+    report = build_report(study, tmp_path / "report")
+    assert report.gos_not_recorded == {}
+    assert "bytes into a chunk, which is left out" in html.unescape(report.html.read_text())
     first.write_bytes(whole)
     first.rename(first.with_suffix(".moved"))
     report = build_report(study, tmp_path / "report")
