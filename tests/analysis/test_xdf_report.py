@@ -4,6 +4,7 @@ after the robot starts (Go); aligned to the trials by the markers, every trial s
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -129,8 +130,26 @@ def test_report_xdf_refuses_a_marker_stream_naming_no_participant(recorded_sessi
     assert "the study marker stream's description names no participant" in err, err
 
 
-def markers_of(path: Path) -> list[dict]:
-    return [marker for _, marker in load_recording(path).markers]
+@dataclass(frozen=True)
+class WholeFile:
+    """The recorded session's XDF file as the cut tests read it, once per module: its bytes, its
+    study markers, and where its first chunk of markers ends (pyxdf's account of its chunks)."""
+
+    data: bytes
+    markers: list[dict]
+    chunks: list[tuple[int, int, int | None]]
+    first_markers_end: int
+
+
+@pytest.fixture(scope="module")
+def whole_file(recorded_session) -> WholeFile:
+    path = recorded_session.xdf
+    data = path.read_bytes()
+    (ours,) = [h["stream_id"] for h in pyxdf.resolve_streams(str(path)) if h["type"] == MARKER_TYPE]
+    found = chunks(data)
+    first = next(n for n, (_, tag, stream) in enumerate(found) if tag == SAMPLES and stream == ours)
+    return WholeFile(data, [marker for _, marker in load_recording(path).markers], found,
+                     found[first + 1][0])
 
 
 def reported_up_to_the_cut(path: Path, whole: list[dict]) -> list[dict]:
@@ -144,39 +163,33 @@ def reported_up_to_the_cut(path: Path, whole: list[dict]) -> list[dict]:
 
 
 @pytest.mark.parametrize("tag", [SAMPLES, OFFSET, FOOTER])
-def test_a_cut_in_any_byte_of_a_chunks_head_keeps_what_came_before(recorded_session, tmp_path, tag):
+def test_a_cut_in_any_byte_of_a_chunks_head_keeps_what_came_before(whole_file, tmp_path, tag):
     """CI cut half a file inside a chunk's stream id: pyxdf raised "unpack requires a buffer of 4
     bytes" and the report refused a file holding half the recording (a cut in a 1-byte length was
     a TypeError traceback). Cut at every byte of the head and first content of one chunk of each
     kind in the file's second half, it is read up to that chunk and said to be cut."""
-    data = recorded_session.xdf.read_bytes()
-    whole = markers_of(recorded_session.xdf)
-    start = next(s for s, t, _ in chunks(data) if t == tag and s > len(data) // 2)
+    data = whole_file.data
+    start = next(s for s, t, _ in whole_file.chunks if t == tag and s > len(data) // 2)
     cut = tmp_path / "cut.xdf"
     counts = set()
     for end in range(start, start + HEAD + 16):
         cut.write_bytes(data[:end])
-        counts.add(len(reported_up_to_the_cut(cut, whole)))
+        counts.add(len(reported_up_to_the_cut(cut, whole_file.markers)))
     assert len(counts) == 1, counts  # a marker is neither lost nor found inside another chunk's head
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(share=st.floats(min_value=0, max_value=1))
-def test_a_file_cut_anywhere_is_reported_up_to_the_cut_or_refused_in_words(recorded_session,
-                                                                          tmp_path, share):
+def test_a_file_cut_anywhere_is_reported_up_to_the_cut_or_refused_in_words(whole_file, tmp_path,
+                                                                          share):
     """Cut at any byte: before the end of the first chunk of markers, a refusal that names the file
     and says why (never "not a readable XDF file": what it holds is readable); after it, the
     markers up to the cut, and the cut said."""
-    data = recorded_session.xdf.read_bytes()
-    whole = markers_of(recorded_session.xdf)
-    (ours,) = [h["stream_id"] for h in pyxdf.resolve_streams(str(recorded_session.xdf))
-               if h["type"] == MARKER_TYPE]
-    found = chunks(data)
-    first = next(n for n, (_, tag, stream) in enumerate(found) if tag == SAMPLES and stream == ours)
+    data = whole_file.data
     cut, end = tmp_path / "cut.xdf", 4 + round(share * (len(data) - 5))
     cut.write_bytes(data[:end])
-    if end >= found[first + 1][0]:
-        reported_up_to_the_cut(cut, whole)
+    if end >= whole_file.first_markers_end:
+        reported_up_to_the_cut(cut, whole_file.markers)
         return
     with pytest.raises(XDFError) as refused:
         load_recording(cut)
