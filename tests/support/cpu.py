@@ -26,10 +26,9 @@ import pytest
 PERIOD_S = 1.0
 #: How many tests the summary lists.
 LISTED = 25
-#: The key of a test's CPU seconds in its teardown report's ``user_properties`` (xdist carries
-#: them from a worker to the controller), and of the same seconds by process kind.
-KEY = "cpu_s"
-KINDS_KEY = "cpu_s_by_kind"
+#: The key of a test's CPU seconds by process kind in its teardown report's ``user_properties``
+#: (xdist carries them from a worker to the controller); the test's CPU is their sum.
+KEY = "cpu_s_by_kind"
 ENABLED = os.environ.get("HANDOVER_TEST_CPU") == "1"
 
 
@@ -112,17 +111,14 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo):
         for key, seconds in after.items():
             name = _tree.kinds[key]
             used[name] = used.get(name, 0.0) + seconds - before.get(key, 0.0)
-        report = outcome.get_result()
-        report.user_properties.extend([(KEY, sum(used.values())), (KINDS_KEY, used)])
+        outcome.get_result().user_properties.append((KEY, used))
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
-    for key, value in report.user_properties:
-        if key == KEY:
-            _measured.append((value, report.nodeid))
-        elif key == KINDS_KEY:
-            for name, seconds in value.items():
-                _by_kind[name] = _by_kind.get(name, 0.0) + seconds
+    for used in (value for key, value in report.user_properties if key == KEY):
+        _measured.append((sum(used.values()), report.nodeid))
+        for name, seconds in used.items():
+            _by_kind[name] = _by_kind.get(name, 0.0) + seconds
 
 
 def pytest_terminal_summary(terminalreporter) -> None:
