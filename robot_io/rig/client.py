@@ -16,6 +16,11 @@ reader alone, once the rig's end is gone. The sample stream has two holders, :me
 and the reader (which reads a trial's rows when it hands on the trial's end): the second of them to
 be done releases it, so no report is ever handed on with its rows unmapped, and close() never waits
 for the reader (which may itself wait for the thread that closes). The watchdog is joined by close().
+The rig's process handle (its sentinel and the pipe its start was sent down) is used by close(),
+kill() (the backstop, from the watchdog or a Stop), the reader (the exit code of a dead rig) and
+the screens (:attr:`RigClient.alive`), each under one lock; the same last holder releases it once
+the rig is reaped, rather than leaving it to ``multiprocessing``, which kept a child whose exit code
+was read but that was never joined (and its two pipes) until some later start.
 """
 
 from __future__ import annotations
@@ -72,6 +77,9 @@ HANG_S = 0.5
 SETTLE_S = 5.0
 #: How long the application waits to see a dead or killed rig's exit code [s] (1 s was too short under load).
 REAP_S = 5.0
+#: The longest the handle's lock is held while the rig is joined [s] (a screen asking whether the
+#: rig is alive waits at most this long).
+REAP_SLICE_S = 0.02
 #: How long a rig may take to stop the arm, release its devices and exit after Shutdown [s].
 CLOSE_S = 5.0
 #: How long a hung rig gets to print its threads' stacks before it is killed [s].
@@ -97,13 +105,18 @@ class RigClient:
         rate = spec.config.arm.fastest_rate_hz or spec.config.loop.rate_hz
         self.stream = SampleStream(capacity_for(spec.config, rate))
         self._holders, self._holders_lock = 1, threading.Lock()  # of the stream: see _let_go
+        # held for every use of the rig process handle (self._process: close(), kill(), the reader,
+        # the screens) and for its release by the last holder (_release_handle)
+        self._handle_lock = threading.Lock()
+        self._released = False  # the handle is released; its exit code is kept here:
+        self._exit_code: int | None = None
         context = multiprocessing.get_context("spawn")
         self._conn, child = context.Pipe()
         # not a daemon: the rig starts its own child (the ur_rtde control worker)
-        self.process = context.Process(target=process.main, name="handover-rig",
-                                       args=(child, spec, self.stream.name, self.stream.capacity,
-                                             logging.getLogger().getEffectiveLevel()))
-        self.process.start()
+        self._process = context.Process(target=process.main, name="handover-rig",
+                                        args=(child, spec, self.stream.name, self.stream.capacity,
+                                              logging.getLogger().getEffectiveLevel()))
+        self._process.start()
         child.close()
         self.stage: str | None = None
         self.running: int | None = None  # the trial index the rig is running
@@ -134,7 +147,7 @@ class RigClient:
             report = self._conn.recv()
         except (EOFError, OSError) as exc:
             raise RigError(f"the rig process exited while opening its devices (exit code "
-                           f"{self.process.exitcode})") from exc
+                           f"{self.exit_code})") from exc
         if isinstance(report, RigFailed):
             raise RigError(f"the rig could not open its devices: {report.reason}")
         assert isinstance(report, RigOpened), report
@@ -144,11 +157,20 @@ class RigClient:
     # -- commands ----------------------------------------------------------------------------------
     @property
     def alive(self) -> bool:
-        return self.process.is_alive()
+        with self._handle_lock:
+            return not self._released and self._process.is_alive()
 
     @property
     def pid(self) -> int | None:
-        return self.process.pid
+        """The rig's process id; None once its handle is released (the number may be reused)."""
+        with self._handle_lock:
+            return None if self._released else self._process.pid
+
+    @property
+    def exit_code(self) -> int | None:
+        """The rig's exit code (negative: the signal that ended it); None while it runs."""
+        with self._handle_lock:
+            return self._exit_code if self._released else self._process.exitcode
 
     def _send(self, command: Command) -> bool:
         with self._send_lock:
@@ -205,28 +227,42 @@ class RigClient:
     def _dump_stacks(self) -> None:
         """Have a hung rig print where each of its threads is (faulthandler, to its stderr: the
         application's log) before it is killed, so the hang can be found afterwards."""
-        pid = self.process.pid
-        if pid is None or not self.process.is_alive():
-            return
-        with contextlib.suppress(OSError):
-            os.kill(pid, process.STACKS_SIGNAL)
-            self.process.join(STACKS_S)
+        with self._handle_lock:
+            pid = None if self._released else self._process.pid
+            if pid is None or not self._process.is_alive():
+                return
+            try:
+                os.kill(pid, process.STACKS_SIGNAL)
+            except OSError:
+                return
+        self._wait_reaped(STACKS_S)  # time to print them
 
     def kill(self) -> None:
-        if self.process.is_alive():
-            self.process.kill()
+        with self._handle_lock:
+            if not self._released and self._process.is_alive():
+                self._process.kill()
         self._wait_reaped()
 
     def _wait_reaped(self, limit: float = REAP_S) -> bool:
-        """Wait (at most ``limit`` s) until this thread sees the rig's exit code; False if it has
-        none by then. The report reader, close() and kill() may reap the rig at the same moment:
-        the thread that loses sees "no such child", and ``join`` returns at once with no exit code
-        (``is_alive`` says True) until the winner has stored it. Only the exit code, seen here, says
-        the rig has ended."""
+        """Wait (at most ``limit`` s) until the rig is reaped; False if it is not by then. One
+        thread at a time joins it, under the handle's lock (a few hundredths of a second at a
+        time), so the report reader, close() and kill() no longer race for its exit code. It is
+        *joined*, not only polled: ``multiprocessing`` forgets a child (and lets its handle go)
+        only when a join sees it ended."""
         deadline = time.monotonic() + limit
-        while self.process.exitcode is None and (left := deadline - time.monotonic()) > 0:
-            self.process.join(min(left, 0.05))
-        return self.process.exitcode is not None
+        while True:
+            with self._handle_lock:
+                if self._released:
+                    return True
+                left = deadline - time.monotonic()
+                self._process.join(min(max(left, 0.0), REAP_SLICE_S))
+                if self._process.exitcode is not None:
+                    # reaped by a poll (a start elsewhere polls every child) rather than by the
+                    # join above: joined now, at once, so multiprocessing forgets it
+                    self._process.join()
+                    return True
+            if left <= 0:
+                return False
 
     def close(self) -> None:
         """Shut the rig down (it stops the arm and releases its devices); kill it if it hangs.
@@ -253,6 +289,19 @@ class RigClient:
             last = self._holders == 0
         if last:
             self.stream.close(unlink=True)
+            self._release_handle()
+
+    def _release_handle(self) -> None:
+        """Close the rig's process handle (its two pipes) once it is reaped, keeping its exit
+        code; one that could not be reaped (killed, yet not gone within REAP_S) is left open."""
+        with self._handle_lock:
+            code = self._process.exitcode
+            if code is None:
+                log.error("the rig process %d could not be reaped: its handle stays open",
+                          self._process.pid)
+                return
+            self._exit_code, self._released = code, True
+            self._process.close()
 
     def reports_handed_on(self, timeout: float = CLOSE_S) -> bool:
         """After :meth:`close`: wait until every report the rig sent (a stopped trial's end among
@@ -276,7 +325,7 @@ class RigClient:
                     self._conn.close()
             self._wait_reaped()  # a killed rig is reported with its exit code
             if not self._closing:
-                code = self.process.exitcode
+                code = self.exit_code
                 how = (f"killed by signal {-code}" if code is not None and code < 0
                        else f"exit code {code}")
                 stage = self.stage
