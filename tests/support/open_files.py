@@ -9,9 +9,11 @@ descriptors after the first session and after the others, and describes what is 
 from __future__ import annotations
 
 import contextlib
+import gc
 import os
 import re
 import subprocess
+from multiprocessing.process import BaseProcess
 from pathlib import Path
 
 from app.session.config import LabConfig
@@ -54,10 +56,22 @@ def holders(what: str) -> list[str]:
     return found
 
 
+def process_handles() -> dict[int, str]:
+    """The sentinels of this process's ``multiprocessing`` handles of started children that are
+    not closed (fd: name and pid): a handle keeps its sentinel and one more pipe open."""
+    found = {}
+    for handle in gc.get_objects():
+        if isinstance(handle, BaseProcess):
+            with contextlib.suppress(ValueError):  # not started, or closed
+                found[handle.sentinel] = f"{handle.name} (pid {handle.pid})"
+    return found
+
+
 def what_they_are(described: dict[int, str]) -> str:
     """For a failure message: each socket among ``described`` with its kind, its addresses and, for
     a Unix socket, who holds its peer (``ss``: a pair of ours is a multiprocessing Pipe, a peer in a
-    child says which child); each pipe with the processes that hold it (its other end)."""
+    child says which child); each pipe with the processes that hold it (its other end) and, if it
+    is one, the child process handle whose sentinel it is."""
     table = subprocess.run(["ss", "-axtuwn", "-e"], capture_output=True, text=True).stdout
     rows = {}
     for line in table.splitlines():
@@ -66,14 +80,15 @@ def what_they_are(described: dict[int, str]) -> str:
             rows[fields[5]] = (" ".join(fields[:8]), fields[7])
         elif match := re.search(r"ino:(\d+)", line):
             rows[match.group(1)] = (" ".join(fields[:6]), None)
-    lines = []
+    lines, sentinels = [], process_handles() if described else {}
     for fd, what in sorted(described.items()):
         if what.startswith("socket:["):
             row, peer = rows.get(what[len("socket:["):-1], ("not in ss", None))
             lines.append(f"fd {fd} {what}: {row}" + (
                 f"; peer held by {holders(f'socket:[{peer}]')}" if peer and peer != "0" else ""))
         elif what.startswith("pipe:["):
-            lines.append(f"fd {fd} {what}: held by {holders(what)}")
+            lines.append(f"fd {fd} {what}: held by {holders(what)}" + (
+                f"; the sentinel of the process handle {sentinels[fd]}" if fd in sentinels else ""))
     return "\n".join(lines)
 
 
