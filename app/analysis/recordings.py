@@ -38,8 +38,8 @@ def recorded_runs(study_dir: Path, sessions: dict[str, str]) -> tuple[pd.DataFra
                                                                      dict[str, set[int]], list[str]]:
     """Every stream of every run of the participants ``sessions`` (code → when their session was
     created): participant, run file, stream, type, samples, footer (whether the recorder closed
-    it); the trials whose ``go`` marker each participant's runs hold, and the files that could not
-    be read (in words)."""
+    it); the trials whose ``go`` marker each participant's runs hold, and what could not be read,
+    in words that name the file (all of it, a chunk left out, a marker torn in the middle)."""
     rows: list[dict] = []
     found: dict[str, set[int]] = {}
     problems: list[str] = []
@@ -112,5 +112,5 @@ def recordings_section(runs: pd.DataFrame, check: pd.DataFrame, problems: list[s
             "The session's own XDF recordings (lab.toml [recording]) found in the study folder, "
             "one file per participant and run: their streams and sample counts, and whether each "
             "trial stored with a Go has its go marker in them."),
-        html.items(verdicts + [f"unreadable: {p}" for p in problems]),
+        html.items(verdicts + problems),  # each names its file and says what was not read
         html.table(runs, {c: c for c in runs.columns}))
