@@ -37,10 +37,11 @@ def stage(fault: StagedFault, rehearsal: Rehearsal | None, rig: RigClient | None
     elif fault is StagedFault.PROTECTIVE_STOP:
         rehearsal.control("protective_stop")
     else:
-        if rig is None or rig.pid is None:
+        pid = None if rig is None else rig.pid  # read once: None once the rig's handle is released
+        if pid is None:
             raise RefusedAction(f"{fault.value!r} refused: no rig process is running")
         try:
-            os.kill(rig.pid, signal.SIGKILL)
+            os.kill(pid, signal.SIGKILL)
         except ProcessLookupError as exc:
             raise RefusedAction(f"{fault.value!r} refused: the rig process has already ended") from exc
     return f"rehearsal: staged fault — {fault.value}"
