@@ -118,7 +118,9 @@ def rig(cycles: int) -> None:
 
 def _rig_cycle(rng: np.random.Generator, cycle: int, ends: dict[str, int]) -> None:
     """A rig opened, up to three trials run, then the client closed (after the rig was killed, one
-    time in four) at a random moment; the reader reads each trial's rows as a supervisor does."""
+    time in four) at a random moment; the reader reads each trial's rows as a supervisor does, and
+    a screen reads the stream and asks whether the rig is alive (its process handle, which the
+    client releases once the rig is joined)."""
     from robot_io.config import ControllerConfig
     from robot_io.hands.simulated_hand import Scenario
     from robot_io.rig.client import RigClient
@@ -137,7 +139,8 @@ def _rig_cycle(rng: np.random.Generator, cycle: int, ends: dict[str, int]) -> No
 
     client = RigClient(RigSpec(config=ControllerConfig(), scenario=Scenario.STRAIGHTFORWARD,
                                realtime=False, realtime_priority=False), listen)
-    _, join = run_threads(lambda stop: _read_until(stop, lambda: client.stream.view(4)))
+    _, join = run_threads(lambda stop: _read_until(stop, lambda: (client.stream.view(4),
+                                                                   client.alive, client.pid)))
     try:
         for index in range(1, 4):
             done.clear()
@@ -155,6 +158,7 @@ def _rig_cycle(rng: np.random.Generator, cycle: int, ends: dict[str, int]) -> No
         join()
     assert client.reports_handed_on(), "the reader handed on every report"
     assert client.stream.released, "the stream is released once its reader and close are done"
+    assert client.pid is None and client.exit_code is not None, "the process handle is released"
 
 
 # -- session --------------------------------------------------------------------------------------
