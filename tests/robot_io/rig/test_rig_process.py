@@ -208,10 +208,10 @@ def pipes_between(pid: int) -> set[str]:
 def test_a_closed_rig_gives_back_its_process_handle(end):
     """A session's end gives back the rig's process handle with its pipes (the sentinel that the
     rig holds the other end of) as soon as the rig is reaped and the reader is done, not when the
-    garbage collector or some later start gets to it: ``multiprocessing`` kept a child whose exit
-    code was read but that no join had seen end in a list of its own, and tests/session/
-    test_open_files.py failed now and then with two pipes more, the last session's rig's. A dead
-    rig is reaped by the report reader before close() looks."""
+    garbage collector or some later start gets to it. ``multiprocessing`` kept a child whose exit
+    code was read, but that no join had seen end, in a list of its own: test_open_files.py
+    (tests/session) failed now and then with two pipes more, the last session's rig's. A dead rig
+    is reaped by the report reader before close() looks."""
     reports = Reports()
     client = rig(realtime=False, reports=reports)
     pid = client.pid
