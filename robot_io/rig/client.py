@@ -108,8 +108,7 @@ class RigClient:
         # held for every use of the rig process handle (self._process: close(), kill(), the reader,
         # the screens) and for its release by the last holder (_release_handle)
         self._handle_lock = threading.Lock()
-        self._released = False  # the handle is released; its exit code is kept here:
-        self._exit_code: int | None = None
+        self._exit_code: int | None = None  # kept when the handle is released (see _released)
         context = multiprocessing.get_context("spawn")
         self._conn, child = context.Pipe()
         # not a daemon: the rig starts its own child (the ur_rtde control worker)
@@ -158,7 +157,7 @@ class RigClient:
     @property
     def alive(self) -> bool:
         with self._handle_lock:
-            return not self._released and self._process.is_alive()
+            return self._runs()
 
     @property
     def pid(self) -> int | None:
@@ -171,6 +170,15 @@ class RigClient:
         """The rig's exit code (negative: the signal that ended it); None while it runs."""
         with self._handle_lock:
             return self._exit_code if self._released else self._process.exitcode
+
+    @property
+    def _released(self) -> bool:
+        """The handle is released (its exit code kept, its pipes closed)."""
+        return self._exit_code is not None
+
+    def _runs(self) -> bool:
+        """Whether the rig process runs; under the handle's lock."""
+        return not self._released and self._process.is_alive()
 
     def _send(self, command: Command) -> bool:
         with self._send_lock:
@@ -228,8 +236,8 @@ class RigClient:
         """Have a hung rig print where each of its threads is (faulthandler, to its stderr: the
         application's log) before it is killed, so the hang can be found afterwards."""
         with self._handle_lock:
-            pid = None if self._released else self._process.pid
-            if pid is None or not self._process.is_alive():
+            pid = self._process.pid if self._runs() else None  # a closed handle has no pid
+            if pid is None:
                 return
             try:
                 os.kill(pid, process.STACKS_SIGNAL)
@@ -239,7 +247,7 @@ class RigClient:
 
     def kill(self) -> None:
         with self._handle_lock:
-            if not self._released and self._process.is_alive():
+            if self._runs():
                 self._process.kill()
         self._wait_reaped()
 
@@ -300,7 +308,7 @@ class RigClient:
                 log.error("the rig process %d could not be reaped: its handle stays open",
                           self._process.pid)
                 return
-            self._exit_code, self._released = code, True
+            self._exit_code = code
             self._process.close()
 
     def reports_handed_on(self, timeout: float = CLOSE_S) -> bool:
