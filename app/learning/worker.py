@@ -33,6 +33,7 @@ import contextlib
 import functools
 import logging
 import multiprocessing as mp
+import signal
 import threading
 import time
 from multiprocessing.connection import Connection
@@ -116,7 +117,9 @@ def _next_request(requests: Connection) -> dict[str, Any] | None:
 def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, Any]],
            requests: Connection, replies: Connection) -> None:  # pragma: no cover - child process
     """Worker process: rebuild the learner (an exact snapshot, then earlier requests replayed),
-    then answer requests."""
+    then answer requests. Ctrl-C in the application's terminal reaches this process too (its
+    process group): it is ignored, and the application ends the worker (its pipe closes)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     import torch
 
     from app.learning.learner import PreferenceLearner

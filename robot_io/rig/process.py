@@ -190,6 +190,10 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
     # control worker, which inherits this) stays running, sees its application stopped and stops the
     # arm itself (Inbox), rather than being frozen mid-reach with it
     signal.signal(signal.SIGTSTP, signal.SIG_IGN)
+    # Ctrl-C, too, reaches the whole group: it is the application's to act on (it stops the arm
+    # through this rig, then closes it); here it was a KeyboardInterrupt that ended the loop
+    # mid-cycle and printed a traceback. ur_rtde's control worker inherits this as well.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     outbox = Outbox(conn)
     # every thread of the rig inherits it (the hand receiver, ur_rtde's, the inbox); the loop's own
     # thread runs above them while a trial runs (RealClock.start)

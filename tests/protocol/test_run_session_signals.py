@@ -1,10 +1,13 @@
 """``run-session`` ended by a signal mid-trial, as a lab's process manager (SIGTERM) or the
 experimenter's Ctrl-C (SIGINT) ends it: the arm is stopped, the running trial is recorded aborted with
-the reason, the session resumes, and neither the command nor its rig prints a traceback."""
+the reason, the session resumes, and neither the command nor its rig prints a traceback. Ctrl-C in
+a terminal signals the whole foreground process group, the rig and the learner worker too, not
+only the command."""
 
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import sqlite3
 import subprocess
@@ -31,22 +34,29 @@ def stages_of_trial_1(path) -> list[str]:
         return []
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
-def test_a_signal_mid_trial_closes_the_session_like_ctrl_c(tmp_path, signum):
+@pytest.mark.parametrize(("signum", "group", "rehearse"), [
+    pytest.param(signal.SIGTERM, False, False, id="SIGTERM"),
+    pytest.param(signal.SIGINT, False, False, id="SIGINT"),
+    pytest.param(signal.SIGINT, True, False, id="Ctrl-C (SIGINT to the process group)")])
+def test_a_signal_mid_trial_closes_the_session_like_ctrl_c(tmp_path, signum, group, rehearse):
     study, log, lab = tmp_path / "study", tmp_path / "run.log", tmp_path / "lab.toml"
     # the simulated participant never takes the object: trial 1 holds it out until it is ended
     lab.write_text(f"{SESSION_LOOP_TOML}\n[protocol]\n{protocol_toml(SHORT_PROTOCOL)}\n{NEVER_TAKES}")
     with log.open("w") as out:
         run = subprocess.Popen([sys.executable, "-m", "app.cli", "run-session", "--study", str(study),
                                 "--participant", "T01", "--scenario", "perturbed", "--auto",
-                                "--realtime", "--no-progress", "--config", str(lab)],
-                               stdout=out, stderr=subprocess.STDOUT)
+                                "--rehearse" if rehearse else "--realtime", "--no-progress",
+                                "--config", str(lab)],
+                               stdout=out, stderr=subprocess.STDOUT, start_new_session=group)
     try:
         wait_for(lambda: "hold" in stages_of_trial_1(study / "T01.sqlite"),
                  "trial 1 to hold the object out", timeout=3 * CEILING_S,
                  seen=lambda: f"stages {stages_of_trial_1(study / 'T01.sqlite')}; "
                               f"log {tail(log.read_text())}")
-        run.send_signal(signum)  # the writing process itself, by its own PID
+        if group:  # as a terminal's Ctrl-C: the command and every process it started
+            os.killpg(run.pid, signum)
+        else:
+            run.send_signal(signum)  # the writing process itself, by its own PID
         code = run.wait(CEILING_S)
     finally:
         if run.poll() is None:
