@@ -137,7 +137,11 @@ class Rehearsal:
         self.standin = subprocess.Popen(
             [sys.executable, "-m", "robot_io.standins.ur", "--host", self.host, "--series", series,
              "--exit-with-stdin", *(["--realtime-priority"] if realtime_priority else [])],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+            # a session of its own, as a real controller is no process of the terminal's: Ctrl-C
+            # (and Ctrl-Z) there are the application's, which stops the arm and then ends the
+            # stand-in (its stdin); killed by Ctrl-C, it took the arm away mid-trial
+            start_new_session=True)
         self.publisher: HandPublisher | None = None
         #: the stand-in LabRecorder's remote control (a ``labrecorder_rcs`` lab only)
         self.recorder: RemoteControl | None = None

@@ -37,7 +37,10 @@ def stages_of_trial_1(path) -> list[str]:
 @pytest.mark.parametrize(("signum", "group", "rehearse"), [
     pytest.param(signal.SIGTERM, False, False, id="SIGTERM"),
     pytest.param(signal.SIGINT, False, False, id="SIGINT"),
-    pytest.param(signal.SIGINT, True, False, id="Ctrl-C (SIGINT to the process group)")])
+    pytest.param(signal.SIGINT, True, False, id="Ctrl-C (SIGINT to the process group)"),
+    # the stand-in controller, too, is started by the command: as a real controller, Ctrl-C
+    # must not reach it (it took the arm away mid-trial)
+    pytest.param(signal.SIGINT, True, True, id="Ctrl-C, rehearsed", marks=pytest.mark.standin)])
 def test_a_signal_mid_trial_closes_the_session_like_ctrl_c(tmp_path, signum, group, rehearse):
     study, log, lab = tmp_path / "study", tmp_path / "run.log", tmp_path / "lab.toml"
     # the simulated participant never takes the object: trial 1 holds it out until it is ended
