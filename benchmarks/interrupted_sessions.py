@@ -4,7 +4,9 @@ lifetimes").
 
 Each run starts ``handover run-session --auto --realtime`` (or ``--rehearse``) on a fresh study
 folder, sends SIGINT after a delay drawn uniformly from [--earliest, --latest] s, and waits for the
-command to end: a run that ends by a signal (a segmentation fault: -11, or 139 from a shell), prints
+command to end. The SIGINT goes to the command's process group, the rig, learner and stand-ins it
+started included, as a terminal's Ctrl-C does (``--to pid``: to the command alone, as ``kill -INT``).
+A run that ends by a signal (a segmentation fault: -11, or 139 from a shell), prints
 "Traceback" or "Fatal Python error", or has not ended --hang-after seconds after the SIGINT (then
 killed) is counted. Beside it, ``yes > /dev/null`` keeps a core busy (--hogs). ``--source DIR`` runs
 another checkout's code with this environment (PYTHONPATH), for the baseline of the same run:
@@ -34,16 +36,19 @@ KINDS = ("crashed", "traceback", "hung", "other exit")
 
 
 def one_run(study: Path, mode: str, delay: float, hang_after: float, env: dict[str, str],
-            source: Path) -> dict:
+            source: Path, to_group: bool) -> dict:
     """One interrupted session: its exit code, whether it crashed, printed a traceback or hung."""
     command = [sys.executable, "-m", "app.cli", "run-session", "--study", str(study),
                "--participant", "P01", "--scenario", "perturbed", "--auto", "--no-progress",
                "--realtime" if mode == "realtime" else "--rehearse"]
     # in the checkout run: ``-m`` puts the working folder first on sys.path, before PYTHONPATH
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               env=env, cwd=source)
+                               env=env, cwd=source, start_new_session=to_group)
     time.sleep(delay)  # the moment of the Ctrl-C, drawn by the caller
-    process.send_signal(signal.SIGINT)
+    if to_group:
+        os.killpg(process.pid, signal.SIGINT)
+    else:
+        process.send_signal(signal.SIGINT)
     hung = False
     try:
         out, err = process.communicate(timeout=hang_after)
@@ -69,6 +74,8 @@ def main() -> int:
     parser.add_argument("--hogs", type=int, default=1)
     parser.add_argument("--seed", type=int, default=44)
     parser.add_argument("--source", type=Path, help="another checkout to run (the baseline)")
+    parser.add_argument("--to", choices=("group", "pid"), default="group",
+                        help="the SIGINT's receiver: the process group (Ctrl-C) or the command")
     args = parser.parse_args()
     env = dict(os.environ)
     source = (args.source or Path(__file__).resolve().parents[1]).resolve()
@@ -85,7 +92,7 @@ def main() -> int:
             delay = float(rng.uniform(args.earliest, args.latest))
             with tempfile.TemporaryDirectory(prefix="interrupted-") as folder:
                 result = one_run(Path(folder) / "study", args.mode, delay, args.hang_after, env,
-                                 source)
+                                 source, args.to == "group")
             for key in KINDS:
                 counts[key] += result[key]
             print(f"run {run + 1:3d}: SIGINT at {delay:5.1f} s -> rc {result['rc']}"
@@ -96,7 +103,7 @@ def main() -> int:
         for hog in hogs:
             hog.kill()
             hog.wait()
-    print(f"\n{source} ({args.mode}, {args.runs} runs, SIGINT in [{args.earliest:g}, "
+    print(f"\n{source} ({args.mode}, {args.runs} runs, SIGINT to the {args.to} in [{args.earliest:g}, "
           f"{args.latest:g}] s, {args.hogs} CPU hog(s), {time.monotonic() - began:.0f} s): "
           f"{counts['crashed']} crashed, {counts['traceback']} printed a traceback, "
           f"{counts['hung']} hung, {counts['other exit']} ended with another exit code")
