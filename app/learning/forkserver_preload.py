@@ -39,6 +39,12 @@ def ends_with_its_parent() -> Iterator[None]:
         _set_parent_death_signal(0)
 
 
+# Ctrl-C in the application's terminal reaches its whole process group, this server too: while it
+# imports, a KeyboardInterrupt killed it and the session's learner start failed with "unexpected
+# EOF" (a traceback at every early Ctrl-C). multiprocessing ignores SIGINT here only after the
+# imports; from now on, and in the learners forked from here, the application ends them.
+signal.signal(signal.SIGINT, signal.SIG_IGN)
+
 with ends_with_its_parent():
     import torch.fx.experimental.symbolic_shapes  # noqa: F401  (torch.broadcast_shapes, first fit)
 
