@@ -14,36 +14,13 @@ start) leaves a forkserver that imports as before; it ends as soon as it reaches
 
 from __future__ import annotations
 
-import ctypes
-import signal
-import sys
-from collections.abc import Iterator
-from contextlib import contextmanager
-
-#: ``prctl(2)`` option: the signal this process gets when its parent thread ends (0: none).
-PR_SET_PDEATHSIG = 1
-
-
-def _set_parent_death_signal(signum: int) -> None:
-    if sys.platform.startswith("linux"):
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signum, 0, 0, 0)
-
-
-@contextmanager
-def ends_with_its_parent() -> Iterator[None]:
-    """Inside: this process is SIGKILLed when its parent ends (on Linux; elsewhere nothing)."""
-    _set_parent_death_signal(signal.SIGKILL)
-    try:
-        yield
-    finally:
-        _set_parent_death_signal(0)
-
+from robot_io.child_signals import ends_with_its_parent, ignore_interrupts
 
 # Ctrl-C in the application's terminal reaches its whole process group, this server too: while it
-# imports, a KeyboardInterrupt killed it and the session's learner start failed with "unexpected
-# EOF" (a traceback at every early Ctrl-C). multiprocessing ignores SIGINT here only after the
-# imports; from now on, and in the learners forked from here, the application ends them.
-signal.signal(signal.SIGINT, signal.SIG_IGN)
+# imported, a KeyboardInterrupt killed it and the session's learner start failed with "unexpected
+# EOF" (a traceback at every early Ctrl-C). Its starter held SIGINT until here (interrupts_held);
+# from now on, and in the learners forked from here, the application ends them.
+ignore_interrupts()
 
 with ends_with_its_parent():
     import torch.fx.experimental.symbolic_shapes  # noqa: F401  (torch.broadcast_shapes, first fit)

@@ -33,7 +33,6 @@ import contextlib
 import functools
 import logging
 import multiprocessing as mp
-import signal
 import threading
 import time
 from multiprocessing.connection import Connection
@@ -55,6 +54,7 @@ from app.learning.models import (
     Suggestion,
 )
 from app.learning.rng import derive_seed
+from robot_io.child_signals import ignore_interrupts, interrupts_held
 
 logger = logging.getLogger(__name__)
 
@@ -119,7 +119,7 @@ def _serve(config_json: str, snapshot_json: str | None, replay: list[dict[str, A
     """Worker process: rebuild the learner (an exact snapshot, then earlier requests replayed),
     then answer requests. Ctrl-C in the application's terminal reaches this process too (its
     process group): it is ignored, and the application ends the worker (its pipe closes)."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    ignore_interrupts()
     import torch
 
     from app.learning.learner import PreferenceLearner
@@ -176,7 +176,8 @@ def warm_up(start_method: str = START_METHOD) -> threading.Thread:
 
     def fork_one() -> None:
         child = context.Process(target=_ready, name="handover-learner-warm-up", daemon=True)
-        child.start()
+        with interrupts_held():  # the forkserver's too (forkserver_preload)
+            child.start()
         child.join()
         child.close()  # its two pipes to the forkserver, now rather than when it is collected
 
@@ -301,7 +302,8 @@ class LearnerClient:
                   None if self._snapshot is None else self._snapshot.model_dump_json(),
                   [r.model_dump(mode="json") for r in replay], requests, replies))
         try:
-            self._process.start()  # hands the worker its ends before it returns
+            with interrupts_held():  # until _serve (or the forkserver's preload) ignores them
+                self._process.start()  # hands the worker its ends before it returns
         finally:
             requests.close()
             replies.close()

@@ -35,6 +35,7 @@ import time
 from collections.abc import Callable
 
 from robot_io.arms.arm import Backstop
+from robot_io.child_signals import interrupts_held
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.errors import RobotIOError
 from robot_io.rig import process
@@ -115,7 +116,8 @@ class RigClient:
         self._process = context.Process(target=process.main, name="handover-rig",
                                         args=(child, spec, self.stream.name, self.stream.capacity,
                                               logging.getLogger().getEffectiveLevel()))
-        self._process.start()
+        with interrupts_held():  # until the rig ignores them (child_signals)
+            self._process.start()
         child.close()
         self.stage: str | None = None
         self.running: int | None = None  # the trial index the rig is running

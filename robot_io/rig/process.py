@@ -26,6 +26,7 @@ import threading
 import time
 from multiprocessing.connection import Connection
 
+from robot_io.child_signals import ignore_interrupts
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.control.cycle import Gates, run_cycle
 from robot_io.errors import RobotIOError, explain
@@ -192,8 +193,9 @@ def main(conn: Connection, spec: RigSpec, stream_name: str, capacity: int, log_l
     signal.signal(signal.SIGTSTP, signal.SIG_IGN)
     # Ctrl-C, too, reaches the whole group: it is the application's to act on (it stops the arm
     # through this rig, then closes it); here it was a KeyboardInterrupt that ended the loop
-    # mid-cycle and printed a traceback. ur_rtde's control worker inherits this as well.
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # mid-cycle and printed a traceback. Held since the start (RigClient), now dropped; ur_rtde's
+    # control worker inherits this as well.
+    ignore_interrupts()
     outbox = Outbox(conn)
     # every thread of the rig inherits it (the hand receiver, ur_rtde's, the inbox); the loop's own
     # thread runs above them while a trial runs (RealClock.start)

@@ -18,7 +18,6 @@ from __future__ import annotations
 import json
 import logging
 import multiprocessing
-import signal
 import socket
 import threading
 import time
@@ -28,6 +27,7 @@ from multiprocessing.connection import Connection
 import numpy as np
 from pydantic import BaseModel, ConfigDict
 
+from robot_io.child_signals import ignore_interrupts, interrupts_held
 from robot_io.clock import SUPPORT_PRIORITY, raise_priority
 from robot_io.config import ControllerConfig
 from robot_io.devices import tracker_transform
@@ -68,7 +68,8 @@ class PublisherSpec(BaseModel):
 def _serve(conn: Connection, spec: PublisherSpec) -> None:
     # Ctrl-C in the terminal reaches the whole process group: the application closes the publisher
     # (its pipe), so the publisher itself ignores it rather than print a traceback at every exit
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # (held since HandPublisher started it, child_signals)
+    ignore_interrupts()
     import pylsl
 
     from robot_io.standins.ur.control import ControlClient
@@ -263,7 +264,8 @@ class HandPublisher:
         self._conn, child = context.Pipe()
         self.process = context.Process(target=_serve, args=(child, spec), name="hand-publisher",
                                        daemon=True)
-        self.process.start()
+        with interrupts_held():
+            self.process.start()
         child.close()
         ready = self._conn.recv() if self._conn.poll(timeout) else None
         if not (isinstance(ready, tuple) and ready[0] == "ready"):

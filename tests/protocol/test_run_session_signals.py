@@ -16,6 +16,13 @@ import sys
 import pytest
 from support.browser import NEVER_TAKES
 from support.engine import SESSION_LOOP_TOML, SHORT_PROTOCOL, protocol_toml
+from support.processes import (
+    command_line,
+    descendants,
+    has_signal,
+    signal_masks,
+    still_alive,
+)
 from support.waiting import CEILING_S, tail, wait_for
 
 pytestmark = [pytest.mark.slow, pytest.mark.soak]
@@ -72,3 +79,46 @@ def test_a_signal_mid_trial_closes_the_session_like_ctrl_c(tmp_path, signum, gro
     assert outcome == "aborted" and signal.Signals(signum).name in reason, (outcome, reason, output)
     assert "Traceback" not in output, tail(output)
     assert code == 128 + signum and "--resume continues it" in output, (code, tail(output))
+
+
+#: How the children that run-session starts through multiprocessing (rig, hand publisher, learner
+#: forkserver) begin; not the resource tracker, nor the stand-in controller (a session of its own).
+STARTED_BY_MULTIPROCESSING = ("spawn_main(", "forkserver import main")
+
+
+def starting_children(pid: int) -> list[int]:
+    """The children that ``pid`` started through multiprocessing which have not yet ignored SIGINT:
+    Python's own handler (KeyboardInterrupt) is set, so they are still starting (imports,
+    unpickling the arguments)."""
+    return [child for child in descendants(pid)
+            if any(start in command_line(child) for start in STARTED_BY_MULTIPROCESSING)
+            and has_signal(signal_masks(child).get("SigCgt", 0), signal.SIGINT)]
+
+
+@pytest.mark.parametrize("rehearse", [
+    pytest.param(False, id="real-time"),
+    pytest.param(True, id="rehearsed", marks=pytest.mark.standin)])
+def test_a_ctrl_c_while_a_child_still_starts_prints_no_traceback(tmp_path, rehearse):
+    """Ctrl-C in a session's first seconds, while the rig (or the hand publisher) is still
+    importing: before robot_io.child_signals, the child died of a KeyboardInterrupt and printed
+    its traceback (6 of 6 tries); now the SIGINT waits until the child ignores it."""
+    study = tmp_path / "study"
+    run = subprocess.Popen([sys.executable, "-m", "app.cli", "run-session", "--study", str(study),
+                            "--participant", "T01", "--scenario", "perturbed", "--auto",
+                            "--rehearse" if rehearse else "--realtime", "--no-progress"],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                           start_new_session=True)
+    try:
+        starting = wait_for(lambda: starting_children(run.pid), "a child of run-session to start",
+                            poll=0.002, seen=lambda: {p: signal_masks(p) for p in descendants(run.pid)})
+        group = descendants(run.pid)
+        os.killpg(run.pid, signal.SIGINT)  # as a terminal's Ctrl-C
+        output, _ = run.communicate(timeout=CEILING_S)
+    finally:
+        if run.poll() is None:
+            run.kill()
+            run.communicate()
+    assert "Traceback" not in output, (starting, tail(output))
+    assert run.returncode == 128 + signal.SIGINT and "--resume continues it" in output, \
+        (run.returncode, tail(output))
+    assert still_alive(group, CEILING_S) == []

@@ -49,6 +49,24 @@ def stopped(pid: int) -> bool:
     return bool(states) and all(state == "T" for state in states.values())
 
 
+def signal_masks(pid: int) -> dict[str, int]:
+    """The signal sets of ``pid`` from /proc/<pid>/status, bit ``n - 1`` for signal ``n``: SigPnd and
+    ShdPnd (pending), SigBlk (blocked: its main thread's), SigIgn (ignored), SigCgt (caught by a
+    handler). Empty: no such process."""
+    try:
+        text = (PROC / str(pid) / "status").read_text()
+    except (FileNotFoundError, ProcessLookupError):
+        return {}
+    return {name: int(value, 16) for name, _, value in
+            (line.partition(":\t") for line in text.splitlines())
+            if name in ("SigPnd", "ShdPnd", "SigBlk", "SigIgn", "SigCgt")}
+
+
+def has_signal(mask: int, signum: int) -> bool:
+    """``signum`` is in a set of :func:`signal_masks`."""
+    return bool(mask & (1 << (signum - 1)))
+
+
 def _stat(pid: int) -> tuple[str, int] | None:
     """The state letter and the parent pid of ``pid`` (None: no such process)."""
     fields = _fields(pid)
@@ -83,14 +101,18 @@ def alive(pid: int) -> bool:
     return stat is not None and stat[0] not in ("Z", "X")
 
 
+def command_line(pid: int) -> str:
+    """The command line of ``pid``, its arguments joined by spaces ("?": no such process)."""
+    try:
+        return (PROC / str(pid) / "cmdline").read_bytes().replace(b"\0", b" ").decode().strip()
+    except OSError:
+        return "?"
+
+
 def describe(pid: int) -> str:
     """``pid``, its command line and its state letter, for a wait's message."""
-    try:
-        command = (PROC / str(pid) / "cmdline").read_bytes().replace(b"\0", b" ").decode().strip()
-    except OSError:
-        command = "?"
     stat = _stat(pid)
-    return f"{pid} [{'gone' if stat is None else stat[0]}] {command[:200]}"
+    return f"{pid} [{'gone' if stat is None else stat[0]}] {command_line(pid)[:200]}"
 
 
 def still_alive(pids: list[int], timeout_s: float) -> list[int]:
