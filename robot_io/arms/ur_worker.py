@@ -24,6 +24,7 @@ import time
 import traceback
 from multiprocessing.connection import Connection
 
+from robot_io.child_signals import ends_with_its_parent
 from robot_io.clock import children_start_on_the_normal_policy, raise_priority
 from robot_io.errors import ArmFault
 
@@ -44,11 +45,21 @@ CALLS = frozenset({"moveL", "stopL", "servoStop", "stopScript", "setWatchdog", "
 COMMAND_PRIORITY_BELOW = 5
 
 
-def _serve(conn: Connection, host: str, flags: int, priority: int | None) -> None:
-    """The worker process: construct the interface, then execute messages until the pipe closes.
-    It starts on the normal policy and, with a ``priority``, runs under SCHED_FIFO once its imports
-    are done: ur_rtde's threads, started by the constructor, at ``priority``; this thread, which
-    sends the commands and spins in ur_rtde's waits, COMMAND_PRIORITY_BELOW below it."""
+def _serve(conn: Connection, host: str, flags: int, priority: int | None, parent: int) -> None:
+    """The worker process: ends with the thread that started it (:func:`ends_with_its_parent`), at
+    once, also while a ur_rtde call does not return (a stalled or dead controller); a rig that died
+    or was killed meanwhile left such a worker holding the arm's control connection for good (seen
+    after a rehearsal's stand-in controller died mid-trial). A parent already gone: nothing to do."""
+    with ends_with_its_parent():
+        if os.getppid() == parent:
+            _work(conn, host, flags, priority)
+
+
+def _work(conn: Connection, host: str, flags: int, priority: int | None) -> None:
+    """Construct the interface, then execute messages until the pipe closes. It starts on the
+    normal policy and, with a ``priority``, runs under SCHED_FIFO once its imports are done:
+    ur_rtde's threads, started by the constructor, at ``priority``; this thread, which sends the
+    commands and spins in ur_rtde's waits, COMMAND_PRIORITY_BELOW below it."""
     import rtde_control
 
     if priority is not None:
@@ -87,7 +98,8 @@ def _serve(conn: Connection, host: str, flags: int, priority: int | None) -> Non
 
 
 class ControlWorker:
-    """The arm backend's handle on the worker process."""
+    """The arm backend's handle on the worker process. The worker lives no longer than the thread
+    that made this handle (the rig's main thread, which opens and runs the arm)."""
 
     def __init__(self, host: str, upper_range_registers: bool, timeout: float) -> None:
         import rtde_control
@@ -98,7 +110,8 @@ class ControlWorker:
         context = multiprocessing.get_context("spawn")  # no fork: the parent runs ur_rtde threads
         self._conn, child = context.Pipe()
         with children_start_on_the_normal_policy() as priority:
-            self.process = context.Process(target=_serve, args=(child, host, flags, priority),
+            self.process = context.Process(target=_serve,
+                                           args=(child, host, flags, priority, os.getpid()),
                                            name=f"ur_rtde-control-{host}", daemon=True)
             self.process.start()
         child.close()
