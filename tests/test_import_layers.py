@@ -32,16 +32,17 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 
 #: The rooms inside each package, from the bottom up, as :data:`LAYERS` is for the tree (app's rooms
 #: are its layers there). robot_io: the errors; the plain values (bounds, vectors, θ, the clock,
-#: the minimum-jerk demonstration); the scene and the device kinds' pattern; the device rooms (a
-#: gripper knows the arm it hangs on); the configuration that assembles them; the controller; the
-#: devices opened from the configuration; the rig process; the stand-ins that play a lab's devices.
+#: the child processes' signals, the minimum-jerk demonstration); the scene and the device kinds'
+#: pattern; the device rooms (a gripper knows the arm it hangs on); the configuration that
+#: assembles them; the controller; the devices opened from the configuration; the rig process; the
+#: stand-ins that play a lab's devices.
 #: session_store: from its errors and vocabulary up to the export that reads everything.
 ROOMS: dict[str, tuple[tuple[str, ...], ...]] = {
     "app": LAYERS,
     "robot_io": (
         ("robot_io.errors",),
         ("robot_io.bounds", "robot_io.vector", "robot_io.theta", "robot_io.clock",
-         "robot_io.minimum_jerk", "robot_io.lsl_log"),
+         "robot_io.child_signals", "robot_io.minimum_jerk", "robot_io.lsl_log"),
         ("robot_io.scene", "robot_io.kinds"),
         ("robot_io.hands", "robot_io.arms"),
         ("robot_io.grippers",),
