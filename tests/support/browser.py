@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TypeVar
 
+import playwright
 import viser
 from playwright.sync_api import Browser, ConsoleMessage, Page, sync_playwright
 from playwright.sync_api import Error as PlaywrightError
@@ -42,9 +43,41 @@ from support.runner import READY_CEILING_S
 from support.waiting import CEILING_S, tail, wait_for
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--autoplay-policy=no-user-gesture-required"]
+#: Chromium features the suite turns off beside Playwright's own list: the omnibox's suggestion popup
+#: as a WebUI. Headless Chromium loads it, unseen, into every window it opens (each page of the suite
+#: is a window of its own context): chrome://omnibox-popup.top-chrome/ and its AI-mode page, about
+#: 0.7 CPU-seconds of a renderer and 0.2 of the browser process per page opened (benchmarks/
+#: browser_pages.py). The pages under test do not change.
+DISABLED_FEATURES = ("WebUIOmniboxPopup", "WebUIOmniboxAimPopup")
+#: Where Playwright's driver keeps the switches it starts Chromium with (its bundle, or before it
+#: the module of its own).
+PLAYWRIGHT_SWITCHES = ("lib/coreBundle.js", "lib/server/chromium/chromiumSwitches.js")
+
+
+def playwright_disabled_features() -> list[str]:
+    """The features Playwright's driver disables when it starts Chromium (its ``disabledFeatures``).
+
+    Chromium keeps only the last ``--disable-features`` of its command line: a list of the suite's
+    own, passed after Playwright's, would turn Playwright's back on (``PaintHolding`` among them).
+    So the suite passes both in one switch. An empty list when the driver's file is not found or
+    says no such list: the suite then passes nothing of its own (tests/ui/test_chromium.py fails)."""
+    driver = Path(playwright.__file__).parent / "driver" / "package"
+    for name in PLAYWRIGHT_SWITCHES:
+        if (path := driver / name).is_file() and (
+                found := re.search(r"disabledFeatures = \[(.*?)\]", path.read_text(), re.DOTALL)):
+            return re.findall(r'^\s*"(\w+)",?\s*$', found.group(1), re.MULTILINE)
+    return []
+
+
+def chromium_args() -> list[str]:
+    """The command line the suite adds to Playwright's when it starts Chromium."""
+    playwrights = playwright_disabled_features()
+    features = [f"--disable-features={','.join([*playwrights, *DISABLED_FEATURES])}"] if playwrights else []
+    return ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+            "--disable-background-networking", "--disable-component-update", "--disable-sync",
+            "--autoplay-policy=no-user-gesture-required", *features]
+
+
 TOKEN = "test-token"
 #: How often a wait here reads a page [s]. A look at a page is a round trip through Playwright's
 #: driver and a layout of the page in Chromium: at the suite's 0.02 s (support/waiting.POLL_S) the
@@ -536,8 +569,8 @@ def ports_of(served: Served) -> tuple[int, int]:
 
 @contextmanager
 def chromium() -> Iterator[Browser]:
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+    with sync_playwright() as driver:
+        browser = driver.chromium.launch(executable_path=CHROMIUM, args=chromium_args())
         try:
             yield browser
         finally:
