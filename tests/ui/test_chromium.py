@@ -12,13 +12,25 @@ pytestmark = [pytest.mark.browser]
 SWITCH = "--disable-features="
 
 
+def is_chromium(process: psutil.Process | None) -> bool:
+    return process is not None and process.name().startswith("chromium")
+
+
 def browser_command_line() -> list[str]:
-    """The command line of the Chromium browser process (not a renderer, GPU or utility process)
-    this test process started."""
-    found = [process.cmdline() for process in psutil.Process().children(recursive=True)
-             if process.name().startswith("chromium")]
-    browsers = [line for line in found if not any(word.startswith("--type=") for word in line)]
-    assert len(browsers) == 1, f"expected one Chromium browser process, saw {len(browsers)}: {found}"
+    """The command line of the Chromium browser process this test process started: the one
+    Chromium process whose parent is not Chromium (Playwright's driver started it). Its children
+    (renderers, GPU, utilities, and a fork of its own in the instant before it runs another
+    program, which still shows the browser's command line) are Chromium's."""
+    browsers, seen = [], []
+    for process in psutil.Process().children(recursive=True):
+        try:
+            if is_chromium(process):
+                seen.append(process.cmdline())
+                if not is_chromium(process.parent()):
+                    browsers.append(seen[-1])
+        except psutil.Error:  # a child that ended between the listing and the reading
+            continue
+    assert len(browsers) == 1, f"expected one Chromium browser process, saw {len(browsers)}: {seen}"
     return browsers[0]
 
 
