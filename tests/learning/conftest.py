@@ -48,6 +48,15 @@ def client():
         yield dask
 
 
+@pytest.fixture(scope="session")
+def on_the_cluster(client) -> list[str]:
+    """The study commands' ``--scheduler`` option naming the shared cluster's scheduler: they reach
+    it as they reach a lab's, instead of starting a LocalCluster of their own for each run (a
+    worker process that imports torch, ~4 CPU-seconds). Their default, a LocalCluster of
+    ``--workers`` processes, is tested in test_study.py::test_two_dask_workers_write_the_same_csv_as_one."""
+    return ["--scheduler", client.scheduler.address]
+
+
 @pytest.fixture
 def make_learner():
     def make(acquisition: str = "qnei", seed: int = 0, q: int = 3) -> PreferenceLearner:

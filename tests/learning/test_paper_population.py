@@ -38,12 +38,13 @@ def test_the_paper_population_needs_the_three_parameters_of_theta():
         participant_target(2, 0, 0, 0, "paper")
 
 
-def test_pilot_runs_the_paper_population_and_names_the_allowed_spreads(tmp_path, capsys):
+def test_pilot_runs_the_paper_population_and_names_the_allowed_spreads(tmp_path, capsys,
+                                                                      on_the_cluster):
     out = tmp_path / "pilot"
     args = ["pilot", "--studies", "1", "--participants", "2", "--scenarios", "2", "--initial", "3",
             "--batches", "1", "--batch-size", "3", "--spread", "paper", "--out", str(out),
             "--no-progress", "--json"]
-    assert main(args) == 0
+    assert main([*args, *on_the_cluster]) == 0
     capsys.readouterr()
     assert json.loads((out / "pilot.json").read_text())["spread"] == "paper"
     with pytest.raises(SystemExit):

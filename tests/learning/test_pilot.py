@@ -30,13 +30,13 @@ def test_the_papers_validation_scores_give_its_p_value():
         assert sign_test_p(scores) == pytest.approx(direct_sign_test(scores))
 
 
-def test_pilot_power_matches_a_direct_computation_from_its_rows(tmp_path, capsys):
+def test_pilot_power_matches_a_direct_computation_from_its_rows(tmp_path, capsys, on_the_cluster):
     """Slow: the power curve needs studies of participants: 3 studies × 2 scenarios × 3 simulated
     participants, each learning with the real learner, the smallest pilot with a curve to check."""
     out = tmp_path / "pilot"
     args = ["pilot", "--studies", "3", "--participants", "3", "--scenarios", "2",
             "--noise", "0.2", "--initial", "3", "--batches", "1", "--batch-size", "3",
-            "--seed", "5", "--out", str(out), "--no-progress", "--json"]
+            "--seed", "5", "--out", str(out), "--no-progress", "--json", *on_the_cluster]
     assert main(args) == 0
     report = json.loads(capsys.readouterr().out)
     with (out / "participants.csv").open() as handle:
@@ -69,14 +69,15 @@ def test_pilot_power_matches_a_direct_computation_from_its_rows(tmp_path, capsys
     assert after.startswith(before) and len(after.splitlines()) == 1 + 4 * 6
 
 
-def test_pilot_with_ties_modelled_and_learning_that_stops_when_settled(tmp_path, capsys):
+def test_pilot_with_ties_modelled_and_learning_that_stops_when_settled(tmp_path, capsys,
+                                                                     on_the_cluster):
     """Issue 40 in the pilot: each row says how many interactions learning used (a batch end
     from the second learning batch on, or the whole schedule) and how many ties it modelled."""
     out = tmp_path / "pilot"
     args = ["pilot", "--studies", "1", "--participants", "3", "--scenarios", "1", "--noise", "0.05",
             "--initial", "3", "--batches", "3", "--batch-size", "3", "--tie", "0.3", "--ties",
             "model", "--stop-when-settled", "0.5", "--seed", "5", "--out", str(out),
-            "--no-progress", "--json"]
+            "--no-progress", "--json", *on_the_cluster]
     assert main(args) == 0
     report = json.loads(capsys.readouterr().out)
     with (out / "participants.csv").open() as handle:
@@ -88,12 +89,12 @@ def test_pilot_with_ties_modelled_and_learning_that_stops_when_settled(tmp_path,
     assert report["config"]["stopping"]["threshold"] == 0.5
 
 
-def test_pilot_with_coactive_hints_counts_them_per_participant(tmp_path, capsys):
+def test_pilot_with_coactive_hints_counts_them_per_participant(tmp_path, capsys, on_the_cluster):
     """--coactive: each row says how many hints the participant gave; the summary their mean."""
     out = tmp_path / "pilot"
     assert main(["pilot", "--studies", "1", "--participants", "2", "--scenarios", "1", "--noise",
                  "0.05", "--initial", "3", "--batches", "1", "--batch-size", "3", "--coactive",
-                 "--seed", "5", "--out", str(out), "--no-progress"]) == 0
+                 "--seed", "5", "--out", str(out), "--no-progress", *on_the_cluster]) == 0
     with (out / "participants.csv").open() as handle:
         hints = [int(r["hints"]) for r in csv.DictReader(handle)]
     assert len(hints) == 2 and sum(hints) > 0  # uniform optima: some way feels better somewhere

@@ -98,10 +98,10 @@ def test_resuming_with_another_seed_is_refused(tmp_path, client):
         run_condition(SMALL, trials=1, seed=2, client=client, out=tmp_path, progress=False)
 
 
-def test_cli_json_summary(tmp_path, capsys):
+def test_cli_json_summary(tmp_path, capsys, on_the_cluster):
     code = main(["benchmark-pl", "--acq", "eubo", "--q", "2", "--noise", "0.05", "--trials", "2",
                  "--queries", "6", "--initial", "3", "--seed", "4", "--out", str(tmp_path),
-                 "--json", "--no-progress"])
+                 "--json", "--no-progress", *on_the_cluster])
     assert code == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["trials"] == 2 and summary["interactions"] == 3 + 2 * 3
@@ -110,11 +110,12 @@ def test_cli_json_summary(tmp_path, capsys):
     assert (tmp_path / "eubo-q2-s0.05" / "summary.csv").exists()
 
 
-def test_cli_batch_position_noise_is_its_own_condition(tmp_path, capsys):
+def test_cli_batch_position_noise_is_its_own_condition(tmp_path, capsys, on_the_cluster):
     """--batch-position-noise runs the same trials with the likelihood of eq. (16) into their own
     folder (a resumed run never mixes the two likelihoods)."""
     args = ["benchmark-pl", "--q", "3", "--noise", "0.05", "--trials", "1", "--queries", "7",
-            "--initial", "3", "--seed", "4", "--out", str(tmp_path), "--json", "--no-progress"]
+            "--initial", "3", "--seed", "4", "--out", str(tmp_path), "--json", "--no-progress",
+            *on_the_cluster]
     summaries = []
     for extra in ([], ["--batch-position-noise"]):
         assert main([*args, *extra]) == 0
@@ -126,12 +127,12 @@ def test_cli_batch_position_noise_is_its_own_condition(tmp_path, capsys):
     assert trials[0] != trials[1]
 
 
-def test_cli_coactive_is_its_own_condition_and_counts_the_hints(tmp_path, capsys):
+def test_cli_coactive_is_its_own_condition_and_counts_the_hints(tmp_path, capsys, on_the_cluster):
     """--coactive runs the same trials with a participant who hints, into their own folder; the
     hints of each trial are in trials.csv and their mean in the summary."""
     args = ["benchmark-pl", "--q", "3", "--noise", "0.05", "--trials", "2", "--queries", "5",
             "--initial", "3", "--seed", "4", "--out", str(tmp_path), "--json", "--no-progress",
-            "--coactive"]
+            *on_the_cluster, "--coactive"]
     assert main(args) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["condition"] == "qnei-q3-s0.05-coactive0.2"
@@ -183,15 +184,16 @@ def test_a_paired_study_gives_every_condition_the_same_targets_and_initial_desig
     assert t_half_width(list(diff)) == pytest.approx(stats.t.ppf(0.975, 1) * abs(diff[0] - diff[1]) / 2)
 
 
-def test_two_dask_workers_write_the_same_csv_as_one(tmp_path):
+def test_two_dask_workers_write_the_same_csv_as_one(tmp_path, on_the_cluster):
     """Trials are seeded by (seed, trial) alone and the file is rewritten in trial order, so the
-    worker count changes nothing; seconds go to timings.csv, apart from the results."""
+    worker count changes nothing, nor does the cluster (the shared one-worker cluster's scheduler,
+    and the command's own LocalCluster of two); seconds go to timings.csv, apart from the results."""
     files = {}
-    for workers in (1, 2):
+    for workers, cluster in ((1, on_the_cluster), (2, ["--workers", "2"])):
         out = tmp_path / f"w{workers}"
         assert main(["benchmark-pl", "--acq", "qnei", "--q", "2", "--noise", "0.05", "--trials",
-                     "3", "--queries", "5", "--initial", "3", "--seed", "11", "--workers",
-                     str(workers), "--out", str(out), "--no-progress", "--json"]) == 0
+                     "3", "--queries", "5", "--initial", "3", "--seed", "11", *cluster,
+                     "--out", str(out), "--no-progress", "--json"]) == 0
         files[workers] = (out / "qnei-q2-s0.05" / "trials.csv").read_text()
         timings = (out / "qnei-q2-s0.05" / "timings.csv").read_text().splitlines()
         assert timings[0] == "trial,seconds" and len(timings) == 4
