@@ -21,22 +21,17 @@ sys.path.insert(0, str(Path(__file__).parents[1] / "tests"))
 # the checkout before tests/, whose robot_io/ folder would pass for the robot_io package
 sys.path.insert(0, str(Path(__file__).parents[1]))
 
-import psutil
 from playwright.sync_api import sync_playwright
 from support.browser import CHROMIUM, DISABLED_FEATURES, chromium_args, open_page, serve
+from support.cpu import TreeCpu
 
 
 def chromium_cpu() -> float:
-    """User + system seconds of the live Chromium processes of this process's tree."""
-    total = 0.0
-    for process in psutil.Process().children(recursive=True):
-        try:
-            if process.name().startswith("chromium"):
-                times = process.cpu_times()
-                total += times.user + times.system
-        except psutil.Error:  # ended between the listing and the reading
-            continue
-    return total
+    """User + system seconds of the live Chromium processes of this process's tree (support.cpu's
+    reading of the tree, by the kind of each process)."""
+    tree = TreeCpu()
+    return sum(seconds for key, seconds in tree.sample().items()
+               if tree.kinds[key].startswith("Chromium"))
 
 
 def round_cpu(args: list[str], dashboard_url: str, tablet_url: str, pages: int) -> float:

@@ -14,6 +14,7 @@ workers, never race for a guessed port.
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import shutil
@@ -54,19 +55,21 @@ DISABLED_FEATURES = ("WebUIOmniboxPopup", "WebUIOmniboxAimPopup")
 PLAYWRIGHT_SWITCHES = ("lib/coreBundle.js", "lib/server/chromium/chromiumSwitches.js")
 
 
-def playwright_disabled_features() -> list[str]:
+@functools.cache
+def playwright_disabled_features() -> tuple[str, ...]:
     """The features Playwright's driver disables when it starts Chromium (its ``disabledFeatures``).
 
     Chromium keeps only the last ``--disable-features`` of its command line: a list of the suite's
     own, passed after Playwright's, would turn Playwright's back on (``PaintHolding`` among them).
-    So the suite passes both in one switch. An empty list when the driver's file is not found or
-    says no such list: the suite then passes nothing of its own (tests/ui/test_chromium.py fails)."""
+    So the suite passes both in one switch. Empty when the driver's file is not found or says no
+    such list: the suite then passes nothing of its own (tests/ui/test_chromium.py fails). Read once
+    a process (the driver's bundle is ~3.6 MB), not at every Chromium start."""
     driver = Path(playwright.__file__).parent / "driver" / "package"
     for name in PLAYWRIGHT_SWITCHES:
         if (path := driver / name).is_file() and (
                 found := re.search(r"disabledFeatures = \[(.*?)\]", path.read_text(), re.DOTALL)):
-            return re.findall(r'^\s*"(\w+)",?\s*$', found.group(1), re.MULTILINE)
-    return []
+            return tuple(re.findall(r'^\s*"(\w+)",?\s*$', found.group(1), re.MULTILINE))
+    return ()
 
 
 def chromium_args() -> list[str]:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import psutil
 import pytest
-from support.browser import DISABLED_FEATURES, chromium, playwright_disabled_features
+from support.browser import DISABLED_FEATURES, chromium, playwright_disabled_features, wait_function
 
 pytestmark = [pytest.mark.browser]
 
@@ -50,5 +50,6 @@ def test_one_disable_features_switch_keeps_playwrights_and_drops_the_omnibox_pop
         # chrome://inspect lists the context's targets: its pages, and its windows' WebUIs
         targets = page.context.new_page()
         targets.goto("chrome://inspect/#other")
-        targets.wait_for_function("() => document.body.textContent.includes('suite-page')")
+        wait_function(targets, "() => document.body.textContent.includes('suite-page')",
+                      "chrome://inspect to list the context's page")
         assert "omnibox-popup" not in (targets.text_content("body") or "")
