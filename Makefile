@@ -9,8 +9,10 @@ BIN := $(VENV)/bin
 # The suite runs on PYTEST_WORKERS xdist workers (`--dist loadgroup`: tests marked
 # xdist_group("name") share a worker); it prints the 25 slowest tests at the end of every run,
 # then its wall and CPU time. A crashed worker, a hung test or a hung worker ends the run
-# (tests/support/watchdog.py).
-PYTEST_WORKERS ?= 3
+# (tests/support/watchdog.py). Four workers on two cores: the stand-in group holds one worker for
+# ~6 minutes of trials on the clock, and other tests wait on pages and processes; with three the
+# cores were busy ~90 % of the run, with four ~99 % (docs/testing.md, "Where the time goes").
+PYTEST_WORKERS ?= 4
 PYTEST_ARGS ?=
 # `make soak`: the browser, rehearsal, rig-process and kill tests SOAK_RUNS times beside
 # SOAK_HOGS busy cores (not in CI).
