@@ -13,7 +13,7 @@ A soak takes hours (the rehearsal's 500 stress cycles alone about one on the wal
 ``--until HH:MM`` it starts no soak run that would not end by then (judged by its longest run so
 far) and reports the runs it made; without it, all ``--runs``.
 
-    make soak [SOAK_RUNS=10] [SOAK_HOGS=1] [SOAK_UNTIL=HH:MM] [SOAK_STRESS_CYCLES=500] [PYTEST_WORKERS=3]
+    make soak [SOAK_RUNS=10] [SOAK_HOGS=1] [SOAK_UNTIL=HH:MM] [SOAK_STRESS_CYCLES=500] [PYTEST_WORKERS=4]
 """
 
 from __future__ import annotations
