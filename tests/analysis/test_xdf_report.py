@@ -26,6 +26,9 @@ pytestmark = [pytest.mark.xdist_group(XDIST_GROUP), pytest.mark.slow, pytest.mar
 
 
 def test_report_xdf_aligns_the_pupil_stream_to_each_go(recorded_session, tmp_path, capsys):
+    """Where its group's worker draws this test first, its time includes ``recorded_session``: a
+    short session on the wall clock recorded to XDF by the suite's recorder and a real LabRecorder
+    (15-26 s)."""
     session, out = recorded_session, tmp_path / "report"
     assert main(["report", str(session.study), "--out", str(out), "--xdf", str(session.xdf),
                  "--xdf-stream", session.pupil]) == 0, capsys.readouterr().err

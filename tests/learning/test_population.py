@@ -31,6 +31,9 @@ def earlier():
 
 
 def test_the_pooled_mean_is_the_average_of_the_earlier_posterior_means(earlier):
+    """The first of the module's tests builds ``earlier``: two participants of 10 interactions
+    each through the real learner (a GP fit and an acquisition optimisation each), up to 25 s on
+    a loaded machine."""
     X = torch.rand(7, 3, dtype=torch.float64, generator=torch.Generator().manual_seed(0))
     means = [posterior_at(PreferenceLearner.restore(s).model.model, X)[0]
              for s in earlier.values()]

@@ -46,6 +46,9 @@ def stopped(tmp_path_factory):
 
 
 def test_learning_stops_early_on_an_easy_participant_with_its_reason(stopped):
+    """The first of the module's tests builds ``stopped``: a session of the paper's protocol
+    driven to its end through the real learner (a fit and the stopping signal after each batch),
+    10-40 s on a loaded machine."""
     stops = [e for e in stopped.store.events() if e.kind == "learning_stopped"]
     assert len(stops) == 1, [e.kind for e in stopped.store.events()]
     stop = stops[0].payload

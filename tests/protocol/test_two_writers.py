@@ -95,6 +95,8 @@ def test_a_second_writer_is_refused_and_the_first_finishes_its_session(tmp_path,
 @pytest.mark.slow
 @pytest.mark.soak
 def test_serve_holding_a_participant_refuses_run_session(tmp_path):
+    """Starts ``handover serve`` with a participant open (its rig and its learner, torch
+    included) and a ``run-session`` beside it: 10-20 s on a loaded machine."""
     study = tmp_path / "study"
     log = tmp_path / "serve.log"
     with log.open("w") as out:
