@@ -44,8 +44,8 @@ def hinted(tmp_path_factory):
 
 
 def test_every_placement_is_followed_by_a_hint_stored_with_its_provenance(hinted):
-    """The module's first test builds its session (``hinted``): 10 interactions through the real
-    learner with a fit after each hint, 10-20 s on a loaded machine (21.6 s in a full run)."""
+    """The module's first test builds its session (``hinted``): the small coactive protocol run
+    to its end through the real learner, 10-22 s on a loaded machine."""
     placements = hinted.store.rows("placements")
     hints = hinted.store.rows("hints")
     assert [h.interaction for h in hints] == [p.interaction for p in placements] == list(range(1, 9))
