@@ -1,7 +1,6 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 # Each test process computes on one thread: the suite runs three xdist workers on two cores, and
@@ -59,18 +58,6 @@ settings.load_profile("handover")
 STANDIN_GROUPS = {"rehearsal": "standin-rehearsal", "ur": "standin-ur"}
 
 
-def shared_fixture(fixtures: Mapping[str, Sequence[pytest.FixtureDef]]) -> str | None:
-    """The suite's own session-scoped fixture that a test uses (the root one, when it uses one
-    through another), or None. Each worker that runs such a test builds the fixture once more: the
-    shared Dask cluster of tests/learning, whose worker imports torch at its first task (~4
-    CPU-seconds), was built on all four workers. Pytest's own session fixtures (``tmp_path_factory``)
-    are defined nowhere in the suite and do not count."""
-    ours = {name: defs[-1] for name, defs in fixtures.items()
-            if defs and defs[-1].scope == "session" and defs[-1].baseid}
-    roots = sorted(name for name, fixture in ours.items() if not set(fixture.argnames) & ours.keys())
-    return roots[0] if roots else None
-
-
 def standin_group(item: pytest.Item) -> str:
     """The xdist group of a ``standin`` test (:data:`STANDIN_GROUPS`)."""
     under_robot_io = "robot_io" in item.path.relative_to(Path(__file__).parent).parts
@@ -86,8 +73,7 @@ QUICK_TIMEOUT_S = 300
 @pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     """Tests not marked ``slow`` get the ceiling :data:`QUICK_TIMEOUT_S`. Tests marked ``standin``
-    share the worker of their :data:`STANDIN_GROUPS`. Tests that use one of the suite's
-    session-scoped fixtures share one worker (:func:`shared_fixture`); tests that use a
+    share the worker of their :data:`STANDIN_GROUPS`. Tests that use a
     module-scoped fixture (a whole session run once, a study folder, a learner worker) share one
     xdist worker, so the fixture is built once, not once per worker that happens to draw one of them
     (``make test`` runs ``--dist loadgroup``). Slow tests go first. Runs before xdist reads the
@@ -102,9 +88,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             continue
         if info is None or item.get_closest_marker("xdist_group"):
             continue
-        if shared := shared_fixture(info.name2fixturedefs):
-            item.add_marker(pytest.mark.xdist_group(f"session-{shared}"))
-        elif any(defs[-1].scope == "module" for defs in info.name2fixturedefs.values() if defs):
+        if any(defs[-1].scope == "module" for defs in info.name2fixturedefs.values() if defs):
             item.add_marker(pytest.mark.xdist_group(item.module.__name__))
     # The slow tests first, slow browser tests (the longest) before them (a stable sort keeps each
     # module's order): xdist hands out tests in this order, so the longest ones start at once
