@@ -31,7 +31,7 @@ from typing import TypeVar
 
 import playwright
 import viser
-from playwright.sync_api import Browser, ConsoleMessage, Page, sync_playwright
+from playwright.sync_api import Browser, ConsoleMessage, Page, Playwright, sync_playwright
 from playwright.sync_api import Error as PlaywrightError
 from viser import _messages
 
@@ -570,14 +570,52 @@ def ports_of(served: Served) -> tuple[int, int]:
     return (int(served.tablet_url.rsplit(":", 1)[1]), int(served.dashboard_url.rsplit(":", 1)[1]))
 
 
+@dataclass
+class _Launched:
+    """Playwright's driver and the Chromium it launched, kept by this test process."""
+
+    driver: Playwright
+    browser: Browser
+
+
+#: This test process's Chromium (:func:`chromium`), once a test has asked for one. Owned by the
+#: process's main thread, the only one that drives Playwright here; released by
+#: :func:`close_chromium` at the end of the run (tests/conftest.py, ``pytest_sessionfinish``).
+_LAUNCHED: list[_Launched] = []
+
+
 @contextmanager
 def chromium() -> Iterator[Browser]:
-    with sync_playwright() as driver:
-        browser = driver.chromium.launch(executable_path=CHROMIUM, args=chromium_args())
+    """This test process's Chromium, with no browser context open; every context opened in the
+    block (each page of :func:`open_page` has its own) is closed when it ends.
+
+    The browser is launched at the first test that asks for one and kept for the process's later
+    tests (launched again if it has gone): a launch with its Playwright driver costs ~1.45
+    CPU-seconds, and the suite's browser tests asked for 29 (docs/testing.md). A context is
+    Chromium's unit of isolation (its own cookies, storage and cache), so what one test's pages
+    stored is not seen by the next test's."""
+    if not (_LAUNCHED and _LAUNCHED[0].browser.is_connected()):
+        close_chromium()
+        driver = sync_playwright().start()
+        _LAUNCHED.append(_Launched(driver, driver.chromium.launch(executable_path=CHROMIUM,
+                                                                  args=chromium_args())))
+    browser = _LAUNCHED[0].browser
+    try:
+        yield browser
+    finally:
+        for context in browser.contexts:
+            context.close()
+
+
+def close_chromium() -> None:
+    """Close this process's Chromium and stop its Playwright driver, if :func:`chromium` launched
+    them."""
+    while _LAUNCHED:
+        launched = _LAUNCHED.pop()
         try:
-            yield browser
+            launched.browser.close()
         finally:
-            browser.close()
+            launched.driver.stop()
 
 
 #: The dashboard (a laptop page) as the suite opens it. Viser's "Software WebGL rendering
