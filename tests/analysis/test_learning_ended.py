@@ -39,6 +39,9 @@ def learning(tmp_path_factory) -> tuple[pd.DataFrame, str]:
 
 
 def test_each_participants_learning_ended_as_it_did(learning):
+    """Slow (~23 s in a loaded full run) as the module's first test: it pays for ``learning``, a
+    short session to its end and one to its fourth handover through the real learner, and their
+    report."""
     table, _ = learning
     assert table.loc["D01", "learning_ended"] == "at the schedule's end"
     assert table.loc["D01", "why"] == "the fixed schedule (no stopping rule)"

@@ -51,6 +51,8 @@ def study(tmp_path_factory) -> Path:
 
 def test_the_terminal_and_the_page_say_how_the_validation_was_shown_without_markup(study, tmp_path,
                                                                                    capsys):
+    """Slow (~27 s in a loaded full run) as the module's first test: it pays for ``study`` (two
+    short sessions through the real learner and a third planned) and runs ``handover report``."""
     assert main(["report", str(study), "--out", str(tmp_path / "r")]) == 0
     terminal = capsys.readouterr()
     page = (tmp_path / "r" / "report.html").read_text()

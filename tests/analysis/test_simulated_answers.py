@@ -126,6 +126,9 @@ def test_include_simulated_counts_them_marked(study, tmp_path):
 
 
 def test_the_terminal_warns_of_each_participant_left_out(study, tmp_path, capsys):
+    """Slow (~27 s in a loaded full run): ``handover report`` on the module's four participants.
+    A report's figures (matplotlib, each saved as PNG and SVG) are most of its CPU: a report of
+    three short sessions took 8-11 CPU-s on a machine whose calibration loop took 2.6-4.4 CPU-s."""
     assert main(["report", str(study), "--out", str(tmp_path)]) == 0
     err = capsys.readouterr().err
     assert ("warning: M01: learning used the simulated participant's answers (3 of 6 placements by "
@@ -134,6 +137,8 @@ def test_the_terminal_warns_of_each_participant_left_out(study, tmp_path, capsys
 
 
 def test_a_study_of_the_simulated_participant_alone_is_reported_under_a_banner(tmp_path):
+    """Slow (~24 s in a loaded full run): two brief sessions through the real learner and their
+    report (its figures)."""
     study = tmp_path / "pilot"
     for seed, code in enumerate(("S01", "S02"), start=1):
         engine = SessionEngine.create(study, code, brief_config(seed))

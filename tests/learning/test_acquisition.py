@@ -89,6 +89,9 @@ def _lazy_kernel_tensors(monkeypatch) -> list[int]:
 
 
 def test_kernels_evaluated_directly_give_the_lazy_tensors_numbers(monkeypatch):
+    """Slow (28-41 s in a loaded full run): the learner's schedule of 9 interactions is run twice
+    in the test process, once with GPyTorch's lazy kernel tensors and once without, each with its
+    fits and acquisitions."""
     built = _lazy_kernel_tensors(monkeypatch)
     runs = {}
     for lazy in (True, False):

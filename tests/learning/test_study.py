@@ -76,6 +76,9 @@ def test_summary_statistics_follow_their_definitions():
 
 
 def test_an_interrupted_run_resumes_from_the_completed_trials(tmp_path, client):
+    """Slow (~26 s in a loaded full run): four simulated-study trials, each a run of the real
+    learner: two, then the interrupted third on the Dask cluster, and the third once more in the
+    test process to compare."""
     run_condition(SMALL, trials=2, seed=9, client=client, out=tmp_path, progress=False)
     path = tmp_path / SMALL.name / "trials.csv"
     done = path.read_text()

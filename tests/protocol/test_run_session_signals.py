@@ -49,6 +49,9 @@ def stages_of_trial_1(path) -> list[str]:
     # must not reach it (it took the arm away mid-trial)
     pytest.param(signal.SIGINT, True, True, id="Ctrl-C, rehearsed", marks=pytest.mark.standin)])
 def test_a_signal_mid_trial_closes_the_session_like_ctrl_c(tmp_path, signum, group, rehearse):
+    """Slow (20-30 s in a loaded full run): a ``run-session`` process whose first θ waits for its
+    learner (the forkserver imports torch), then trial 1 on the wall clock up to its hold, the
+    signal and the close."""
     study, log, lab = tmp_path / "study", tmp_path / "run.log", tmp_path / "lab.toml"
     # the simulated participant never takes the object: trial 1 holds it out until it is ended
     lab.write_text(f"{SESSION_LOOP_TOML}\n[protocol]\n{protocol_toml(SHORT_PROTOCOL)}\n{NEVER_TAKES}")

@@ -47,6 +47,8 @@ def db_counts(study: Path) -> dict[str, dict[str, int]]:
 
 @pytest.mark.parametrize("fmt", ["csv", "parquet"])
 def test_exported_tables_reload_with_documented_dtypes_and_counts(study, tmp_path, fmt):
+    """Slow in its first parameter (~40 s in a loaded full run): it pays for the module's ``study``,
+    two short sessions driven to their end through the real learner."""
     written = export_study(study, tmp_path, fmt).written
     assert set(written) == set(DTYPES)
     counts = db_counts(study)

@@ -27,6 +27,10 @@ def poses():
 
 
 def test_the_devices_panel_says_what_the_hand_link_went_through(tmp_path: Path) -> None:
+    """Slow (~30 s in a loaded full run): a ``serve`` that opens a participant (its learner's
+    forkserver imports torch) and the dashboard's page in Chromium, then Motive's link dropped,
+    lost and made again; the link's own timers take a second or two of it (LINK_STALL_S,
+    RECONNECT_TIMEOUT_S)."""
     with motive(poses) as server:
         port = server.address[1]
         with serve(tmp_path, tables=natnet_toml(server)) as served, chromium() as browser:

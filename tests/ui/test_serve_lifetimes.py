@@ -11,4 +11,7 @@ pytestmark = stress_marks()
 
 
 def test_serve_closed_while_pages_come_and_go():
+    """Slow (20-30 s in a loaded full run): the scenario runs in a child process that imports the
+    application, and its first cycle's close waits for the session's learner warm-up (the
+    forkserver's torch import; app/session/engine_side.py, WARM_UP_WAIT_S)."""
     survive("serve", 2)
