@@ -590,11 +590,11 @@ def chromium() -> Iterator[Browser]:
     block (each page of :func:`open_page` has its own) is closed when it ends.
 
     The browser is launched at the first test that asks for one and kept for the process's later
-    tests (launched again if it has gone): a launch with its Playwright driver costs ~1.45
+    tests (launched again if it no longer answers): a launch with its Playwright driver costs ~1.45
     CPU-seconds, and the suite's browser tests asked for 29 (docs/testing.md). A context is
     Chromium's unit of isolation (its own cookies, storage and cache), so what one test's pages
     stored is not seen by the next test's."""
-    if not (_LAUNCHED and _LAUNCHED[0].browser.is_connected()):
+    if not (_LAUNCHED and _answers(_LAUNCHED[0].browser)):
         close_chromium()
         driver = sync_playwright().start()
         _LAUNCHED.append(_Launched(driver, driver.chromium.launch(executable_path=CHROMIUM,
@@ -607,6 +607,16 @@ def chromium() -> Iterator[Browser]:
             context.close()
 
 
+def _answers(browser: Browser) -> bool:
+    """Whether ``browser`` answers a round trip: a browser process that ended between two tests
+    still says ``is_connected()`` until a call lets Playwright's driver tell."""
+    try:
+        browser.new_browser_cdp_session().detach()
+    except PlaywrightError:
+        return False
+    return True
+
+
 def close_chromium() -> None:
     """Close this process's Chromium and stop its Playwright driver, if :func:`chromium` launched
     them."""
@@ -614,6 +624,8 @@ def close_chromium() -> None:
         launched = _LAUNCHED.pop()
         try:
             launched.browser.close()
+        except PlaywrightError:  # the browser or its driver has gone already: nothing to close
+            pass
         finally:
             launched.driver.stop()
 
