@@ -78,10 +78,17 @@ def text_of(page: str) -> str:
                                                          flags=re.S)))
 
 
-def test_learning_csv_counts_who_gave_each_kind_of_answer(study, tmp_path):
+@pytest.fixture(scope="module")
+def report(study, tmp_path_factory):
+    """``study``'s report as ``handover report`` makes it by default: the tests that read it share
+    one (a report draws the figures of each of the four participants)."""
+    return build_report(study, tmp_path_factory.mktemp("report"))
+
+
+def test_learning_csv_counts_who_gave_each_kind_of_answer(report):
     """Slow (~20 s in a loaded full run) as the module's first test: it pays for the ``study``
-    fixture, four whole sessions of the short protocol, each with its learner process."""
-    report = build_report(study, tmp_path)
+    fixture, four whole sessions of the short protocol, each with its learner process, and for
+    ``report``."""
     table = pd.read_csv(report.tables["learning"]).set_index("participant")
     m01, c01, h01 = table.loc["M01"], table.loc["C01"], table.loc["H01"]
     assert (m01["placements_participant"], m01["placements_experimenter"],
@@ -95,8 +102,7 @@ def test_learning_csv_counts_who_gave_each_kind_of_answer(study, tmp_path):
                                                      "C01": True}
 
 
-def test_a_participant_whose_learning_was_simulated_is_left_out_and_marked(study, tmp_path):
-    report = build_report(study, tmp_path)
+def test_a_participant_whose_learning_was_simulated_is_left_out_and_marked(report):
     assert set(pd.read_csv(report.tables["table2_straightforward"])["participant"]) == {"H01"}
     assert set(pd.read_csv(report.tables["table3_perturbed"])["participant"]) == {"P01"}
     assert set(pd.read_csv(report.tables["table4_survey"])["participant"]) == {"H01", "P01"}
