@@ -122,6 +122,8 @@ def test_a_participant_whose_learning_was_simulated_is_left_out_and_marked(repor
 
 
 def test_include_simulated_counts_them_marked(study, tmp_path):
+    """Slow (~25 s in a loaded full run): the report of the module's four participants with the
+    simulated ones counted (its figures)."""
     report = build_report(study, tmp_path, include_simulated=True)
     assert set(pd.read_csv(report.tables["table2_straightforward"])["participant"]) == \
         {"H01", "M01"}

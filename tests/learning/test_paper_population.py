@@ -40,6 +40,8 @@ def test_the_paper_population_needs_the_three_parameters_of_theta():
 
 def test_pilot_runs_the_paper_population_and_names_the_allowed_spreads(tmp_path, capsys,
                                                                       on_the_cluster):
+    """Slow (~23 s in a loaded full run): ``handover pilot`` runs its simulated study (``--studies 1
+    --participants 2 --scenarios 2``) through the real learner on the Dask cluster."""
     out = tmp_path / "pilot"
     args = ["pilot", "--studies", "1", "--participants", "2", "--scenarios", "2", "--initial", "3",
             "--batches", "1", "--batch-size", "3", "--spread", "paper", "--out", str(out),

@@ -40,6 +40,8 @@ def study(tmp_path_factory):
 
 
 def test_the_export_tells_every_rows_origin(study, tmp_path):
+    """Slow (~27 s in a loaded full run) as the module's first test: it pays for ``study``, a
+    short session run by the headless session runner (its rig process and learner) to its end."""
     export_study(study, tmp_path)
     placements = read_table(tmp_path, "placements").set_index("interaction")["actor"]
     assert placements.to_dict() == {1: "participant", 2: "participant", 3: "participant",

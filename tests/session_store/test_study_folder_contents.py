@@ -53,6 +53,8 @@ def stored_rows(path: Path, table: str) -> int:
 
 
 def test_a_copy_under_another_name_is_reported_not_merged(study, tmp_path, capsys):
+    """Slow (~24 s in a loaded full run) as the module's first test: it pays for ``original``, a
+    short session to its end and one to its first placement through the real learner."""
     copy = study / "P03.sqlite"
     shutil.copy(study / "P01.sqlite", copy)
     before = fingerprint(copy)
@@ -82,6 +84,7 @@ def test_a_copy_under_another_name_is_reported_not_merged(study, tmp_path, capsy
 
 
 def test_a_read_only_study_folder_is_exported_and_reported_as_it_is(study, tmp_path):
+    """Slow (~22 s in a loaded full run): two exports and a report (its figures) of the study."""
     assert not list(study.glob("*-wal")) and not list(study.glob("*-shm"))  # closed cleanly
     writable = export_study(study, tmp_path / "from-writable")
     with read_only(study) as view:
