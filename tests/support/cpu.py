@@ -131,4 +131,4 @@ def pytest_terminal_summary(terminalreporter) -> None:
         terminalreporter.write_line(f"{seconds:8.2f}s  {nodeid}")
     terminalreporter.write_sep("=", "CPU by kind of process (every test's, summed)")
     for name, seconds in sorted(_by_kind.items(), key=lambda item: -item[1]):
-        terminalreporter.write_line(f"{seconds:8.1f}s  {name}")
+        terminalreporter.write_line(f"{seconds:8.2f}s  {name}")
