@@ -581,7 +581,7 @@ class _Launched:
 #: This test process's Chromium (:func:`chromium`), once a test has asked for one. Owned by the
 #: process's main thread, the only one that drives Playwright here; released by
 #: :func:`close_chromium` at the end of the run (tests/conftest.py, ``pytest_sessionfinish``).
-_LAUNCHED: list[_Launched] = []
+_launched: _Launched | None = None
 
 
 @contextmanager
@@ -594,12 +594,13 @@ def chromium() -> Iterator[Browser]:
     CPU-seconds, and the suite's browser tests asked for 29 (docs/testing.md). A context is
     Chromium's unit of isolation (its own cookies, storage and cache), so what one test's pages
     stored is not seen by the next test's."""
-    if not (_LAUNCHED and _answers(_LAUNCHED[0].browser)):
+    global _launched
+    if _launched is None or not _answers(_launched.browser):
         close_chromium()
         driver = sync_playwright().start()
-        _LAUNCHED.append(_Launched(driver, driver.chromium.launch(executable_path=CHROMIUM,
-                                                                  args=chromium_args())))
-    browser = _LAUNCHED[0].browser
+        _launched = _Launched(driver, driver.chromium.launch(executable_path=CHROMIUM,
+                                                             args=chromium_args()))
+    browser = _launched.browser
     try:
         yield browser
     finally:
@@ -620,14 +621,16 @@ def _answers(browser: Browser) -> bool:
 def close_chromium() -> None:
     """Close this process's Chromium and stop its Playwright driver, if :func:`chromium` launched
     them."""
-    while _LAUNCHED:
-        launched = _LAUNCHED.pop()
-        try:
-            launched.browser.close()
-        except PlaywrightError:  # the browser or its driver has gone already: nothing to close
-            pass
-        finally:
-            launched.driver.stop()
+    global _launched
+    launched, _launched = _launched, None
+    if launched is None:
+        return
+    try:
+        launched.browser.close()
+    except PlaywrightError:  # the browser or its driver has gone already: nothing to close
+        pass
+    finally:
+        launched.driver.stop()
 
 
 #: The dashboard (a laptop page) as the suite opens it. Viser's "Software WebGL rendering
