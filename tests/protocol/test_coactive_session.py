@@ -90,6 +90,8 @@ def test_the_doctor_and_the_export_agree_with_the_log(hinted, tmp_path):
 
 
 def test_a_session_resumed_before_its_hint_learns_what_an_uninterrupted_one_does(tmp_path):
+    """Slow: two sessions driven to interaction 7, each trial simulated and each θ planned by the
+    preference learner (BoTorch fits of its GP)."""
     def learned(study, stop_at_hint: bool) -> tuple[list[Theta], list]:
         engine = SessionEngine.create(study, "R01", study_config(5, **SMALL))
         participant = SimulatedParticipant(5, PICKY)

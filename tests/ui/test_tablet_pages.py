@@ -59,6 +59,8 @@ def pages_open(tablet: Tablet, count: int) -> None:
 
 
 def test_a_second_page_is_not_offered_the_scale(tmp_path: Path) -> None:
+    """Slow: a session's first handover on the wall clock (rig under SCHED_FIFO, the learner's
+    imports) up to its placement, with two tablet pages open in Chromium."""
     # the rig under SCHED_FIFO, as the served tests run it: at normal priority a full run starved
     # it for 0.5 s mid-reach, the backstop killed it as designed, and the trial was never placed
     runner = SessionRunner(tmp_path / "study", LAB, auto_experimenter=True, realtime_priority=True)
