@@ -1,7 +1,6 @@
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 # Each test process computes on one thread: the suite runs three xdist workers on two cores, and
@@ -105,10 +104,3 @@ def recorded_session(tmp_path_factory):
     from support.recorded_session import record_session
 
     return record_session(tmp_path_factory.mktemp("recorded-session"))
-
-
-def pytest_sessionfinish(session: pytest.Session) -> None:
-    """Close the Chromium a browser test launched in this process (support.browser.chromium keeps
-    one per test process); nothing is imported where no browser test ran."""
-    if (browser := sys.modules.get("support.browser")) is not None:
-        browser.close_chromium()

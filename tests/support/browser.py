@@ -31,7 +31,7 @@ from typing import TypeVar
 
 import playwright
 import viser
-from playwright.sync_api import Browser, ConsoleMessage, Page, Playwright, sync_playwright
+from playwright.sync_api import Browser, ConsoleMessage, Page, sync_playwright
 from playwright.sync_api import Error as PlaywrightError
 from viser import _messages
 
@@ -570,67 +570,20 @@ def ports_of(served: Served) -> tuple[int, int]:
     return (int(served.tablet_url.rsplit(":", 1)[1]), int(served.dashboard_url.rsplit(":", 1)[1]))
 
 
-@dataclass
-class _Launched:
-    """Playwright's driver and the Chromium it launched, kept by this test process."""
-
-    driver: Playwright
-    browser: Browser
-
-
-#: This test process's Chromium (:func:`chromium`), once a test has asked for one. Owned by the
-#: process's main thread, the only one that drives Playwright here; released by
-#: :func:`close_chromium` at the end of the run (tests/conftest.py, ``pytest_sessionfinish``).
-_launched: _Launched | None = None
-
-
 @contextmanager
 def chromium() -> Iterator[Browser]:
-    """This test process's Chromium, with no browser context open; every context opened in the
-    block (each page of :func:`open_page` has its own) is closed when it ends.
+    """A Chromium of its own for the block, with its Playwright driver, closed when it ends.
 
-    The browser is launched at the first test that asks for one and kept for the process's later
-    tests (launched again if it no longer answers): a launch with its Playwright driver costs ~1.45
-    CPU-seconds, and the suite's browser tests asked for 29 (docs/testing.md). A context is
-    Chromium's unit of isolation (its own cookies, storage and cache), so what one test's pages
-    stored is not seen by the next test's."""
-    global _launched
-    if _launched is None or not _answers(_launched.browser):
-        close_chromium()
-        driver = sync_playwright().start()
-        _launched = _Launched(driver, driver.chromium.launch(executable_path=CHROMIUM,
-                                                             args=chromium_args()))
-    browser = _launched.browser
-    try:
-        yield browser
-    finally:
-        for context in browser.contexts:
-            context.close()
-
-
-def _answers(browser: Browser) -> bool:
-    """Whether ``browser`` answers a round trip: a browser process that ended between two tests
-    still says ``is_connected()`` until a call lets Playwright's driver tell."""
-    try:
-        browser.new_browser_cdp_session().detach()
-    except PlaywrightError:
-        return False
-    return True
-
-
-def close_chromium() -> None:
-    """Close this process's Chromium and stop its Playwright driver, if :func:`chromium` launched
-    them."""
-    global _launched
-    launched, _launched = _launched, None
-    if launched is None:
-        return
-    try:
-        launched.browser.close()
-    except PlaywrightError:  # the browser or its driver has gone already: nothing to close
-        pass
-    finally:
-        launched.driver.stop()
+    Launched for each block, not kept for a test process's later tests: a kept one (2026-11-30)
+    saved ~2.5 CPU-s a launch here, and in its first CI run a screenshot of a page in it waited
+    60 s for Chromium and failed, a stall not seen in the runs before with a browser a block
+    (docs/testing.md, "One Chromium a test process")."""
+    with sync_playwright() as driver:
+        browser = driver.chromium.launch(executable_path=CHROMIUM, args=chromium_args())
+        try:
+            yield browser
+        finally:
+            browser.close()
 
 
 #: The dashboard (a laptop page) as the suite opens it. Viser's "Software WebGL rendering
