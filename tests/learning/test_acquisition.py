@@ -39,6 +39,8 @@ def _evaluations(monkeypatch, acquisition_class) -> list[int]:
 
 def test_a_looser_tolerance_ends_the_acquisition_search_sooner_inside_the_box(trained,
                                                                                monkeypatch):
+    """Slow: the module's learner is trained here (12 interactions of its schedule: model
+    fits and qNEI searches), then two qNEI searches."""
     calls = _evaluations(monkeypatch, qNoisyExpectedImprovement)
     model = trained.model.model
     best_x = torch.tensor(trained.data.points[0], dtype=torch.float64)

@@ -25,6 +25,8 @@ def _unit(learner, theta):
 
 
 def test_in_sample_strategies_return_observed_points_and_the_box_search_a_higher_mean(trained):
+    """Slow: the module's learner is trained here (12 interactions of its schedule: model
+    fits and qNEI searches), then a search of the box for the posterior mean's maximum."""
     model = trained.model.model
     X, _ = trained.data.tensors()
     mean, std = posterior_at(model, X)

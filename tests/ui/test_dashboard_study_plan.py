@@ -94,6 +94,7 @@ def test_eight_participants_created_as_the_plan_proposes_make_balanced_groups(tm
 
 
 def test_without_a_plan_no_scenario_is_chosen_for_the_experimenter(tmp_path: Path):
+    """Slow: a `serve` and the dashboard's page in Chromium, unlocked, for one refused creation."""
     with serve(tmp_path, protocol_toml=BRIEF_TOML) as served, chromium() as browser:
         dashboard = open_page(browser, served.dashboard_url, size=(1280, 720))
         unlock_dashboard(dashboard)
