@@ -31,6 +31,8 @@ def _log_likelihood(f: torch.Tensor, pairs: list[tuple[int, int]], scales: torch
        comparisons=st.lists(st.tuples(st.sampled_from(PAIRS), st.floats(1.0, 5.0)), min_size=1,
                             max_size=6))
 def test_probability_gradient_and_hessian_are_those_of_the_scaled_probit(utilities, comparisons):
+    """Slow: Hypothesis's default 100 examples, each checked against the log-likelihood's
+    gradient and Hessian computed by torch.func."""
     f = torch.tensor(utilities, dtype=torch.float64)
     pairs = [pair for pair, _ in comparisons]
     scales = torch.tensor([s for _, s in comparisons], dtype=torch.float64)
