@@ -72,6 +72,8 @@ def test_the_terminal_and_the_page_say_how_the_validation_was_shown_without_mark
 
 def test_a_participant_without_data_is_left_out_of_the_figures_and_every_score_has_its_n(
         study, tmp_path):
+    """Slow: a report of the module's study with every figure drawn (Fig. 4 and the learning
+    curve of each participant, the replays of the safety record's extremes), each saved twice."""
     report = build_report(study, tmp_path / "r", include_simulated=True)
     assert {name for name in report.figures if not name.startswith("safety-")} == \
         {"fig4-V01", "fig4-V02", "learning-V01", "learning-V02"}
