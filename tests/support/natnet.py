@@ -4,7 +4,7 @@ and the ``[hand_source]`` that reads it with the real ``natnet`` client."""
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 
 import numpy as np
 
@@ -12,6 +12,7 @@ from robot_io.hands.config import NatNetSource
 from robot_io.hands.frame import FrameTransform
 from robot_io.standins.natnet import PROTOCOL_VERSION, NatNetStandin, Poses, RigidBodySpec
 from support.hand_replay import TRACKER
+from support.priority import realtime_threads
 
 #: The tests' tracker frame (turned and offset as :data:`support.hand_replay.TRACKER`), in metres as
 #: NatNet streams.
@@ -27,11 +28,14 @@ def to_tracker_m(base_xyz: np.ndarray) -> tuple[float, float, float]:
 @contextmanager
 def motive(poses: Poses, bodies: Sequence[RigidBodySpec] = (HAND, OBJECT),
            rate_hz: float = 120.0, port: int = 0,
-           protocol: tuple[int, int] = PROTOCOL_VERSION) -> Iterator[NatNetStandin]:
+           protocol: tuple[int, int] = PROTOCOL_VERSION, realtime: bool = False
+           ) -> Iterator[NatNetStandin]:
     """A stand-in Motive streaming ``poses`` on 127.0.0.1 (port 0: the kernel's free port; the
     port of one that closed: that Motive restarted) in NatNet ``protocol``; closed when the block
-    ends."""
-    server = NatNetStandin(bodies, poses, port=port, rate_hz=rate_hz, protocol=protocol).start()
+    ends. ``realtime``: its threads under SCHED_FIFO, as Motive on a PC of its own, while the
+    calling thread keeps its policy (a ``serve`` it starts inherits nothing)."""
+    with realtime_threads() if realtime else nullcontext():
+        server = NatNetStandin(bodies, poses, port=port, rate_hz=rate_hz, protocol=protocol).start()
     try:
         yield server
     finally:

@@ -5,19 +5,16 @@ and started again on its port is connected again, and the panel says so."""
 
 from __future__ import annotations
 
-import contextlib
 import os
 import re
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from support.browser import chromium, open_page, open_participant, serve, shot, what_it_showed
 from support.natnet import HAND, OBJECT, motive, natnet_toml, to_tracker_m
-from support.priority import realtime_threads
 from support.waiting import wait_for
 
-from robot_io.standins.natnet import NatNetStandin, pose_at
+from robot_io.standins.natnet import pose_at
 
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
@@ -29,24 +26,14 @@ def poses():
     return {HAND.id: pose_at(to_tracker_m(A)), OBJECT.id: pose_at(to_tracker_m((0.4, -0.2, 0.45)))}
 
 
-@contextlib.contextmanager
-def motive_at_fifo(*args, **kwargs) -> Iterator[NatNetStandin]:
-    """Motive's stand-in with its threads under SCHED_FIFO, as Motive on a PC of its own; the test's
-    thread, which starts ``serve`` and drives the pages, keeps its policy. On the normal policy, in
-    a full run on a slow machine, the sender paused 0.5 s twice more and Devices said "link lost
-    3×" where the test makes it lose the link once."""
-    with contextlib.ExitStack() as stack:
-        with realtime_threads():
-            server = stack.enter_context(motive(*args, **kwargs))
-        yield server
-
-
 def test_the_devices_panel_says_what_the_hand_link_went_through(tmp_path: Path) -> None:
     """Slow (~30 s in a loaded full run): a ``serve`` that opens a participant (its learner's
     forkserver imports torch) and the dashboard's page in Chromium, then Motive's link dropped,
     lost and made again; the link's own timers take a second or two of it (LINK_STALL_S,
     RECONNECT_TIMEOUT_S)."""
-    with motive_at_fifo(poses) as server:
+    # Motive's threads under SCHED_FIFO: on the normal policy, in a full run on a slow machine, the
+    # sender paused 0.5 s twice more and Devices said "link lost 3×" where the test loses it once
+    with motive(poses, realtime=True) as server:
         port = server.address[1]
         with serve(tmp_path, tables=natnet_toml(server)) as served, chromium() as browser:
             dashboard = open_page(browser, served.dashboard_url, size=(1400, 900))
@@ -65,7 +52,7 @@ def test_the_devices_panel_says_what_the_hand_link_went_through(tmp_path: Path) 
             server.close()  # Motive is gone ...
             wait_for(lambda: "link lost at" in devices(), "the lost link in Devices", seen=devices)
             shot(dashboard, SHOTS, "hand-link-lost")
-            with motive_at_fifo(poses, port=port):  # ... and back on its port
+            with motive(poses, port=port, realtime=True):  # ... and back on its port
                 shown = wait_for(lambda: re.search(r"link lost 1× and back, the last time after "
                                                    r"\d+\.\d s", devices()),
                                  "the link back in Devices", seen=devices)
