@@ -37,6 +37,8 @@ def fourth_question(monkeypatch: pytest.MonkeyPatch) -> Question:
 
 def test_a_fourth_question_reaches_the_tablet_the_store_the_export_and_the_report(
         fourth_question: Question, tmp_path: Path):
+    """Slow: a brief session through the engine and its real learner, then the study's export
+    and its report with every figure."""
     study = tmp_path / "study"
     config = brief_config(seed=3)
     engine = SessionEngine.create(study, "P01", config)

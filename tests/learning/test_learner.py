@@ -68,6 +68,8 @@ def _always_warning_optimizer(mll, closure=None, **kwargs):
 
 
 def test_a_failed_fit_keeps_the_previous_model_and_is_reported(make_learner, monkeypatch):
+    """Slow: five interactions of the learner's schedule (model fits and qNEI searches), then a fit
+    that BoTorch tries again and again before it fails, each try a whole scipy fit."""
     learner = make_learner()
     drive(learner, 5)  # the initial batch and θ* opening batch 1
     previous = learner.model.model

@@ -94,6 +94,8 @@ def test_without_the_opt_in_no_prior_is_built(tmp_path):
 
 
 def test_the_configured_recommendation_chooses_the_best_interaction(tmp_path):
+    """Slow: a whole session through the engine and its real learner (a fit after each placement,
+    a search of the box for each batch and for θ*)."""
     engine = SessionEngine.create(tmp_path / "study", "P01",
                                   config(seed=3, recommendation="posterior_mean"))
     try:

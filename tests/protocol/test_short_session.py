@@ -57,6 +57,8 @@ def dashboard_line(engine: SessionEngine) -> str | None:
 
 
 def test_every_batch_is_checked_and_learning_stops_with_its_reason(stopped):
+    """Slow where it runs first: the module's ``stopped`` session is driven to its end here
+    through the engine and its real learner (fits, searches and the gain check of each batch)."""
     checks, stops = kinds(stopped, "learning_checked"), kinds(stopped, "learning_stopped")
     assert len(stops) == 1
     stop = stops[0]
@@ -107,6 +109,8 @@ def test_the_dashboard_and_the_report_say_why_learning_stopped(stopped, tmp_path
 
 
 def test_a_rule_that_never_fires_checks_every_batch_and_runs_the_schedule(tmp_path):
+    """Slow: a session through the engine and its real learner up to the questionnaire (a fit
+    after each placement and hint, a search for each batch, the gain check after each batch)."""
     strict = {**LOOSE, "gain_chance": 0.001, "gain_preference": 0.55}
     engine = SessionEngine.create(tmp_path, "P02", study_config(
         4, Scenario.PERTURBED, **{**SMALL, "learning_batches": 1, "validation_batches": 1},

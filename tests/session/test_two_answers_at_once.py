@@ -66,6 +66,8 @@ def session(tmp_path_factory):
 
 
 def test_both_answers_are_recorded_and_the_first_counts(session):
+    """Slow: the module's ``session`` fixture runs here, a runner on simulated time with its rig
+    process and learner up to handover 3, then the study's report with its figures."""
     events, hints, *_ = session
     assert [(h.interaction, h.hint, h.actor) for h in hints] == [
         (1, Hint.LATER, Rater.EXPERIMENTER), (2, None, Rater.PARTICIPANT)]

@@ -30,6 +30,8 @@ EDGES_JS = """e => { const icon = e.querySelector('svg').getBoundingClientRect()
 
 
 def test_the_locked_dashboard_shows_no_chrome_and_stop_arms_icon_stands_clear(tmp_path: Path):
+    """Slow: a `serve` and the dashboard's page in Chromium, locked until viser's chrome has folded
+    away, then unlocked, with two screenshots."""
     with serve(tmp_path) as served, chromium() as browser:
         page = open_page(browser, served.dashboard_url, size=(1280, 720))
         wait_text(page, "Enter the dashboard token")
