@@ -170,9 +170,12 @@ class DashboardClient:
 
     def __init__(self, client: viser.ClientHandle, runner: SessionRunner, gate: TokenGate,
                  windows: DashboardWindows, address: str, on_windows: Callable[[], None],
-                 blind: bool = False) -> None:
+                 listed: Callable[[], bool], blind: bool = False) -> None:
         self.client, self.runner, self.gate, self.blind = client, runner, gate, blind
         self.windows, self.address, self._on_windows = windows, address, on_windows
+        #: whether viser still lists the page: it closes a page's connection before it tells us
+        #: (``_disconnect``), and drops (with a warning) what is drawn for it meanwhile
+        self._listed = listed
         self.live: LiveView | None = None
         self.replay: Replay | None = None
         self._code: str | None = "-"
@@ -180,6 +183,7 @@ class DashboardClient:
         self._lock = threading.Lock()  # over every change of this page's panels, and its close
         self._closed = False  # the page has gone: nothing is drawn for it (a token answered later
         #                       unlocks nothing then)
+        self._replays_ended = False  # the page or the server closes: no replay starts
         if gate.recognised(client.client_id):  # unlocked in this browser before
             self.refresh(runner.view, rebuild=True)
         else:
@@ -244,16 +248,24 @@ class DashboardClient:
     def tick(self) -> None:
         """The live view's next frame (the ticker's thread), unless a replay draws or the page left."""
         with self._lock:
-            if (not self._closed and self.live is not None
+            if (not self._closed and self.live is not None and self._listed()
                     and (self.replay is None or not self.replay.running)):
                 self.live.update(self.runner.live(STRIDE)[1])
 
     def close(self) -> None:
         """The page has gone: no more refreshes (a token's answer that waited unlocks nothing),
-        frames or replay for it."""
+        frames or replays for it; a running replay's thread is joined."""
         with self._lock:
             self._closed = True
-        self.cancel_replay()
+        self.end_replays()
+
+    def end_replays(self) -> None:
+        """End this page's replay and wait for its thread; none starts after it (the page's close,
+        and the server's before the session closes)."""
+        with self._lock:
+            self._replays_ended, replay = True, self.replay
+        if replay is not None:
+            replay.stop()
 
     def _build(self, view: RunnerView) -> None:
         gui = self.client.gui
@@ -379,15 +391,29 @@ class DashboardClient:
         trial_index = int(choice.split()[1])
         rows = self.runner.trial_rows(trial_index)
         self.cancel_replay()
-        self.replay_status.content = f"replaying trial {trial_index} at {self.replay_speed.value}"
-        assert self.live is not None, "the replay's controls are built with the live view"
-        self.replay = Replay(self.live, rows, SPEEDS[self.replay_speed.value],
-                             busy=lambda: self.runner.view.step is Step.RUNNING,
-                             on_end=self._replay_ended)
+        with self._lock:
+            if self._replays_ended:
+                raise ValueError("the dashboard is closing: no replay")
+            live = self.live
+            assert live is not None, "the replay's controls are built with the live view"
+            self.replay_status.content = (f"replaying trial {trial_index} at "
+                                          f"{self.replay_speed.value}")
+            self.replay = Replay(lambda rows: self._replay_frame(live, rows), rows,
+                                 SPEEDS[self.replay_speed.value],
+                                 busy=lambda: self.runner.view.step is Step.RUNNING,
+                                 on_end=self._replay_ended)
+
+    def _replay_frame(self, live: LiveView, rows: dict[str, np.ndarray]) -> None:
+        """A replay's frame (its thread), drawn while the page is open and still shows ``live``."""
+        with self._lock:
+            if not self._closed and self.live is live and self._listed():
+                live.draw(rows)
 
     def _replay_ended(self, why: str) -> None:
         """The replay's last frame stays until the live view has new rows (the next trial)."""
-        self.replay_status.content = why
+        with self._lock:
+            if not self._closed and self._listed():
+                self.replay_status.content = why
 
     def cancel_replay(self) -> None:
         if self.replay is not None:
@@ -425,6 +451,7 @@ class Dashboard:
         self.source_of = source_of
         self.clients: dict[int, DashboardClient] = {}
         self.windows = DashboardWindows()
+        self._replays_ended = False  # the server closes: no page starts a replay
         server.gui.configure_theme(show_logo=False, show_share_button=False, control_width="large")
         server.gui.main_panel.dock_right()
         server.gui.main_panel.set_width(520)
@@ -436,7 +463,10 @@ class Dashboard:
         client.scene.configure_environment_map(hdri=None)
         self.clients[client.client_id] = DashboardClient(
             client, self.runner, self.gate, self.windows, self.source_of(client.client_id),
-            self._windows_changed, self.blind)
+            self._windows_changed, lambda: client.client_id in self.server.get_clients(),
+            self.blind)
+        if self._replays_ended:  # a page that came while the server closes
+            self.clients[client.client_id].end_replays()
 
     def _disconnect(self, client: viser.ClientHandle) -> None:
         page = self.clients.pop(client.client_id, None)
@@ -457,3 +487,17 @@ class Dashboard:
     def tick(self) -> None:
         for client in list(self.clients.values()):
             client.tick()
+
+    def end_replays(self) -> None:
+        """Every page's replay ended and its thread joined; none starts after it (the server's
+        close, before the session's)."""
+        self._replays_ended = True
+        for client in list(self.clients.values()):
+            client.end_replays()
+
+    def close_pages(self) -> None:
+        """Nothing more is drawn on any page (the server's close, after the session's and before
+        viser stops: its stop closes every connection first, and one page's disconnect would
+        refresh the others)."""
+        for client in list(self.clients.values()):
+            client.close()

@@ -4,6 +4,10 @@ The rows come from the store through :meth:`SessionRunner.trial_rows` (the recor
 a frame at wall time w after the start draws every row with trial time t ≤ t0 + speed · w, so the
 robot, the hand and the coupling plots move as they did, ``speed`` times as fast. A trial that starts
 ends the replay (the live view belongs to the running trial).
+
+The replay's thread draws only through ``draw`` and ``on_end``, which its page guards (the page's
+lock: nothing is drawn for a page that has gone); the page ends it with :meth:`Replay.stop`, which
+waits for the thread, before the page or the server is closed.
 """
 
 from __future__ import annotations
@@ -14,8 +18,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from app.ui.live_view import LiveView
-
 #: Replay speeds the dashboard offers (1× is real time).
 SPEEDS = {"1×": 1.0, "0.5×": 0.5, "0.25×": 0.25}
 #: Frames per second of a replay.
@@ -23,14 +25,15 @@ FPS = 20.0
 
 
 class Replay:
-    """One replay on one :class:`LiveView`, on its own thread; ``busy`` says when a trial runs."""
+    """One replay drawn frame by frame with ``draw`` (a live view's, :meth:`LiveView.draw`), on its
+    own thread; ``busy`` says when a trial runs, ``on_end`` is told why the replay ended."""
 
-    def __init__(self, live: LiveView, rows: dict[str, np.ndarray], speed: float,
-                 busy: Callable[[], bool], on_end: Callable[[str], None]) -> None:
+    def __init__(self, draw: Callable[[dict[str, np.ndarray]], None], rows: dict[str, np.ndarray],
+                 speed: float, busy: Callable[[], bool], on_end: Callable[[str], None]) -> None:
         if not 0.0 < speed <= 1.0:
             raise ValueError(f"speed = {speed} must lie in (0, 1] (1× or slower)")
         keep = np.isfinite(rows["t"])
-        self.live, self.speed = live, speed
+        self._draw, self.speed = draw, speed
         self.rows = {name: values[keep] for name, values in rows.items()}
         self._busy, self._on_end = busy, on_end
         self._cancel = threading.Event()
@@ -43,7 +46,13 @@ class Replay:
         return self._thread.is_alive()
 
     def cancel(self) -> None:
+        """End the replay at its next frame (from any thread; returns at once)."""
         self._cancel.set()
+
+    def stop(self) -> None:
+        """End the replay and wait until its thread has ended (it draws nothing after this)."""
+        self._cancel.set()
+        self._thread.join()
 
     def _run(self) -> None:
         t = self.rows["t"]
@@ -59,7 +68,7 @@ class Replay:
                 break
             now = t0 + self.speed * (time.monotonic() - began)
             count = max(int(np.searchsorted(t, now, side="right")), 2)
-            self.live.draw({name: values[:count] for name, values in self.rows.items()})
+            self._draw({name: values[:count] for name, values in self.rows.items()})
             self.frames += 1
             if count < len(t):
                 self._cancel.wait(1.0 / FPS)

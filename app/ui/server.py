@@ -96,10 +96,13 @@ class HandoverServers:
                 log.exception("live view update failed")
 
     def close(self) -> None:
-        """End the live view's ticker (a reader of the rig's samples), then stop the arm and end
-        the session cleanly, then the servers (the pages' STOP ARM stays until the arm is stopped)."""
+        """End the live view's ticker (a reader of the rig's samples) and the dashboard's replays
+        (their threads draw on the pages), then stop the arm and end the session cleanly, then the
+        dashboard's pages and the servers (the pages' STOP ARM stays until the arm is stopped)."""
         self._closed.set()
         self._ticker.join()
+        self.dashboard.end_replays()
         self.runner.close()
+        self.dashboard.close_pages()
         self.tablet_server.stop()
         self.dashboard_server.stop()

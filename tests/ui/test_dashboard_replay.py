@@ -8,7 +8,11 @@ in recorded order, ending at the trial's last sample; the coupling plots end as 
 is drawn as the UR5's kinematic links on the rehearsal rig (the stand-in UR reports joint angles):
 every set of link points sent is the forward kinematics of a stored sample's joint angles, in order,
 ending at the last; on the mock arm (no joint angles) as the stand-in arm. A trial that starts ends a
-replay, and the store refuses a replay while a trial runs.
+replay, and the store refuses a replay while a trial runs. Once that trial has ended, ``serve``'s close
+(Ctrl-C) during a slow replay, with a second dashboard window open, sends nothing on a connection
+viser has closed (its warning): the replay's thread has ended before the servers stop, and no page
+is drawn once the session has closed (viser's stop closes every connection before it tells us of
+one, and a window's close refreshes the others). Both warned before.
 """
 
 from __future__ import annotations
@@ -30,8 +34,8 @@ from support.browser import (
     what_it_showed,
 )
 from support.engine import SHORT_PROTOCOL
-from support.runner import READY_CEILING_S, Probe, busy_threads, ready, run_trial
-from support.waiting import wait_for
+from support.runner import READY_CEILING_S, Probe, busy_threads, ended, ready, run_trial
+from support.waiting import CEILING_S, wait_for
 
 from app.protocol.errors import RefusedAction
 from app.session.config import LabConfig
@@ -79,10 +83,11 @@ def drawn_joints(segments: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.parametrize("rig", ["mock", pytest.param("rehearsal", marks=pytest.mark.standin)])
-def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
-    """Slow on the rehearsal rig (about a minute alone): a whole trial on the wall clock through the
-    stand-in UR, its learner's next plan, then the replay, which streams every stored sample to
-    Chromium at the recorded rate."""
+def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str,
+                                           recwarn: pytest.WarningsRecorder) -> None:
+    """Slow (about a minute alone on the rehearsal rig): two trials on the wall clock (through the
+    stand-in UR there), the replay, which streams every stored sample to Chromium at the recorded
+    rate, and a second dashboard window."""
     rehearsal = Rehearsal(LAB) if rig == "rehearsal" else None
     # The rig process under SCHED_FIFO on either rig, as a lab runs it (support.browser.serve does
     # the same): on the normal policy beside a hog the mock rig wrote no sample for 0.5 s, the
@@ -91,6 +96,7 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
     # port 0: any free port each; the dashboard's is read from its server below
     servers = HandoverServers(runner, ServeOptions(tablet_port=0, dashboard_port=0, token=TOKEN))
     probe = Probe(runner)
+    closed = False
     try:
         runner.set_auto(True)  # the simulated participant places it (no tablet needed: simulated rig)
         runner.open("P01", Scenario.PERTURBED)
@@ -157,9 +163,30 @@ def test_a_stored_trial_replays_its_samples(tmp_path: Path, rig: str) -> None:
             dashboard.get_by_role("option", name="0.25×").click()
             click(dashboard, "Replay")
             wait_text(dashboard, "replaying trial 1 at 0.25×")
-            runner.start_trial()  # the simulated participant is on: no tablet needed (mock arm)
+            second = runner.start_trial().trial_index  # the simulated participant is on (mock arm)
             wait_text(dashboard, "replay ended: a trial started")
             with pytest.raises(RefusedAction, match="replay refused while a trial runs"):
                 runner.trial_rows(trial.trial_index)
+
+            # serve closed during a replay (Ctrl-C): the replay's thread, which draws on the page,
+            # has ended before the servers stop; none draws on a connection viser has closed
+            probe.wait(lambda v: ended(v, second) is not None, what=f"trial {second} ended",
+                       timeout=CEILING_S + READY_CEILING_S)
+            # a second window: the first one's disconnect at the close refreshes the others
+            other = open_page(browser, f"http://127.0.0.1:{servers.dashboard_server.get_port()}",
+                              size=(1366, 768))
+            unlock_dashboard(other)
+            wait_text(dashboard, "2 dashboard windows are open")
+            click(dashboard, "Replay")
+            wait_text(dashboard, "at 0.25×")
+            replay = client.replay
+            wait_for(lambda: replay.frames > 0, "the slow replay's first frame drawn",
+                     seen=lambda: f"status {client.replay_status.content!r}")
+            servers.close()
+            closed = True
+            assert not replay.running, "the replay's thread outlived serve's close"
+        dead_writes = [str(w.message) for w in recwarn if "on a closed connection" in str(w.message)]
+        assert not dead_writes, dead_writes
     finally:
-        servers.close()
+        if not closed:
+            servers.close()
